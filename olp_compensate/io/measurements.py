@@ -1,0 +1,221 @@
+"""Measurement CSV, version 1 (DESIGN.md "Formats at the edges").
+
+Lines starting with ``#`` are metadata or comments; then one header row and one row per
+measured point. Required: ``q1_deg`` .. ``qN_deg`` (``qK_mm`` for a prismatic joint) and
+``x_mm, y_mm, z_mm`` (device frame). Optional: ``pose``, ``point`` (default ``tcp``),
+``qw, qx, qy, qz`` (measured orientation, full-pose devices), ``payload_kg``,
+``temperature_c``, ``time_s``, ``direction_K`` (approach direction of joint K, +1/-1).
+Other columns are kept and reported, never fatal.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from .atomic import write_text_atomic
+
+FORMAT_LINE = "# olp-compensate measurements v1"
+KNOWN_OPTIONAL = ("pose", "point", "qw", "qx", "qy", "qz", "payload_kg", "temperature_c",
+                  "time_s")
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Measured points, one row each, in the units of the file converted to SI.
+
+    ``joints``: (m, n) rad (m for prismatic); ``points``: (m, 3) device frame, m;
+    ``pose_ids`` and ``point_names``: (m,) strings; ``orientation``: (m, 4) quaternion
+    (w, x, y, z) or None; optional per-row columns (m,) or None; ``extra``: unknown columns,
+    kept as text; ``rows``: (m,) 1-based line numbers in the file (for messages).
+    """
+
+    joints: np.ndarray
+    points: np.ndarray
+    pose_ids: np.ndarray
+    point_names: np.ndarray
+    orientation: np.ndarray | None = None
+    payload_kg: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
+    time_s: np.ndarray | None = None
+    directions: np.ndarray | None = None
+    extra: dict[str, list[str]] = field(default_factory=dict)
+    metadata: list[str] = field(default_factory=list)
+    rows: np.ndarray | None = None
+    source: str = "<measurements>"
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_poses(self) -> int:
+        return len(np.unique(self.pose_ids))
+
+    def subset(self, mask: np.ndarray) -> "Measurements":
+        """The rows selected by a boolean mask or index array."""
+        def pick(a):
+            return None if a is None else a[mask]
+        return Measurements(
+            joints=self.joints[mask], points=self.points[mask], pose_ids=self.pose_ids[mask],
+            point_names=self.point_names[mask], orientation=pick(self.orientation),
+            payload_kg=pick(self.payload_kg), temperature_c=pick(self.temperature_c),
+            time_s=pick(self.time_s), directions=pick(self.directions),
+            extra={k: list(np.asarray(v, dtype=object)[mask]) for k, v in self.extra.items()},
+            metadata=self.metadata, rows=pick(self.rows), source=self.source)
+
+
+def joint_columns(joint_units: list[str]) -> list[str]:
+    """CSV names of the joint columns, e.g. ``['q1_deg', ..., 'q6_deg']``."""
+    return [f"q{k + 1}_{unit}" for k, unit in enumerate(joint_units)]
+
+
+def _number(text: str, source: str, line: int, column: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise DataError(f"{source}:{line}: column '{column}': '{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise DataError(f"{source}:{line}: column '{column}': {text} is not a finite number")
+    return value
+
+
+def parse_measurements(text: str, joint_units: list[str], source: str = "<measurements>",
+                       ) -> Measurements:
+    """Parse measurement CSV text for a robot whose joints read in ``joint_units``
+    (``'deg'`` or ``'mm'`` per joint)."""
+    lines = text.splitlines()
+    metadata = []
+    start = 0
+    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
+        if lines[start].startswith("#"):
+            metadata.append(lines[start])
+        start += 1
+    if start == len(lines):
+        raise DataError(f"{source}: no header row (expected columns like q1_deg, ..., x_mm)")
+    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
+    header = [h.strip() for h in next(reader)]
+    expected_joints = joint_columns(joint_units)
+    present_joints = sorted((h for h in header if h.startswith("q") and h[1:2].isdigit()),
+                            key=lambda h: int(h[1:].split("_")[0]))
+    if len(present_joints) != len(expected_joints) and present_joints:
+        raise DataError(f"{source}:{start + 1}: the file has {len(present_joints)} joint columns "
+                        f"({', '.join(present_joints)}) but the robot has {len(expected_joints)} "
+                        f"joints ({', '.join(expected_joints)})")
+    for name in expected_joints + ["x_mm", "y_mm", "z_mm"]:
+        if name not in header:
+            raise DataError(f"{source}:{start + 1}: missing column '{name}' "
+                            f"(header has: {', '.join(header)})")
+    index = {h: k for k, h in enumerate(header)}
+    has_orientation = all(c in index for c in ("qw", "qx", "qy", "qz"))
+    direction_cols = [h for h in header if h.startswith("direction_")]
+    known = set(expected_joints) | {"x_mm", "y_mm", "z_mm"} | set(KNOWN_OPTIONAL) | set(direction_cols)
+    extra_cols = [h for h in header if h not in known]
+
+    joints, points, poses, names, quats = [], [], [], [], []
+    payload, temperature, time_s, directions, rows = [], [], [], [], []
+    extra: dict[str, list[str]] = {h: [] for h in extra_cols}
+    for offset, record in enumerate(reader):
+        line = start + 2 + offset
+        if not record or all(not c.strip() for c in record):
+            continue
+        if record[0].startswith("#"):
+            continue
+        if len(record) != len(header):
+            raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
+        cell = {h: record[k].strip() for h, k in index.items()}
+        joints.append([_number(cell[c], source, line, c) for c in expected_joints])
+        points.append([_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
+        poses.append(cell.get("pose") or str(len(poses)))
+        names.append(cell.get("point") or "tcp")
+        if has_orientation:
+            quats.append([_number(cell[c], source, line, c) for c in ("qw", "qx", "qy", "qz")])
+        for column, target in (("payload_kg", payload), ("temperature_c", temperature),
+                               ("time_s", time_s)):
+            if column in index:
+                target.append(_number(cell[column], source, line, column) if cell[column] else 0.0)
+        if direction_cols:
+            directions.append([_number(cell[c], source, line, c) if cell[c] else 0.0
+                               for c in direction_cols])
+        for h in extra_cols:
+            extra[h].append(cell[h])
+        rows.append(line)
+    if not rows:
+        raise DataError(f"{source}: no data rows after the header")
+    scale = np.array([np.pi / 180.0 if u == "deg" else 1e-3 for u in joint_units])
+    quat_array = None
+    if has_orientation:
+        quat_array = np.array(quats)
+        bad = np.linalg.norm(quat_array, axis=1) < 1e-9
+        if np.any(bad):
+            raise DataError(f"{source}:{rows[int(np.argmax(bad))]}: quaternion of zero length")
+    direction_array = None
+    if direction_cols:
+        direction_array = np.zeros((len(rows), len(joint_units)))
+        for k, c in enumerate(direction_cols):
+            try:
+                j = int(c.split("_")[1]) - 1
+            except ValueError:
+                raise DataError(f"{source}: column '{c}': expected direction_K with K a joint number") from None
+            if not 0 <= j < len(joint_units):
+                raise DataError(f"{source}: column '{c}': the robot has no joint {j + 1}")
+            direction_array[:, j] = np.sign(np.array(directions)[:, k])
+    return Measurements(
+        joints=np.array(joints) * scale, points=np.array(points) * 1e-3,
+        pose_ids=np.array(poses, dtype=object), point_names=np.array(names, dtype=object),
+        orientation=quat_array,
+        payload_kg=np.array(payload) if payload else None,
+        temperature_c=np.array(temperature) if temperature else None,
+        time_s=np.array(time_s) if time_s else None, directions=direction_array,
+        extra=extra, metadata=metadata, rows=np.array(rows), source=source)
+
+
+def read_measurements(path: str | Path, joint_units: list[str]) -> Measurements:
+    """Read a measurement CSV file (see :func:`parse_measurements`)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.strerror})") from None
+    if b"\x00" in raw[:4096]:
+        raise DataError(f"{path}: binary file, expected a measurement CSV")
+    return parse_measurements(raw.decode("utf-8", errors="replace"), joint_units, str(path))
+
+
+def format_measurements(meas: Measurements, joint_units: list[str],
+                        metadata: list[str] | None = None) -> str:
+    """CSV text of measurements (mm and degrees, 6 decimals), the inverse of the parser."""
+    out = io.StringIO()
+    for line in [FORMAT_LINE] + list(metadata or []):
+        out.write(line if line.startswith("#") else f"# {line}")
+        out.write("\n")
+    header = ["pose", "point"] + joint_columns(joint_units) + ["x_mm", "y_mm", "z_mm"]
+    optional = [("payload_kg", meas.payload_kg), ("temperature_c", meas.temperature_c),
+                ("time_s", meas.time_s)]
+    header += [name for name, values in optional if values is not None]
+    if meas.orientation is not None:
+        header += ["qw", "qx", "qy", "qz"]
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(header)
+    scale = np.array([180.0 / np.pi if u == "deg" else 1e3 for u in joint_units])
+    for k in range(meas.n_rows):
+        row = [meas.pose_ids[k], meas.point_names[k]]
+        row += [f"{v:.6f}" for v in meas.joints[k] * scale]
+        row += [f"{v:.6f}" for v in meas.points[k] * 1e3]
+        row += [f"{values[k]:.6g}" for _, values in optional if values is not None]
+        if meas.orientation is not None:
+            row += [f"{v:.9f}" for v in meas.orientation[k]]
+        writer.writerow(row)
+    return out.getvalue()
+
+
+def write_measurements(path: str | Path, meas: Measurements, joint_units: list[str],
+                       metadata: list[str] | None = None) -> None:
+    """Write measurements atomically (see :func:`format_measurements`)."""
+    write_text_atomic(path, format_measurements(meas, joint_units, metadata))

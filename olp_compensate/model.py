@@ -1,0 +1,331 @@
+"""The calibration model: a chain of elementary transforms with named parameters.
+
+Frames are assigned automatically from the nominal chain at its zero position (Motta 2006,
+sections 3-4, after Schroer): each pair of consecutive joint axes is classified, and the link
+between them gets the parameterization that has no singularity there:
+
+- axes more than 45 degrees apart (perpendicular or general): Denavit-Hartenberg,
+  ``Rz(q_i + theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`` (eq. 16);
+- axes less than 45 degrees apart (parallel): Hayati,
+  ``Rz(q_i + theta_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)`` (eq. 17), singular only where D-H is
+  regular;
+- a prismatic joint moves along z instead: ``Tz(q_i + d_i)`` then the same link terms.
+
+The first joint frame is fixed to the base: z along axis 1, origin where axis 1 is closest to
+the base origin, x from the base x. The last joint carries only its zero offset; a constant
+transform then reaches the flange. Parameters are named ``j<joint>.<name>`` (``j3.beta``),
+joints counted from 1; values are SI (m, rad).
+
+:func:`forward` evaluates the chain for a batch of joint vectors and returns positions, the
+flange frames and, on request, the analytic derivatives with respect to every parameter and
+every joint (the geometric Jacobian), all from one pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .robot import Robot
+
+PARALLEL_BELOW_DEG = 45.0
+"""Consecutive axes closer than this angle get Hayati's parameterization, others D-H."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named model parameter: ``unit`` is ``'m'`` or ``'rad'``; ``nominal`` in that unit."""
+
+    name: str
+    unit: str
+    nominal: float
+    joint: int  # 0-based joint the parameter belongs to
+
+    @property
+    def display_unit(self) -> str:
+        return "mm" if self.unit == "m" else "deg"
+
+    @property
+    def display_scale(self) -> float:
+        """Factor from SI to the display unit (mm or deg)."""
+        return 1e3 if self.unit == "m" else 180.0 / np.pi
+
+
+@dataclass(frozen=True)
+class Step:
+    """One elementary transform: rotation about / translation along local ``axis`` (0, 1, 2
+    for x, y, z) by ``parameter value (+ joint value)``."""
+
+    rotation: bool
+    axis: int
+    parameter: int
+    joint: int | None = None
+
+
+@dataclass(frozen=True)
+class KinematicModel:
+    """The parameterized chain of one robot (constant; values live outside).
+
+    ``base_T_first``: base frame to the first joint frame (4, 4); ``last_T_flange``: the last
+    joint frame (after its motion) to the flange (4, 4); ``conventions[i]`` is ``'dh'`` or
+    ``'hayati'`` for the link from joint i to joint i+1.
+    """
+
+    robot_name: str
+    fingerprint: str
+    joint_kinds: tuple[str, ...]
+    base_T_first: np.ndarray
+    steps: tuple[Step, ...]
+    last_T_flange: np.ndarray
+    parameters: tuple[Parameter, ...]
+    conventions: tuple[str, ...]
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_kinds)
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.parameters)
+
+    @property
+    def nominal(self) -> np.ndarray:
+        """Nominal parameter values, shape (P,), SI."""
+        return np.array([p.nominal for p in self.parameters])
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    def index(self, name: str) -> int:
+        """Position of a parameter by its exact name."""
+        for k, p in enumerate(self.parameters):
+            if p.name == name:
+                return k
+        raise KeyError(name)
+
+
+@dataclass(frozen=True)
+class ChainResult:
+    """What :func:`forward` computes for m joint vectors (base frame, SI).
+
+    ``points``: (m, 3) positions of the tool points; ``flange``: (m, 4, 4) flange poses;
+    with ``jacobian=True`` also ``dpoint_dparam`` (m, 3, P), ``drot_dparam`` (m, 3, P)
+    (angular velocity per unit parameter), ``dpoint_dq`` (m, 3, n) and ``drot_dq`` (m, 3, n).
+    """
+
+    points: np.ndarray
+    flange: np.ndarray
+    dpoint_dparam: np.ndarray | None = None
+    drot_dparam: np.ndarray | None = None
+    dpoint_dq: np.ndarray | None = None
+    drot_dq: np.ndarray | None = None
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
+    """Angle (rad) rotating direction ``a`` onto ``b`` about ``axis`` (all perpendicular)."""
+    return float(np.arctan2(np.dot(np.cross(a, b), axis), np.dot(a, b)))
+
+
+class _ChainBuilder:
+    """Collects steps and parameters while walking the nominal axes."""
+
+    def __init__(self):
+        self.steps: list[Step] = []
+        self.parameters: list[Parameter] = []
+
+    def add(self, rotation: bool, axis: int, name: str, joint: int, value: float,
+            moves_with: int | None = None) -> None:
+        self.parameters.append(Parameter(name=f"j{joint + 1}.{name}",
+                                         unit="rad" if rotation else "m",
+                                         nominal=float(value), joint=joint))
+        self.steps.append(Step(rotation, axis, len(self.parameters) - 1, moves_with))
+
+
+def _dh_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
+    """D-H values (theta, d, a, alpha) from ``frame`` (z on axis i) to the axis
+    (point, direction), and the new frame on that axis."""
+    origin, x0, z0 = frame[:3, 3], frame[:3, 0], frame[:3, 2]
+    b = float(np.dot(z0, direction))
+    w = origin - point
+    denom = 1.0 - b * b
+    if denom < 1e-12:  # parallel: D-H is singular here; take the foot at the current origin
+        s = 0.0
+    else:
+        s = (b * np.dot(direction, w) - np.dot(z0, w)) / denom
+    foot0 = origin + s * z0
+    foot1 = point + np.dot(foot0 - point, direction) * direction
+    normal = foot1 - foot0
+    a = float(np.linalg.norm(normal))
+    if a < 1e-9:
+        cross = np.cross(z0, direction)
+        x_new = _unit(cross) if np.linalg.norm(cross) > 1e-9 else x0
+        a = 0.0
+    else:
+        x_new = normal / a
+    theta = _signed_angle(x0, x_new, z0)
+    alpha = _signed_angle(z0, direction, x_new)
+    new = np.eye(4)
+    new[:3, 0], new[:3, 2] = x_new, direction
+    new[:3, 1] = np.cross(direction, x_new)
+    new[:3, 3] = foot1
+    return (theta, float(s), a, alpha), new
+
+
+def _hayati_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
+    """Hayati values (theta, a, alpha, beta) from ``frame`` to a nearly parallel axis, and the
+    new frame where the plane z = 0 of ``frame`` meets that axis."""
+    origin, x0, z0 = frame[:3, 3], frame[:3, 0], frame[:3, 2]
+    t = np.dot(origin - point, z0) / np.dot(direction, z0)
+    foot = point + t * direction
+    v = foot - origin
+    a = float(np.linalg.norm(v))
+    x_new = v / a if a > 1e-9 else x0  # collinear axes: Hayati is singular, the SVD will say
+    theta = _signed_angle(x0, x_new, z0)
+    y_new = np.cross(z0, x_new)
+    u, w_, h = np.dot(direction, x_new), np.dot(direction, y_new), np.dot(direction, z0)
+    beta = float(np.arcsin(np.clip(u, -1.0, 1.0)))
+    alpha = float(np.arctan2(-w_, h))
+    rot = np.column_stack([x_new, y_new, z0])
+    ca, sa, cb, sb = np.cos(alpha), np.sin(alpha), np.cos(beta), np.sin(beta)
+    rot = rot @ np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]]) @ np.array(
+        [[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    new = np.eye(4)
+    new[:3, :3] = rot
+    new[:3, 3] = foot
+    return (theta, a, alpha, beta), new
+
+
+def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
+    """Assign frames to ``robot`` and return its calibration model.
+
+    ``convention='auto'`` picks D-H or Hayati per link (singularity-free); ``'dh'`` uses D-H
+    everywhere (singular for parallel axes; kept to show why 'auto' exists).
+    """
+    if convention not in ("auto", "dh"):
+        raise ValueError(f"convention must be 'auto' or 'dh', got {convention!r}")
+    points, directions = robot.joint_axes_at_zero()
+    kinds = tuple(j.kind for j in robot.joints)
+    n = len(kinds)
+
+    first = np.eye(4)
+    z = directions[0]
+    first[:3, 3] = points[0] - np.dot(points[0], z) * z
+    x = np.array([1.0, 0.0, 0.0]) - z[0] * z
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([0.0, 1.0, 0.0]) - z[1] * z
+    x = _unit(x)
+    first[:3, 0], first[:3, 1], first[:3, 2] = x, np.cross(z, x), z
+
+    chain = _ChainBuilder()
+    frame = first
+    conventions = []
+    cos_limit = np.cos(np.radians(PARALLEL_BELOW_DEG))
+    for i in range(n - 1):
+        revolute = kinds[i] == "revolute"
+        parallel = abs(np.dot(frame[:3, 2], directions[i + 1])) > cos_limit
+        if parallel and convention == "auto":
+            (theta, a, alpha, beta), frame = _hayati_link(frame, points[i + 1], directions[i + 1])
+            if revolute:
+                chain.add(True, 2, "theta", i, theta, moves_with=i)
+            else:
+                chain.add(False, 2, "d", i, 0.0, moves_with=i)
+                chain.add(True, 2, "theta", i, theta)
+            chain.add(False, 0, "a", i, a)
+            chain.add(True, 0, "alpha", i, alpha)
+            chain.add(True, 1, "beta", i, beta)
+            conventions.append("hayati")
+        else:
+            (theta, d, a, alpha), frame = _dh_link(frame, points[i + 1], directions[i + 1])
+            chain.add(True, 2, "theta", i, theta,
+                      moves_with=i if revolute else None)
+            chain.add(False, 2, "d", i, d, moves_with=None if revolute else i)
+            chain.add(False, 0, "a", i, a)
+            chain.add(True, 0, "alpha", i, alpha)
+            conventions.append("dh")
+    last = n - 1
+    if kinds[last] == "revolute":
+        chain.add(True, 2, "theta", last, 0.0, moves_with=last)
+    else:
+        chain.add(False, 2, "d", last, 0.0, moves_with=last)
+    last_T_flange = np.linalg.inv(frame) @ robot.flange_at_zero()
+    return KinematicModel(robot_name=robot.name, fingerprint=robot.fingerprint, joint_kinds=kinds,
+                          base_T_first=first, steps=tuple(chain.steps),
+                          last_T_flange=last_T_flange, parameters=tuple(chain.parameters),
+                          conventions=tuple(conventions))
+
+
+def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
+            tool_points: np.ndarray | None = None, jacobian: bool = False) -> ChainResult:
+    """Forward kinematics of the model for m joint vectors.
+
+    Parameters
+    ----------
+    values : (P,) parameter values, SI.
+    q : (m, n) joint values, rad or m.
+    tool_points : (m, 3) points in the flange frame (m); default the flange origin.
+    jacobian : also return the analytic derivatives (see :class:`ChainResult`).
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    m = q.shape[0]
+    # Frame columns and origin as (3, m) arrays: contiguous per component, cheap to update.
+    cols = [np.repeat(model.base_T_first[:3, k, None], m, axis=1) for k in range(3)]
+    origin = np.repeat(model.base_T_first[:3, 3, None], m, axis=1)
+    records = []
+    for step in model.steps:
+        value = values[step.parameter]
+        if step.joint is not None:
+            value = value + q[:, step.joint]
+        if step.rotation:
+            if jacobian:
+                records.append((origin, cols[step.axis]))
+            c, s = np.cos(value), np.sin(value)
+            j, k = (step.axis + 1) % 3, (step.axis + 2) % 3
+            cols[j], cols[k] = c * cols[j] + s * cols[k], c * cols[k] - s * cols[j]
+        else:
+            if jacobian:
+                records.append((None, cols[step.axis]))
+            origin = origin + value * cols[step.axis]
+    rot = np.stack(cols, axis=1)  # (3, 3, m): rot[:, k] is column k
+    lf = model.last_T_flange
+    flange_rot = np.einsum("ikm,kj->mij", rot, lf[:3, :3])
+    flange_origin = origin.T + np.einsum("ikm,k->mi", rot, lf[:3, 3])
+    flange = np.zeros((m, 4, 4))
+    flange[:, :3, :3] = flange_rot
+    flange[:, :3, 3] = flange_origin
+    flange[:, 3, 3] = 1.0
+    if tool_points is None:
+        points = flange_origin
+    else:
+        points = flange_origin + np.einsum("mij,mj->mi", flange_rot, tool_points)
+    if not jacobian:
+        return ChainResult(points=points, flange=flange)
+
+    n_par, n_q = model.n_parameters, model.n_joints
+    dp_dpar = np.zeros((n_par, 3, m))
+    dr_dpar = np.zeros((n_par, 3, m))
+    dp_dq = np.zeros((n_q, 3, m))
+    dr_dq = np.zeros((n_q, 3, m))
+    p = points.T
+    for step, (o, w) in zip(model.steps, records):
+        if o is None:
+            dp, dr = w, 0.0
+        else:
+            r = p - o
+            dp = np.stack([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2],
+                           w[0] * r[1] - w[1] * r[0]])
+            dr = w
+        dp_dpar[step.parameter] += dp
+        dr_dpar[step.parameter] += dr
+        if step.joint is not None:
+            dp_dq[step.joint] += dp
+            dr_dq[step.joint] += dr
+    return ChainResult(points=points, flange=flange,
+                       dpoint_dparam=dp_dpar.transpose(2, 1, 0),
+                       drot_dparam=dr_dpar.transpose(2, 1, 0),
+                       dpoint_dq=dp_dq.transpose(2, 1, 0), drot_dq=dr_dq.transpose(2, 1, 0))

@@ -1,0 +1,221 @@
+"""A robot description: the serial chain of a URDF, from its root link to the flange.
+
+The URDF is read with yourdfpy; dynamics (gravity torques) are computed with pinocchio from
+the same text. Joint frames, axes and limits are kept exactly as the URDF gives them (metres,
+radians); the calibration model (:mod:`olp_compensate.model`) is built from them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+from dataclasses import dataclass, field
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ModelError
+
+FLANGE_LINK = "tool0"
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One movable joint of the chain.
+
+    ``parent_T_joint`` is the joint frame in the frame of the previous movable joint (or of
+    the root link for the first joint) at zero position, fixed joints in between folded in.
+    ``axis`` is the unit motion axis in the joint frame; ``kind`` is ``'revolute'`` (radians)
+    or ``'prismatic'`` (metres).
+    """
+
+    name: str
+    kind: str
+    parent_T_joint: np.ndarray
+    axis: np.ndarray
+    lower: float
+    upper: float
+    velocity: float
+    effort: float
+    child_link: str
+
+    @property
+    def unit(self) -> str:
+        """Unit of the joint reading at the edges: ``'deg'`` or ``'mm'``."""
+        return "deg" if self.kind == "revolute" else "mm"
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A serial arm read from a URDF (base = root link, flange = ``tool0``)."""
+
+    name: str
+    urdf_text: str
+    joints: tuple[Joint, ...]
+    last_T_flange: np.ndarray
+    base_link: str
+    flange_link: str = FLANGE_LINK
+    source: str = field(default="", compare=False)
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def lower_limits(self) -> np.ndarray:
+        """Lower joint limits, shape (n,), rad or m."""
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper_limits(self) -> np.ndarray:
+        """Upper joint limits, shape (n,), rad or m."""
+        return np.array([j.upper for j in self.joints])
+
+    @cached_property
+    def fingerprint(self) -> str:
+        """SHA-256 of the kinematic chain (joint kinds, frames, axes, flange; rounded to 1e-9).
+
+        Two URDFs that differ only in formatting, meshes or inertials share a fingerprint;
+        any change of geometry changes it.
+        """
+        h = hashlib.sha256()
+        for j in self.joints:
+            h.update(j.kind.encode())
+            h.update(np.round(j.parent_T_joint, 9).tobytes())
+            h.update(np.round(j.axis, 9).tobytes())
+        h.update(np.round(self.last_T_flange, 9).tobytes())
+        return "sha256:" + h.hexdigest()
+
+    def joint_frames_at_zero(self) -> np.ndarray:
+        """Joint frames at the zero position in the base frame, shape (n, 4, 4)."""
+        frames = []
+        current = np.eye(4)
+        for j in self.joints:
+            current = current @ j.parent_T_joint
+            frames.append(current)
+        return np.array(frames)
+
+    def joint_axes_at_zero(self) -> tuple[np.ndarray, np.ndarray]:
+        """Points on and unit directions of the joint axes at zero, base frame, each (n, 3)."""
+        frames = self.joint_frames_at_zero()
+        points = frames[:, :3, 3]
+        directions = np.einsum("nij,nj->ni", frames[:, :3, :3], np.array([j.axis for j in self.joints]))
+        return points, directions
+
+    def flange_at_zero(self) -> np.ndarray:
+        """The flange pose at the zero position in the base frame, (4, 4)."""
+        return self.joint_frames_at_zero()[-1] @ self.last_T_flange
+
+    def to_radians_or_metres(self, readings: np.ndarray) -> np.ndarray:
+        """Joint readings in edge units (deg, mm) -> SI (rad, m), shape (m, n)."""
+        scale = np.array([np.pi / 180.0 if j.kind == "revolute" else 1e-3 for j in self.joints])
+        return np.asarray(readings, dtype=float) * scale
+
+    def to_degrees_or_mm(self, joints: np.ndarray) -> np.ndarray:
+        """Joint values in SI (rad, m) -> edge units (deg, mm), shape (m, n)."""
+        scale = np.array([180.0 / np.pi if j.kind == "revolute" else 1e3 for j in self.joints])
+        return np.asarray(joints, dtype=float) * scale
+
+    @cached_property
+    def pinocchio_model(self):
+        """The pinocchio model of the whole URDF (for gravity and independent checks)."""
+        import pinocchio as pin
+
+        return pin.buildModelFromXML(self.urdf_text)
+
+    def pinocchio_joint_ids(self) -> list[int]:
+        """pinocchio joint ids of the chain's joints, in chain order."""
+        model = self.pinocchio_model
+        return [model.getJointId(j.name) for j in self.joints]
+
+
+def _origin(matrix) -> np.ndarray:
+    return np.eye(4) if matrix is None else np.asarray(matrix, dtype=float)
+
+
+def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
+                         flange_link: str = FLANGE_LINK) -> Robot:
+    """Read the serial chain root -> ``flange_link`` from URDF text.
+
+    Raises :class:`ModelError` when the text is not a URDF, has no flange link, or the chain
+    holds joint kinds other than revolute, continuous, prismatic and fixed.
+    """
+    import yourdfpy
+
+    where = source or "<urdf>"
+    try:
+        urdf = yourdfpy.URDF.load(io.StringIO(text), build_scene_graph=False, load_meshes=False,
+                                  build_collision_scene_graph=False, load_collision_meshes=False)
+    except Exception as exc:  # yourdfpy raises a variety of XML and value errors
+        raise ModelError(f"{where}: not a readable URDF ({exc})") from None
+    robot = urdf.robot
+    joints_by_child = {j.child: j for j in robot.joints}
+    links = {link.name for link in robot.links}
+    if flange_link not in links:
+        raise ModelError(f"{where}: the URDF has no link '{flange_link}' (the flange frame)")
+    chain = []
+    link = flange_link
+    while link in joints_by_child:
+        joint = joints_by_child[link]
+        chain.append(joint)
+        link = joint.parent
+    chain.reverse()
+    base_link = link
+    joints: list[Joint] = []
+    pending = np.eye(4)
+    for j in chain:
+        pending = pending @ _origin(j.origin)
+        if j.type == "fixed":
+            continue
+        if j.type not in ("revolute", "continuous", "prismatic"):
+            raise ModelError(f"{where}: joint '{j.name}' is of type '{j.type}'; "
+                             "only revolute, continuous, prismatic and fixed joints are supported")
+        if j.mimic is not None:
+            raise ModelError(f"{where}: joint '{j.name}' mimics another joint; not a serial arm")
+        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
+        norm = np.linalg.norm(axis)
+        if norm < 1e-12:
+            raise ModelError(f"{where}: joint '{j.name}' has a zero axis")
+        limit = j.limit
+        lower = -np.inf if limit is None or limit.lower is None or j.type == "continuous" else limit.lower
+        upper = np.inf if limit is None or limit.upper is None or j.type == "continuous" else limit.upper
+        joints.append(Joint(
+            name=j.name, kind="prismatic" if j.type == "prismatic" else "revolute",
+            parent_T_joint=pending, axis=axis / norm, lower=float(lower), upper=float(upper),
+            velocity=float(limit.velocity) if limit is not None and limit.velocity else np.inf,
+            effort=float(limit.effort) if limit is not None and limit.effort else np.inf,
+            child_link=j.child))
+        pending = np.eye(4)
+    if len(joints) < 2:
+        raise ModelError(f"{where}: the chain from '{base_link}' to '{flange_link}' has "
+                         f"{len(joints)} movable joint(s); a robot arm needs at least 2")
+    return Robot(name=name or robot.name, urdf_text=text, joints=tuple(joints),
+                 last_T_flange=pending, base_link=base_link, flange_link=flange_link,
+                 source=source)
+
+
+def bundled_robot_names() -> list[str]:
+    """Names of the robots shipped in ``robots/``."""
+    folder = resources.files("olp_compensate.robots")
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".urdf"))
+
+
+def load_robot(name_or_path: str) -> Robot:
+    """A bundled robot by name (``abb_irb2400``) or any serial-arm URDF by path."""
+    path = Path(name_or_path)
+    if path.suffix.lower() == ".urdf" or path.is_file():
+        if not path.is_file():
+            raise ModelError(f"{name_or_path}: no such URDF file")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ModelError(f"{name_or_path}: cannot read URDF ({exc})") from None
+        return robot_from_urdf_text(text, name=path.stem, source=str(path))
+    resource = resources.files("olp_compensate.robots") / f"{name_or_path}.urdf"
+    if not resource.is_file():
+        names = ", ".join(bundled_robot_names()) or "none"
+        raise ModelError(f"unknown robot '{name_or_path}' (bundled: {names}; or give a path to a .urdf)")
+    return robot_from_urdf_text(resource.read_text(encoding="utf-8"), name=name_or_path,
+                                source=f"robots/{name_or_path}.urdf")
