@@ -54,8 +54,8 @@ class Calibration:
     validation: Validation | None = None
 
     def flange_poses(self, q: np.ndarray) -> np.ndarray:
-        """Flange poses (m, 4, 4) in the base frame for joints (m, n), rad/m."""
-        return forward(self.model, self.values, q).flange
+        """Flange poses (m, 4, 4) in the base frame for controller axis values (m, n), rad/m."""
+        return forward(self.model, self.values, self.robot.joints_from_controller(q)).flange
 
     def tool_points(self, names) -> np.ndarray:
         """Tool points (m, 3) in the flange frame for an array of point names."""
@@ -66,8 +66,10 @@ class Calibration:
         return np.array([self.tools[name].xyz_m for name in names]).reshape(-1, 3)
 
     def predict_points(self, q: np.ndarray, names) -> np.ndarray:
-        """Positions (m, 3) of the named tool points in the device frame, metres."""
-        base = forward(self.model, self.values, q, self.tool_points(names)).points
+        """Positions (m, 3) of the named tool points in the device frame, metres, for
+        controller axis values (m, n)."""
+        base = forward(self.model, self.values, self.robot.joints_from_controller(q),
+                       self.tool_points(names)).points
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
 
 

@@ -13,6 +13,7 @@ chooses which parameter of each to freeze, and the report names the combination.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -280,7 +281,9 @@ def _check_data(robot: Robot, meas: Measurements) -> None:
 
 def identify(robot: Robot, meas: Measurements,
              options: IdentificationOptions = IdentificationOptions()) -> IdentificationResult:
-    """Identify the geometry of ``robot`` from measured points (see module docstring)."""
+    """Identify the geometry of ``robot`` from measured points (see module docstring).
+    ``meas.joints`` are controller axis values; the model works in URDF joints."""
+    meas = dataclasses.replace(meas, joints=robot.joints_from_controller(meas.joints))
     _check_data(robot, meas)
     model = build_model(robot, options.convention)
     tool_names = sorted(set(meas.point_names))

@@ -80,6 +80,7 @@ class KinematicModel:
     last_T_flange: np.ndarray
     parameters: tuple[Parameter, ...]
     conventions: tuple[str, ...]
+    convention: str = "auto"
 
     @property
     def n_joints(self) -> int:
@@ -257,7 +258,7 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
     return KinematicModel(robot_name=robot.name, fingerprint=robot.fingerprint, joint_kinds=kinds,
                           base_T_first=first, steps=tuple(chain.steps),
                           last_T_flange=last_T_flange, parameters=tuple(chain.parameters),
-                          conventions=tuple(conventions))
+                          conventions=tuple(conventions), convention=convention)
 
 
 def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
@@ -329,3 +330,25 @@ def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
                        dpoint_dparam=dp_dpar.transpose(2, 1, 0),
                        drot_dparam=dr_dpar.transpose(2, 1, 0),
                        dpoint_dq=dp_dq.transpose(2, 1, 0), drot_dq=dr_dq.transpose(2, 1, 0))
+
+
+def joint_frames(model: KinematicModel, values: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Frame of each joint (z on its axis) just before its own motion, base frame, for one
+    joint vector ``q`` (n,); shape (n, 4, 4)."""
+    current = model.base_T_first.copy()
+    frames = np.empty((model.n_joints, 4, 4))
+    seen = set()
+    for step in model.steps:
+        if step.joint is not None and step.joint not in seen:
+            frames[step.joint] = current
+            seen.add(step.joint)
+        value = values[step.parameter] + (q[step.joint] if step.joint is not None else 0.0)
+        elementary = np.eye(4)
+        if step.rotation:
+            c, s = np.cos(value), np.sin(value)
+            j, k = (step.axis + 1) % 3, (step.axis + 2) % 3
+            elementary[j, j], elementary[j, k], elementary[k, j], elementary[k, k] = c, -s, s, c
+        else:
+            elementary[step.axis, 3] = value
+        current = current @ elementary
+    return frames

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import hashlib
 import io
+import json
 from dataclasses import dataclass, field
 from functools import cached_property
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from .data import data_folder
 from .errors import ModelError
 
 FLANGE_LINK = "tool0"
@@ -58,6 +59,9 @@ class Robot:
     base_link: str
     flange_link: str = FLANGE_LINK
     source: str = field(default="", compare=False)
+    urdf_from_controller: np.ndarray | None = None
+    """(n, n) map from controller axis values to URDF joints (ABB parallel linkage: joint 3
+    = q3 - q2); None means the identity. Every public joint array is in controller axes."""
 
     @property
     def n_joints(self) -> int:
@@ -86,6 +90,8 @@ class Robot:
             h.update(np.round(j.parent_T_joint, 9).tobytes())
             h.update(np.round(j.axis, 9).tobytes())
         h.update(np.round(self.last_T_flange, 9).tobytes())
+        if self.urdf_from_controller is not None:
+            h.update(np.round(self.urdf_from_controller, 9).tobytes())
         return "sha256:" + h.hexdigest()
 
     def joint_frames_at_zero(self) -> np.ndarray:
@@ -107,6 +113,18 @@ class Robot:
     def flange_at_zero(self) -> np.ndarray:
         """The flange pose at the zero position in the base frame, (4, 4)."""
         return self.joint_frames_at_zero()[-1] @ self.last_T_flange
+
+    def joints_from_controller(self, q: np.ndarray) -> np.ndarray:
+        """URDF joint values (m, n) from controller axis values (m, n), both SI."""
+        q = np.asarray(q, dtype=float)
+        return q if self.urdf_from_controller is None else q @ self.urdf_from_controller.T
+
+    def controller_from_joints(self, joints: np.ndarray) -> np.ndarray:
+        """Controller axis values (m, n) from URDF joint values (m, n), both SI."""
+        joints = np.asarray(joints, dtype=float)
+        if self.urdf_from_controller is None:
+            return joints
+        return joints @ np.linalg.inv(self.urdf_from_controller).T
 
     def to_radians_or_metres(self, readings: np.ndarray) -> np.ndarray:
         """Joint readings in edge units (deg, mm) -> SI (rad, m), shape (m, n)."""
@@ -136,7 +154,8 @@ def _origin(matrix) -> np.ndarray:
 
 
 def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
-                         flange_link: str = FLANGE_LINK) -> Robot:
+                         flange_link: str = FLANGE_LINK,
+                         urdf_from_controller: np.ndarray | None = None) -> Robot:
     """Read the serial chain root -> ``flange_link`` from URDF text.
 
     Raises :class:`ModelError` when the text is not a URDF, has no flange link, or the chain
@@ -146,7 +165,7 @@ def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
 
     where = source or "<urdf>"
     try:
-        urdf = yourdfpy.URDF.load(io.StringIO(text), build_scene_graph=False, load_meshes=False,
+        urdf = yourdfpy.URDF.load(io.BytesIO(text.encode("utf-8")), build_scene_graph=False, load_meshes=False,
                                   build_collision_scene_graph=False, load_collision_meshes=False)
     except Exception as exc:  # yourdfpy raises a variety of XML and value errors
         raise ModelError(f"{where}: not a readable URDF ({exc})") from None
@@ -191,14 +210,30 @@ def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
     if len(joints) < 2:
         raise ModelError(f"{where}: the chain from '{base_link}' to '{flange_link}' has "
                          f"{len(joints)} movable joint(s); a robot arm needs at least 2")
+    coupling = None
+    if urdf_from_controller is not None:
+        coupling = np.asarray(urdf_from_controller, dtype=float)
+        if coupling.shape != (len(joints), len(joints)) or abs(np.linalg.det(coupling)) < 1e-9:
+            raise ModelError(f"{where}: urdf_from_controller must be an invertible "
+                             f"{len(joints)}x{len(joints)} matrix")
     return Robot(name=name or robot.name, urdf_text=text, joints=tuple(joints),
                  last_T_flange=pending, base_link=base_link, flange_link=flange_link,
-                 source=source)
+                 source=source, urdf_from_controller=coupling)
+
+
+def _controller_map(text: str | None, where: str) -> np.ndarray | None:
+    """The ``urdf_from_controller`` matrix of a ``NAME.controller.json`` sidecar, if any."""
+    if text is None:
+        return None
+    try:
+        return np.array(json.loads(text)["urdf_from_controller"], dtype=float)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ModelError(f"{where}: not a valid controller map ({exc})") from None
 
 
 def bundled_robot_names() -> list[str]:
     """Names of the robots shipped in ``robots/``."""
-    folder = resources.files("olp_compensate.robots")
+    folder = data_folder("robots")
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".urdf"))
 
 
@@ -212,10 +247,16 @@ def load_robot(name_or_path: str) -> Robot:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise ModelError(f"{name_or_path}: cannot read URDF ({exc})") from None
-        return robot_from_urdf_text(text, name=path.stem, source=str(path))
-    resource = resources.files("olp_compensate.robots") / f"{name_or_path}.urdf"
+        sidecar = path.with_suffix(".controller.json")
+        coupling = _controller_map(sidecar.read_text() if sidecar.is_file() else None, str(sidecar))
+        return robot_from_urdf_text(text, name=path.stem, source=str(path),
+                                    urdf_from_controller=coupling)
+    resource = data_folder("robots") / f"{name_or_path}.urdf"
     if not resource.is_file():
         names = ", ".join(bundled_robot_names()) or "none"
         raise ModelError(f"unknown robot '{name_or_path}' (bundled: {names}; or give a path to a .urdf)")
+    sidecar = data_folder("robots") / f"{name_or_path}.controller.json"
+    coupling = _controller_map(sidecar.read_text() if sidecar.is_file() else None,
+                               f"robots/{name_or_path}.controller.json")
     return robot_from_urdf_text(resource.read_text(encoding="utf-8"), name=name_or_path,
-                                source=f"robots/{name_or_path}.urdf")
+                                source=f"robots/{name_or_path}.urdf", urdf_from_controller=coupling)

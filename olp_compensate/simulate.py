@@ -48,13 +48,14 @@ class VirtualRobot:
         return pin, model
 
     def flange_poses(self, joints: np.ndarray) -> np.ndarray:
-        """True flange poses (m, 4, 4), base frame, for joint readings (m, n), rad/m."""
+        """True flange poses (m, 4, 4), base frame, for controller readings (m, n), rad/m."""
         pin, model = self._pinocchio()
         data = model.createData()
         frame = model.getFrameId(self.robot.flange_link)
         ids = self.robot.pinocchio_joint_ids()
         out = np.empty((len(joints), 4, 4))
-        for k, reading in enumerate(np.atleast_2d(joints) + self.joint_offsets):
+        urdf_joints = self.robot.joints_from_controller(np.atleast_2d(joints)) + self.joint_offsets
+        for k, reading in enumerate(urdf_joints):
             qp = pin.neutral(model)
             for jid, value in zip(ids, reading):
                 j = model.joints[jid]
@@ -155,11 +156,12 @@ def make_virtual_robot(robot: Robot, seed: int, length_error_m: float = 1e-3,
 
 
 def random_joints(robot: Robot, n: int, rng: np.random.Generator, margin: float = 0.1) -> np.ndarray:
-    """n joint vectors (n, joints) drawn uniformly inside the limits shrunk by ``margin``
-    (revolute joints also kept within +-170 degrees so poses stay in a measurable volume)."""
+    """n controller joint vectors (n, joints) whose URDF joints lie uniformly inside the limits
+    shrunk by ``margin`` (revolute joints also kept within +-170 degrees)."""
     lower = np.maximum(robot.lower_limits, [-np.radians(170) if j.kind == "revolute" else -np.inf
                                             for j in robot.joints])
     upper = np.minimum(robot.upper_limits, [np.radians(170) if j.kind == "revolute" else np.inf
                                             for j in robot.joints])
     span = upper - lower
-    return rng.uniform(lower + margin * span / 2, upper - margin * span / 2, (n, robot.n_joints))
+    urdf_joints = rng.uniform(lower + margin * span / 2, upper - margin * span / 2, (n, robot.n_joints))
+    return robot.controller_from_joints(urdf_joints)

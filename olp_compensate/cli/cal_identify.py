@@ -1,0 +1,86 @@
+"""``olp-cal identify``: the robot's real geometry from measured points."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..identify import IdentificationOptions, identify
+from ..io.calibration_file import write_calibration
+from ..io.measurements import read_measurements
+from ..robot import load_robot
+from .common import mm
+
+HELP = "identify the robot's geometry from a measurement CSV and write calib.json"
+
+
+def add_arguments(p) -> None:
+    p.add_argument("measurements", help="measurement CSV (version 1)")
+    p.add_argument("--robot", required=True, help="bundled robot name or path to a URDF")
+    p.add_argument("-o", "--output", help="calib.json to write")
+    p.add_argument("--folds", type=int, default=5, help="cross-validation folds (0: none)")
+    p.add_argument("--robust", action="store_true",
+                   help="reject rows beyond the 99.9%% noise quantile, refit, list them")
+    p.add_argument("--solver", choices=("lm", "trf"), default="lm",
+                   help="lm: Levenberg-Marquardt (Marquardt schedule); trf: scipy trust region")
+    p.add_argument("--convention", choices=("auto", "dh"), default="auto",
+                   help="auto: D-H or Hayati per link (singularity-free); dh: D-H everywhere")
+    p.add_argument("--freeze", action="append", default=[], metavar="PARAM",
+                   help="hold a parameter at nominal (repeatable), e.g. j3.beta")
+
+
+def report(result) -> str:
+    """The identification report, as printed."""
+    cal = result.calibration
+    ident = result.identifiability
+    lines = [
+        f"robot {cal.robot.name}: {result.n_poses} poses, {result.n_equations} equations, "
+        f"{result.n_unknowns} unknowns (6 device registration + "
+        f"{result.n_unknowns - 6 - 3 * len(cal.tools)} geometric + {3 * len(cal.tools)} tool)",
+        f"links: " + ", ".join(f"{k + 1}-{k + 2} {c}" for k, c in enumerate(cal.model.conventions)),
+        f"solver: {result.message} after {result.iterations} iterations",
+        f"condition number (unit-scaled Jacobian): {ident.condition_number:.1f}",
+        "",
+        f"{'parameter':<12}{'nominal':>14}{'identified':>14}{'change':>12}{'std':>10}  unit",
+    ]
+    for k, p in enumerate(cal.model.parameters):
+        s = p.display_scale
+        if p.name in cal.frozen:
+            lines.append(f"{p.name:<12}{p.nominal * s:>14.4f}{'(frozen)':>14}{'':>12}{'':>10}  {p.display_unit}")
+            continue
+        lines.append(f"{p.name:<12}{p.nominal * s:>14.4f}{cal.values[k] * s:>14.4f}"
+                     f"{(cal.values[k] - p.nominal) * s:>12.4f}{cal.std[k] * s:>10.4f}  {p.display_unit}")
+    for name, tool in cal.tools.items():
+        xyz = ", ".join(f"{v:.3f}" for v in tool.xyz_m * 1e3)
+        std = ", ".join(f"{v:.3f}" for v in tool.std_m * 1e3)
+        lines.append(f"tool {name}: ({xyz}) mm in the flange frame, std ({std}) mm")
+    lines.append("")
+    if cal.frozen:
+        lines.append("frozen (not identified):")
+        lines += [f"  {name}: {why}" for name, why in cal.frozen.items()]
+    if ident.weak:
+        lines.append("WARNING: barely observable with these poses (the residual can look "
+                     "perfect while these stay wrong; add poses that move them):")
+        lines += [f"  {w}" for w in ident.weak]
+    if result.outlier_rows:
+        lines.append(f"outliers rejected (file lines): {', '.join(map(str, result.outlier_rows))}")
+    lines.append(f"residual: RMS {mm(result.residual_rms)}, max {mm(result.residual_max)}")
+    if result.heldout_rms is not None:
+        lines.append(f"held-out ({cal.validation.method}): RMS {mm(result.heldout_rms)}, "
+                     f"max {mm(result.heldout_max)}")
+    else:
+        lines.append("held-out: not computed (too few poses or --folds 0)")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    robot = load_robot(args.robot)
+    meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
+    options = IdentificationOptions(convention=args.convention, solver=args.solver,
+                                    robust=args.robust, folds=args.folds,
+                                    freeze=tuple(args.freeze))
+    result = identify(robot, meas, options)
+    print(report(result))
+    if args.output:
+        write_calibration(args.output, result.calibration)
+        print(f"wrote {args.output}")
+    return 0

@@ -1,0 +1,72 @@
+"""``olp-cal predict``: where the calibrated robot puts its measured points."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..io.atomic import write_text_atomic
+from ..io.calibration_file import read_calibration
+from ..io.measurements import joint_columns
+
+HELP = "predict measured-point positions (device frame, mm) for joint rows of a CSV"
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--model", required=True, help="calib.json")
+    p.add_argument("joints", help="CSV with q1_deg..qN_deg (and optional point)")
+    p.add_argument("-o", "--output", required=True, help="CSV to write (x_mm, y_mm, z_mm added)")
+
+
+def run(args) -> int:
+    cal = read_calibration(args.model)
+    path = Path(args.joints)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: cannot read ({exc})") from None
+    lines = [ln for ln in text.splitlines() if not ln.startswith("#")]
+    rows = list(csv.reader(lines))
+    if not rows:
+        raise DataError(f"{path}: empty file, expected a header with {', '.join(joint_columns(['deg'] * 2))}...")
+    header = [h.strip() for h in rows[0]]
+    columns = joint_columns([j.unit for j in cal.robot.joints])
+    for c in columns:
+        if c not in header:
+            raise DataError(f"{path}:1: missing column '{c}'")
+    index = {h: k for k, h in enumerate(header)}
+    readings, names = [], []
+    for line_no, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise DataError(f"{path}:{line_no}: {len(row)} fields, the header has {len(header)}")
+        values = []
+        for c in columns:
+            try:
+                v = float(row[index[c]])
+            except ValueError:
+                raise DataError(f"{path}:{line_no}: column '{c}': '{row[index[c]]}' is not a number") from None
+            if not np.isfinite(v):
+                raise DataError(f"{path}:{line_no}: column '{c}': {v} is not finite")
+            values.append(v)
+        readings.append(values)
+        names.append(row[index["point"]].strip() if "point" in index and row[index["point"]].strip()
+                     else ("tcp" if "tcp" in cal.tools or not cal.tools else sorted(cal.tools)[0]))
+    q = cal.robot.to_radians_or_metres(np.array(readings).reshape(-1, len(columns)))
+    if not cal.tools:
+        points = cal.flange_poses(q)[:, :3, 3] @ cal.device_T_base[:3, :3].T + cal.device_T_base[:3, 3]
+    else:
+        points = cal.predict_points(q, names)
+    out_header = [h for h in header if h not in ("x_mm", "y_mm", "z_mm")] + ["x_mm", "y_mm", "z_mm"]
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(out_header)
+    for row, p in zip(rows[1:], points * 1e3):
+        kept = [row[index[h]] for h in out_header[:-3]]
+        writer.writerow(kept + [f"{v:.6f}" for v in p])
+    write_text_atomic(args.output, out.getvalue())
+    print(f"wrote {len(points)} predicted points (device frame, mm) to {args.output}")
+    return 0

@@ -1,0 +1,33 @@
+"""What every command shares: error handling, logging, units in printed numbers."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from typing import Callable
+
+from ..errors import OlpError
+
+EXIT_OK, EXIT_BAD_INPUT = 0, 1
+
+
+def run_guarded(action: Callable[[], int], verbosity: int, prog: str) -> int:
+    """Run ``action``; turn :class:`OlpError` into one line on stderr and exit code 1.
+    With ``-v`` the traceback is shown as well."""
+    logging.basicConfig(level=logging.WARNING - 10 * min(verbosity, 2),
+                        format=f"{prog}: %(levelname)s: %(message)s")
+    try:
+        return action()
+    except OlpError as exc:
+        if verbosity:
+            logging.exception("details")
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+
+
+def mm(value_m: float | None, digits: int = 3) -> str:
+    """A length in metres printed in mm with its unit."""
+    return "n/a" if value_m is None else f"{value_m * 1e3:.{digits}f} mm"

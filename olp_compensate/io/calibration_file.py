@@ -1,0 +1,153 @@
+"""calib.json, version 1: read, validate against the published schema, write atomically.
+
+The file embeds the robot's URDF and its kinematic fingerprint, so a calibration is
+self-contained and is never applied to another robot model.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ..calibration import Calibration, ToolPoint, Validation
+from ..conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
+from ..errors import ModelError
+from ..model import build_model
+from ..robot import Robot, robot_from_urdf_text
+from .atomic import write_text_atomic
+
+FORMAT = "olp-compensate calibration"
+VERSION = 1
+
+
+@lru_cache(maxsize=1)
+def calibration_schema() -> dict:
+    """The JSON schema of calib.json version 1."""
+    text = (resources.files("olp_compensate.schemas") / "calibration-v1.json").read_text()
+    return json.loads(text)
+
+
+def _num(value) -> float | None:
+    return None if value is None or not np.isfinite(value) else float(value)
+
+
+def calibration_to_dict(cal: Calibration) -> dict:
+    """The JSON document of a calibration (mm and degrees)."""
+    params = []
+    for k, p in enumerate(cal.model.parameters):
+        entry = {"name": p.name, "unit": p.display_unit, "nominal": p.nominal * p.display_scale,
+                 "value": float(cal.values[k]) * p.display_scale,
+                 "std": _num(cal.std[k] * p.display_scale),
+                 "status": "frozen" if p.name in cal.frozen else "identified"}
+        if p.name in cal.frozen:
+            entry["why"] = cal.frozen[p.name]
+        params.append(entry)
+    tools = {name: {"xyz_mm": (t.xyz_m * 1e3).tolist(),
+                    "std_mm": None if t.std_m is None else (np.asarray(t.std_m) * 1e3).tolist(),
+                    "quat_wxyz": None if t.quat_wxyz is None else np.asarray(t.quat_wxyz).tolist()}
+             for name, t in cal.tools.items()}
+    validation = None
+    if cal.validation is not None:
+        v = cal.validation
+        validation = {"method": v.method, "poses": v.poses, "residual_rms_mm": v.residual_rms_mm,
+                      "residual_max_mm": v.residual_max_mm, "heldout_rms_mm": v.heldout_rms_mm,
+                      "heldout_max_mm": v.heldout_max_mm, "condition_number": v.condition_number}
+    return {
+        "format": FORMAT, "version": VERSION,
+        "robot": {"name": cal.robot.name, "fingerprint": cal.robot.fingerprint,
+                  "joints": cal.robot.n_joints, "urdf": cal.robot.urdf_text,
+                  "urdf_from_controller": None if cal.robot.urdf_from_controller is None
+                  else cal.robot.urdf_from_controller.tolist()},
+        "model": {"convention": cal.model.convention,
+                  "links": list(cal.model.conventions), "parameters": params},
+        "device_T_base": {"xyz_mm": (cal.device_T_base[:3, 3] * 1e3).tolist(),
+                          "quat_wxyz": quat_wxyz_from_matrix(cal.device_T_base[:3, :3]).tolist()},
+        "tools": tools,
+        "effects": list(cal.effects),
+        "validation": validation,
+    }
+
+
+def dumps_calibration(cal: Calibration) -> str:
+    return json.dumps(calibration_to_dict(cal), indent=2) + "\n"
+
+
+def write_calibration(path: str | Path, cal: Calibration) -> None:
+    """Write calib.json atomically."""
+    write_text_atomic(path, dumps_calibration(cal))
+
+
+def calibration_from_dict(doc: dict, source: str = "<calibration>",
+                          robot: Robot | None = None) -> Calibration:
+    """Rebuild a calibration; ``robot``, when given, must have the file's fingerprint."""
+    import jsonschema
+
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ModelError(f"{source}: not an olp-compensate calibration file")
+    if doc.get("version") != VERSION:
+        raise ModelError(f"{source}: calibration format version {doc.get('version')!r}; this "
+                         f"olp-compensate reads version {VERSION}")
+    try:
+        jsonschema.validate(doc, calibration_schema())
+    except jsonschema.ValidationError as exc:
+        where = "/".join(str(p) for p in exc.absolute_path) or "(top level)"
+        raise ModelError(f"{source}: invalid calibration at {where}: {exc.message}") from None
+    embedded = robot_from_urdf_text(doc["robot"]["urdf"], name=doc["robot"]["name"],
+                                    source=f"{source} (embedded URDF)",
+                                    urdf_from_controller=doc["robot"].get("urdf_from_controller"))
+    if embedded.fingerprint != doc["robot"]["fingerprint"]:
+        raise ModelError(f"{source}: the embedded URDF does not match the stored fingerprint "
+                         "(the file was edited by hand?)")
+    if robot is not None and robot.fingerprint != embedded.fingerprint:
+        raise ModelError(f"{source}: this calibration is for robot '{embedded.name}' "
+                         f"({embedded.fingerprint[:19]}...), not for '{robot.name}' "
+                         f"({robot.fingerprint[:19]}...)")
+    model = build_model(embedded, doc["model"]["convention"])
+    by_name = {p["name"]: p for p in doc["model"]["parameters"]}
+    values = model.nominal.copy()
+    std = np.full(model.n_parameters, np.nan)
+    frozen = {}
+    for k, p in enumerate(model.parameters):
+        if p.name not in by_name:
+            raise ModelError(f"{source}: parameter '{p.name}' is missing")
+        entry = by_name[p.name]
+        values[k] = entry["value"] / p.display_scale
+        if entry["std"] is not None:
+            std[k] = entry["std"] / p.display_scale
+        if entry["status"] == "frozen":
+            frozen[p.name] = entry.get("why", "frozen")
+    pose = np.eye(4)
+    pose[:3, :3] = matrix_from_quat_wxyz(doc["device_T_base"]["quat_wxyz"])
+    pose[:3, 3] = np.array(doc["device_T_base"]["xyz_mm"]) * 1e-3
+    tools = {}
+    for name, t in doc["tools"].items():
+        tools[name] = ToolPoint(
+            xyz_m=np.array(t["xyz_mm"]) * 1e-3,
+            std_m=None if t.get("std_mm") is None else np.array(t["std_mm"]) * 1e-3,
+            quat_wxyz=None if t.get("quat_wxyz") is None else np.array(t["quat_wxyz"]))
+    v = doc.get("validation")
+    validation = None if v is None else Validation(
+        method=v["method"], poses=v["poses"], residual_rms_mm=v["residual_rms_mm"],
+        residual_max_mm=v["residual_max_mm"], heldout_rms_mm=v["heldout_rms_mm"],
+        heldout_max_mm=v["heldout_max_mm"], condition_number=v["condition_number"])
+    return Calibration(robot=embedded, model=model, values=values, std=std, device_T_base=pose,
+                       frozen=frozen, tools=tools, effects=tuple(doc["effects"]),
+                       validation=validation)
+
+
+def read_calibration(path: str | Path, robot: Robot | None = None) -> Calibration:
+    """Read and validate calib.json (see :func:`calibration_from_dict`)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{path}: cannot read calibration ({exc})") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ModelError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON ({exc.msg})") from None
+    return calibration_from_dict(doc, str(path), robot)
