@@ -342,8 +342,11 @@ def identify(robot: Robot, meas: Measurements,
     inv_s2 = np.where(s > RANK_TOLERANCE * s[0], 1.0 / np.maximum(s, 1e-300) ** 2, 0.0)
     cov_scaled = (vt.T * inv_s2) @ vt
     std_unknowns = np.sqrt(np.clip(np.diag(cov_scaled), 0, None) * sigma2) / norms
+    names = problem.names()
+    weak = [f"{_describe(vt[k], names)} (relative singular value {s[k] / s[0]:.1e})"
+            for k in range(len(s)) if s[k] < WEAK_TOLERANCE * s[0]]
     ident = Identifiability(condition_number=float(s[0] / s[-1]), frozen=frozen,
-                            weak=ident.weak, singular_values=s)
+                            weak=weak, singular_values=s)
 
     values, pose, tools = problem.unpack(x)
     std = np.full(model.n_parameters, np.nan)

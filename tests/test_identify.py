@@ -1,0 +1,122 @@
+"""Identification against virtual robots whose truth is known (pinocchio on a perturbed URDF)."""
+
+import numpy as np
+import pytest
+
+from olp_compensate.conventions import rotation_from_rotvec
+from olp_compensate.errors import DataError
+from olp_compensate.identify import IdentificationOptions, identify
+from olp_compensate.robot import load_robot
+from olp_compensate.simulate import make_virtual_robot, random_joints
+
+NOISE = 0.05e-3
+
+
+def _truth_equivalent(robot, virtual):
+    """The model parameters equivalent to the virtual robot: a noise-free fit on many poses."""
+    rng = np.random.default_rng(99)
+    meas = virtual.measure(random_joints(robot, 400, rng), 0.0, rng)
+    result = identify(robot, meas, IdentificationOptions(folds=0))
+    assert result.residual_max < 1e-9  # the model is complete: it reproduces the truth exactly
+    return result.calibration.values
+
+
+def test_recovers_virtual_robot_within_three_reported_sigmas():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=5)
+    truth = _truth_equivalent(robot, virtual)
+    rng = np.random.default_rng(6)
+    result = identify(robot, virtual.measure(random_joints(robot, 40, rng), NOISE, rng))
+    cal = result.calibration
+    free = ~np.isnan(cal.std)
+    z = np.abs(cal.values[free] - truth[free]) / cal.std[free]
+    assert np.all(z < 3.0), dict(zip(np.array(cal.model.names)[free], z.round(2)))
+    assert 0.7 * NOISE * np.sqrt(3) < result.heldout_rms < 1.5 * NOISE * np.sqrt(3)
+
+
+@pytest.mark.slow
+def test_reported_deviations_agree_with_monte_carlo():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=8)
+    joints = random_joints(robot, 30, np.random.default_rng(9))
+    estimates, reported = [], []
+    for run in range(40):
+        rng = np.random.default_rng(100 + run)
+        result = identify(robot, virtual.measure(joints, NOISE, rng), IdentificationOptions(folds=0))
+        estimates.append(result.calibration.values)
+        reported.append(result.calibration.std)
+    free = ~np.isnan(reported[0])
+    empirical = np.std(np.array(estimates)[:, free], axis=0, ddof=1)
+    predicted = np.mean(np.array(reported)[:, free], axis=0)
+    ratio = empirical / predicted
+    # 40 runs: the sample std is within about +-25 % of the true one (2 sigma)
+    assert np.all((ratio > 0.6) & (ratio < 1.5)), ratio
+
+
+def test_pose_set_without_joint_4_motion_names_what_it_cannot_separate():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=2)
+    rng = np.random.default_rng(3)
+    joints = random_joints(robot, 40, rng)
+    joints[:, 3] = np.radians(12.0)
+    result = identify(robot, virtual.measure(joints, NOISE, rng))
+    inseparable = {name for name, why in result.identifiability.frozen.items()
+                   if "cannot be separated" in why}
+    assert inseparable, result.identifiability.frozen
+    assert all(name.startswith(("j3.", "j4.", "j5.")) for name in inseparable), inseparable
+    assert result.heldout_rms < 3 * NOISE * np.sqrt(3)
+
+
+@pytest.mark.parametrize("angle_deg", [90.0, 179.0, 180.0])
+def test_device_far_away_and_rotated_converges(angle_deg):
+    robot = load_robot("ur5e")
+    virtual = make_virtual_robot(robot, seed=4)
+    device = np.eye(4)
+    device[:3, :3] = rotation_from_rotvec(np.radians(angle_deg) * np.array([0.6, 0.0, 0.8]))
+    device[:3, 3] = [3.0, -4.0, 0.5]  # about 5 m away
+    from dataclasses import replace
+    virtual = replace(virtual, device_T_base=device)
+    rng = np.random.default_rng(7)
+    result = identify(robot, virtual.measure(random_joints(robot, 30, rng), NOISE, rng))
+    assert result.residual_rms < 2 * NOISE * np.sqrt(3)
+    np.testing.assert_allclose(result.calibration.device_T_base[:3, 3], device[:3, 3], atol=5e-3)
+
+
+def test_several_points_per_pose_identify_the_last_joint_zero():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=11, n_points=3)
+    rng = np.random.default_rng(12)
+    result = identify(robot, virtual.measure(random_joints(robot, 25, rng), NOISE, rng))
+    assert "j6.theta" not in result.calibration.frozen
+    assert set(result.calibration.tools) == {"tcp", "p2", "p3"}
+    for name, point in virtual.tools.items():
+        np.testing.assert_allclose(result.calibration.tools[name].xyz_m, point, atol=2e-3)
+
+
+def test_robust_fit_lists_the_outliers():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=13)
+    rng = np.random.default_rng(14)
+    meas = virtual.measure(random_joints(robot, 40, rng), NOISE, rng)
+    meas.points[[5, 17]] += [[2e-3, 0, 0], [0, -3e-3, 1e-3]]
+    result = identify(robot, meas, IdentificationOptions(robust=True))
+    assert sorted(result.outlier_rows) == [6, 18]
+    assert result.residual_rms < 1.5 * NOISE * np.sqrt(3)
+
+
+def test_trust_region_solver_agrees_with_levenberg_marquardt():
+    robot = load_robot("unimation_puma560")
+    virtual = make_virtual_robot(robot, seed=15)
+    rng = np.random.default_rng(16)
+    meas = virtual.measure(random_joints(robot, 30, rng), NOISE, rng)
+    lm = identify(robot, meas, IdentificationOptions(folds=0))
+    trf = identify(robot, meas, IdentificationOptions(folds=0, solver="trf"))
+    np.testing.assert_allclose(lm.calibration.values, trf.calibration.values, atol=1e-7)
+
+
+def test_too_few_equations_is_a_clear_error():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=1)
+    rng = np.random.default_rng(1)
+    with pytest.raises(DataError, match="equations"):
+        identify(robot, virtual.measure(random_joints(robot, 8, rng), NOISE, rng))

@@ -1,0 +1,77 @@
+"""The calibration model against independent truth: pinocchio FK and finite differences."""
+
+import numpy as np
+import pytest
+
+from olp_compensate.model import build_model, forward
+from olp_compensate.robot import bundled_robot_names, load_robot
+from olp_compensate.simulate import random_joints
+from urdf_factory import IRB2400_DH, dh_urdf
+from olp_compensate.robot import robot_from_urdf_text
+
+
+@pytest.mark.parametrize("name", bundled_robot_names())
+def test_nominal_model_matches_pinocchio(name):
+    import pinocchio as pin
+
+    robot = load_robot(name)
+    model = build_model(robot)
+    rng = np.random.default_rng(0)
+    q_ctrl = random_joints(robot, 25, rng)
+    q = robot.joints_from_controller(q_ctrl)
+    ours = forward(model, model.nominal, q).flange
+    pm = robot.pinocchio_model
+    data = pm.createData()
+    frame = pm.getFrameId("tool0")
+    for qk, pose in zip(q, ours):
+        pin.framesForwardKinematics(pm, data, qk)
+        np.testing.assert_allclose(pose, data.oMf[frame].homogeneous, atol=1e-12)
+
+
+def test_parallel_axes_get_hayati_and_others_dh():
+    model = build_model(load_robot("abb_irb2400"))
+    assert model.conventions == ("dh", "hayati", "dh", "dh", "dh")
+    ur = build_model(load_robot("ur5e"))
+    assert ur.conventions == ("dh", "hayati", "hayati", "dh", "dh")
+    assert build_model(load_robot("abb_irb2400"), "dh").conventions == ("dh",) * 5
+
+
+@pytest.mark.parametrize("name,convention", [("abb_irb2400", "auto"), ("ur5e", "auto"),
+                                             ("unimation_puma560", "dh")])
+def test_analytic_jacobian_matches_central_differences(name, convention):
+    robot = load_robot(name)
+    model = build_model(robot, convention)
+    rng = np.random.default_rng(1)
+    values = model.nominal + rng.normal(0, 1e-3, model.n_parameters)
+    q = robot.joints_from_controller(random_joints(robot, 7, rng))
+    tool = rng.normal(0, 0.1, (7, 3))
+    res = forward(model, values, q, tool, jacobian=True)
+    h = 1e-6
+    for k in range(model.n_parameters):
+        dv = np.zeros_like(values)
+        dv[k] = h
+        plus = forward(model, values + dv, q, tool)
+        minus = forward(model, values - dv, q, tool)
+        np.testing.assert_allclose(res.dpoint_dparam[:, :, k], (plus.points - minus.points) / (2 * h),
+                                   atol=1e-8)
+        # angular part: the skew part of R_plus R_minus^T is skew(omega * 2h) + O(h^3)
+        rel = plus.flange[:, :3, :3] @ np.swapaxes(minus.flange[:, :3, :3], 1, 2)
+        omega = np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0],
+                          rel[:, 1, 0] - rel[:, 0, 1]], axis=1) / (4 * h)
+        np.testing.assert_allclose(res.drot_dparam[:, :, k], omega, atol=1e-7)
+    for j in range(model.n_joints):
+        dq = np.zeros_like(q)
+        dq[:, j] = h
+        plus = forward(model, values, q + dq, tool).points
+        minus = forward(model, values, q - dq, tool).points
+        np.testing.assert_allclose(res.dpoint_dq[:, :, j], (plus - minus) / (2 * h), atol=1e-8)
+
+
+def test_dh_table_robot_built_in_code_matches_its_table():
+    from urdf_factory import dh_forward
+
+    robot = robot_from_urdf_text(dh_urdf(IRB2400_DH))
+    model = build_model(robot)
+    q = np.random.default_rng(2).uniform(-3, 3, (20, 6))
+    np.testing.assert_allclose(forward(model, model.nominal, q).flange, dh_forward(IRB2400_DH, q),
+                               atol=1e-9)
