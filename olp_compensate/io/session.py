@@ -1,0 +1,298 @@
+"""Measurement sessions at the robot, recorded in MCAP (openable in Foxglove).
+
+A session file holds two JSON channels (schemas in JSON Schema):
+
+- ``/session/info`` (one message, first): robot name, joint count, joint units, source,
+  creation time, format ``olp-compensate session v1``.
+- ``/robot/joints`` (one message per pose): ``pose`` (1-based index), ``time_s`` (Unix time,
+  s, UTC, when the joints were read), ``controller_time_s`` (the controller's clock or null),
+  ``q_deg`` and ``q_rad`` (n values each).
+
+The measuring device (laser tracker, CMM arm) records its points separately;
+:func:`merge_session` joins them with the joints, by order or by nearest time, into the
+project's measurement CSV (version 1). Files are written to a temporary file in the target
+folder and renamed, so none is ever half-written, and an input is never overwritten.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError, OlpError
+from .measurements import Measurements, write_measurements
+from .rtde_source import Ask, JointSource, Say
+
+FORMAT = "olp-compensate session v1"
+JOINTS_TOPIC = "/robot/joints"
+INFO_TOPIC = "/session/info"
+
+JOINTS_SCHEMA = {
+    "title": "olp_compensate.JointReading",
+    "type": "object",
+    "properties": {
+        "pose": {"type": "integer", "description": "1-based pose index"},
+        "time_s": {"type": "number", "description": "Unix time of the reading, s (UTC)"},
+        "controller_time_s": {"type": ["number", "null"],
+                              "description": "controller clock, s since it started"},
+        "q_deg": {"type": "array", "items": {"type": "number"}, "description": "joints, deg"},
+        "q_rad": {"type": "array", "items": {"type": "number"}, "description": "joints, rad"},
+    },
+    "required": ["pose", "time_s", "q_deg", "q_rad"],
+}
+INFO_SCHEMA = {
+    "title": "olp_compensate.SessionInfo",
+    "type": "object",
+    "properties": {
+        "format": {"type": "string"}, "robot": {"type": "string"},
+        "n_joints": {"type": "integer"},
+        "joint_units": {"type": "array", "items": {"type": "string"}},
+        "units": {"type": "object"}, "source": {"type": "string"},
+        "created_utc": {"type": "string"}, "note": {"type": "string"},
+    },
+    "required": ["format", "robot", "n_joints"],
+}
+
+
+def _check_new(path: Path, overwrite: bool) -> None:
+    if path.exists() and not overwrite:
+        raise DataError(f"{path}: already exists; choose another name (sessions are never "
+                        f"overwritten)")
+
+
+def record_session(path, joint_source: JointSource, ask: Ask, say: Say, *, robot_name: str,
+                   note: str = "", max_poses: int = 10_000, overwrite: bool = False) -> int:
+    """Record joints at each pose into an MCAP session file; returns the number of poses.
+
+    At each pose the technician presses Enter (live source) or types the joints (typed
+    source); ``q`` ends the session. If the source fails (lost connection...), the poses
+    recorded so far are saved and the error is raised again with the file named.
+    """
+    path = Path(path)
+    _check_new(path, overwrite)
+    from mcap.writer import Writer
+
+    folder = path.parent if str(path.parent) else Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise OlpError(f"{path}: cannot write ({exc.strerror})") from None
+    n = joint_source.n_joints
+    count = 0
+    failure: OlpError | None = None
+    with os.fdopen(fd, "wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="olp-compensate")
+        joints_channel = writer.register_channel(
+            JOINTS_TOPIC, "json", writer.register_schema(
+                JOINTS_SCHEMA["title"], "jsonschema", json.dumps(JOINTS_SCHEMA).encode()))
+        info_channel = writer.register_channel(
+            INFO_TOPIC, "json", writer.register_schema(
+                INFO_SCHEMA["title"], "jsonschema", json.dumps(INFO_SCHEMA).encode()))
+        now = time.time_ns()
+        info = {"format": FORMAT, "robot": robot_name, "n_joints": n,
+                "joint_units": ["deg"] * n,
+                "units": {"q_deg": "deg", "q_rad": "rad", "time_s": "s (Unix time, UTC)",
+                          "controller_time_s": "s"},
+                "source": joint_source.description,
+                "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                "note": note}
+        writer.add_message(info_channel, now, json.dumps(info).encode(), now)
+        say(f"Recording poses of {robot_name} into {path} (joints {joint_source.description}). "
+            f"Type q to finish.")
+        try:
+            for pose in range(1, max_poses + 1):
+                reading = joint_source.capture(
+                    ask, say, f"Pose {pose}: move to the pose and let the device measure",
+                    ("q",))
+                if isinstance(reading, str):
+                    break
+                q_rad = np.asarray(reading.q_rad, dtype=float)
+                message = {"pose": pose, "time_s": reading.time_s,
+                           "controller_time_s": reading.controller_time_s,
+                           "q_deg": [float(v) for v in np.degrees(q_rad)],
+                           "q_rad": [float(v) for v in q_rad]}
+                stamp = int(reading.time_s * 1e9)
+                writer.add_message(joints_channel, stamp, json.dumps(message).encode(), stamp,
+                                   sequence=pose)
+                count = pose
+                say(f"  pose {pose} recorded: q = ("
+                    + ", ".join(f"{v:.3f}" for v in message["q_deg"]) + ") deg")
+        except OlpError as exc:
+            failure = exc
+        finally:
+            writer.finish()
+            stream.flush()
+            os.fsync(stream.fileno())
+    if count == 0:
+        Path(tmp).unlink(missing_ok=True)
+        if failure is not None:
+            raise failure
+        say("No pose recorded; nothing written.")
+        return 0
+    os.replace(tmp, path)
+    if failure is not None:
+        raise type(failure)(f"{failure} (the {count} poses recorded so far are saved in "
+                            f"{path})") from failure
+    say(f"{count} poses saved in {path}.")
+    return count
+
+
+def read_session(path):
+    """Read a session: ``(joints_deg (m, n), times_s (m,) Unix s, info dict)``.
+
+    ``info`` is the ``/session/info`` message plus ``pose`` (m,) indices and
+    ``controller_time_s`` (m,) (NaN where unknown).
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    path = Path(path)
+    info, rows = None, []
+    try:
+        with open(path, "rb") as stream:
+            for _, channel, message in make_reader(stream).iter_messages(
+                    topics=[INFO_TOPIC, JOINTS_TOPIC]):
+                data = json.loads(message.data)
+                if channel.topic == INFO_TOPIC:
+                    info = data
+                else:
+                    rows.append(data)
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.strerror})") from None
+    except (McapError, ValueError, KeyError) as exc:
+        raise DataError(f"{path}: not a readable MCAP session ({exc})") from None
+    if info is None or info.get("format") != FORMAT:
+        raise DataError(f"{path}: no '{INFO_TOPIC}' message of format '{FORMAT}'")
+    if not rows:
+        raise DataError(f"{path}: the session holds no poses")
+    n = int(info["n_joints"])
+    bad = [r.get("pose") for r in rows if len(r.get("q_deg", ())) != n]
+    if bad:
+        raise DataError(f"{path}: pose {bad[0]} has a joint count other than {n}")
+    rows.sort(key=lambda r: r["pose"])
+    info = dict(info, pose=[int(r["pose"]) for r in rows],
+                controller_time_s=[math.nan if r.get("controller_time_s") is None
+                                   else float(r["controller_time_s"]) for r in rows])
+    return (np.array([r["q_deg"] for r in rows], dtype=float),
+            np.array([r["time_s"] for r in rows], dtype=float), info)
+
+
+def _read_device_csv(path: Path):
+    """Device points: rows of x_mm, y_mm, z_mm [, time_s, point, pose] (``#`` lines skipped)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") \
+            from None
+    lines = text.splitlines()
+    start = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")),
+                 None)
+    if start is None:
+        raise DataError(f"{path}: no header row (expected x_mm, y_mm, z_mm)")
+    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
+    header = [h.strip() for h in next(reader)]
+    for column in ("x_mm", "y_mm", "z_mm"):
+        if column not in header:
+            raise DataError(f"{path}:{start + 1}: missing column '{column}' "
+                            f"(header has: {', '.join(header)})")
+    index = {h: k for k, h in enumerate(header)}
+    rows = []
+    for offset, record in enumerate(reader):
+        line = start + 2 + offset
+        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
+            continue
+        if len(record) != len(header):
+            raise DataError(f"{path}:{line}: {len(record)} fields, the header has {len(header)}")
+        cell = {h: record[k].strip() for h, k in index.items()}
+
+        def number(column):
+            try:
+                value = float(cell[column])
+            except ValueError:
+                raise DataError(f"{path}:{line}: column '{column}': '{cell[column]}' is not a "
+                                f"number") from None
+            if not math.isfinite(value):
+                raise DataError(f"{path}:{line}: column '{column}': {cell[column]} is not a "
+                                f"finite number")
+            return value
+        rows.append({"line": line, "xyz": [number(c) for c in ("x_mm", "y_mm", "z_mm")],
+                     "time_s": number("time_s") if "time_s" in index else None,
+                     "point": cell.get("point") or "tcp", "pose": cell.get("pose") or None})
+    if not rows:
+        raise DataError(f"{path}: no data rows after the header")
+    return rows
+
+
+def merge_session(session_path, device_csv, out_csv, by: str = "order",
+                  tolerance_s: float = 0.5, time_offset_s: float = 0.0) -> int:
+    """Join device points with recorded joints into a measurement CSV (version 1).
+
+    ``by='order'``: the k-th device row goes with the k-th pose (or by the device's ``pose``
+    column, 1-based). ``by='time'``: each device row goes with the pose read nearest in time
+    (device ``time_s`` + ``time_offset_s`` in Unix s), within ``tolerance_s``. Output columns:
+    ``pose, point, q1_deg..qN_deg, x_mm, y_mm, z_mm, time_s`` (time_s in s since the first
+    pose). Returns the number of rows written.
+    """
+    session_path, device_csv, out_csv = Path(session_path), Path(device_csv), Path(out_csv)
+    for source in (session_path, device_csv):
+        if source.exists() and out_csv.exists() and out_csv.resolve() == source.resolve():
+            raise DataError(f"{out_csv}: is an input of the merge; choose another output file")
+    if by not in ("order", "time"):
+        raise DataError(f"by: expected 'order' or 'time', got {by!r}")
+    joints_deg, times, info = read_session(session_path)
+    poses = info["pose"]
+    device = _read_device_csv(device_csv)
+    match = []
+    if by == "order" and all(r["pose"] is not None for r in device):
+        lookup = {str(p): k for k, p in enumerate(poses)}
+        for r in device:
+            if r["pose"] not in lookup:
+                raise DataError(f"{device_csv}:{r['line']}: column 'pose': the session has no "
+                                f"pose {r['pose']} (it has 1..{poses[-1]})")
+            match.append(lookup[r["pose"]])
+    elif by == "order":
+        if len(device) != len(poses):
+            raise DataError(f"{device_csv} has {len(device)} points but {session_path} has "
+                            f"{len(poses)} poses: add a 'pose' column, or merge by time")
+        match = list(range(len(poses)))
+    else:
+        if device[0]["time_s"] is None:
+            raise DataError(f"{device_csv}: merging by time needs a 'time_s' column")
+        for r in device:
+            gap = np.abs(times - (r["time_s"] + time_offset_s))
+            k = int(np.argmin(gap))
+            if gap[k] > tolerance_s:
+                raise DataError(f"{device_csv}:{r['line']}: no pose within {tolerance_s:g} s of "
+                                f"time_s {r['time_s']} (nearest: pose {poses[k]}, "
+                                f"{gap[k]:.3f} s away)")
+            close = np.flatnonzero(gap <= tolerance_s)
+            if len(close) > 1:
+                raise DataError(f"{device_csv}:{r['line']}: time_s {r['time_s']} is within "
+                                f"{tolerance_s:g} s of poses {poses[close[0]]} and "
+                                f"{poses[close[1]]}; lower tolerance_s or merge by order")
+            match.append(k)
+    match = np.array(match)
+    rel_times = np.array([(r["time_s"] + time_offset_s if r["time_s"] is not None
+                           else times[k]) - times[0] for r, k in zip(device, match)])
+    n = joints_deg.shape[1]
+    meas = Measurements(
+        joints=np.radians(joints_deg[match]),
+        points=np.array([r["xyz"] for r in device]) * 1e-3,
+        pose_ids=np.array([str(poses[k]) for k in match], dtype=object),
+        point_names=np.array([r["point"] for r in device], dtype=object),
+        time_s=rel_times, source=str(out_csv))
+    metadata = [f"# robot: {info['robot']}", f"# session: {session_path.name}",
+                f"# device: {device_csv.name}", f"# merged: by {by}",
+                f"# time_zero_unix_s: {times[0]:.3f}"]
+    write_measurements(out_csv, meas, ["deg"] * n, metadata)
+    return len(device)

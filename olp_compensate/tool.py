@@ -1,0 +1,467 @@
+"""Tool-only recalibration: find the TCP in the flange frame from touched marks.
+
+Two methods, both from flange poses ``base_T_flange`` (m, 4, 4) in metres computed by the
+robot's forward kinematics from the joints read at each touch:
+
+- **known marks**: the tool tip touched m >= 3 marks of known coordinates. In the base frame
+  ``R_i t + o_i = mark_i`` is linear in the TCP ``t`` (flange frame) and always well
+  determined (``A^T A = m I``). In a world frame the transform ``world_T_base`` (6 DOF) is
+  solved too (Gauss-Newton, m >= 4 marks, which need both spread positions and tool
+  orientations spread by rotations about two axes).
+- **fixed point**: the tip touched one unknown fixed point from m >= 4 orientations:
+  ``R_i t + o_i = P``, unknowns ``t`` (flange) and ``P`` (base), linear least squares.
+
+Orientation: a touch gives one point per pose, which fixes the TCP position but says nothing
+about how the tool frame is turned about that point, so ``quat_wxyz`` is None (keep the
+orientation from the tool's drawing). Statistics follow scipy's least-squares habits:
+``sigma^2 = RSS / (3m - n)`` and ``cov = sigma^2 (J^T J)^-1``.
+
+Conditioning: the columns of the design matrix are scaled to unit norm and its singular
+values are taken relative to the largest. A touch error ``e`` becomes a TCP error of about
+``e * cond / sqrt(m)``; above :data:`COND_LIMIT` = 25 (tilts of less than about 8 degrees)
+a typical 0.05-0.1 mm touch error turns into 0.5-1 mm at the tool, which a tool calibration
+must not accept, so the poses are refused with :class:`PoorlyDeterminedTool` naming what to
+add (tilts of 30 degrees give cond of about 7).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .conventions import MM, rotation_angle_between, rotation_from_rotvec, skew
+from .errors import DataError
+from .io.atomic import write_text_atomic
+
+COND_LIMIT = 25.0
+"""Largest accepted condition number of the column-scaled design matrix (see module doc)."""
+MIN_MARKS = {("known_marks", "base"): 3, ("known_marks", "world"): 4, ("fixed_point", None): 4}
+"""Fewest touches per method (and frame) that leave redundancy to estimate the noise."""
+
+FlangePose = Callable[[np.ndarray], np.ndarray]
+"""Forward kinematics: joints (m, n) rad -> base_T_flange (m, 4, 4), metres."""
+
+
+class PoorlyDeterminedTool(DataError):
+    """The poses are too alike to determine the tool; ``hint`` says what to add."""
+
+    def __init__(self, message: str, hint: str, condition_number: float):
+        self.hint = hint
+        self.condition_number = condition_number
+        super().__init__(f"{message} {hint}")
+
+
+@dataclass(frozen=True)
+class ToolRequest:
+    """What a tool recalibration needs; the wizard builds the same object.
+
+    ``joints``: (m, n) rad, one row per touch. ``marks``: (m, 3) metres in ``frame``
+    ('base' or 'world') for ``method='known_marks'``, None for ``'fixed_point'``.
+    ``mark_names``: (m,) labels for reports (default M1, M2, ...).
+    """
+
+    name: str
+    method: str
+    joints: np.ndarray
+    marks: np.ndarray | None = None
+    frame: str = "base"
+    mark_names: tuple[str, ...] | None = None
+
+    def labels(self) -> tuple[str, ...]:
+        return self.mark_names or tuple(f"M{k + 1}" for k in range(len(self.joints)))
+
+
+@dataclass(frozen=True)
+class ToolCalibration:
+    """A recalibrated tool.
+
+    ``xyz_m``, ``xyz_std_m``: TCP in the flange frame and its standard deviation (3,), m.
+    ``quat_wxyz``: tool orientation in the flange frame, None when the method cannot see it.
+    ``residuals_m``: (m,) distance between model and mark per touch; ``residual_vectors_m``
+    (m, 3) the same as vectors (mark frame). ``point_m``: the fixed point (base frame) for
+    the fixed-point method. ``world_T_base``: solved for marks in a world frame.
+    ``sigma_m``: estimated touch noise per coordinate. ``condition_number``: of the
+    column-scaled design matrix.
+    """
+
+    name: str
+    xyz_m: np.ndarray
+    xyz_std_m: np.ndarray
+    quat_wxyz: np.ndarray | None
+    residuals_m: np.ndarray
+    point_m: np.ndarray | None
+    condition_number: float
+    method: str
+    residual_vectors_m: np.ndarray = field(repr=False, default=None)
+    mark_names: tuple[str, ...] = ()
+    sigma_m: float = float("nan")
+    world_T_base: np.ndarray | None = None
+    xyz_cov_m2: np.ndarray | None = field(repr=False, default=None)
+
+    @property
+    def rms_m(self) -> float:
+        """Root mean square of the per-mark residual distances, m."""
+        return float(np.sqrt(np.mean(self.residuals_m ** 2)))
+
+
+# -- validation and conditioning ---------------------------------------------------------------
+
+def _check_poses(base_T_flange, m_min: int, what: str) -> np.ndarray:
+    poses = np.asarray(base_T_flange, dtype=float)
+    if poses.ndim != 3 or poses.shape[1:] != (4, 4):
+        raise DataError(f"base_T_flange: expected shape (m, 4, 4), got {poses.shape}")
+    if not np.all(np.isfinite(poses)):
+        raise DataError("base_T_flange: contains NaN or infinite values")
+    if len(poses) < m_min:
+        raise DataError(f"{what} needs at least {m_min} touches, got {len(poses)}")
+    return poses
+
+
+def _scaled_svd(jac: np.ndarray):
+    """Singular values (relative to the largest) and right vectors of the column-scaled J."""
+    norms = np.linalg.norm(jac, axis=0)
+    norms[norms == 0] = 1.0
+    _, s, vt = np.linalg.svd(jac / norms, full_matrices=False)
+    rel = s / s[0]
+    cond = float(np.inf if rel[-1] <= 0 else 1.0 / rel[-1])
+    return rel, vt / norms, cond
+
+
+def _describe(u: np.ndarray, frame: str) -> str:
+    """A direction in words, sign-agnostic: 'the base z axis (vertical)', or
+    'the base direction (a, b, c)'."""
+    u = u * np.sign(u[np.argmax(np.abs(u))])
+    k = int(np.argmax(u))
+    if u[k] > 0.95:
+        vertical = " (vertical)" if frame == "base" and k == 2 else ""
+        return f"the {frame} {'xyz'[k]} axis{vertical}"
+    return f"the {frame} direction ({u[0]:.2f}, {u[1]:.2f}, {u[2]:.2f})"
+
+
+def _max_tilt_deg(rotations: np.ndarray) -> float:
+    angles = rotation_angle_between(rotations[:, None], rotations[None, :])
+    return float(np.degrees(np.max(angles)))
+
+
+def _refuse(rel, vt, cond, rotations, method: str, t_slice: slice, axis_of) -> None:
+    """Raise PoorlyDeterminedTool when the scaled design is worse than COND_LIMIT."""
+    if cond <= COND_LIMIT:
+        return
+    weak = int(np.sum(rel < 1.0 / COND_LIMIT))
+    spread = _max_tilt_deg(rotations)
+    message = (f"cannot determine the tool from these {len(rotations)} poses "
+               f"({method}; condition number {cond:.3g} > {COND_LIMIT:g}; the tool "
+               f"orientations differ by at most {spread:.1f} degrees).")
+    if weak >= 2:
+        hint = ("The poses are too alike: rotate the tool by at least 30 degrees about two "
+                "different axes between touches (for example tilt it forward for one touch "
+                "and sideways for another).")
+    else:
+        v = vt[-1]
+        t_dir = v[t_slice] / (np.linalg.norm(v[t_slice]) or 1.0)
+        axis = axis_of(v, t_dir)
+        if np.linalg.norm(v[t_slice]) < 0.3 * np.linalg.norm(v) or axis is None:
+            hint = ("The marks lie nearly on a line: add marks away from that line, spread "
+                    "over a plane.")
+        else:
+            perpendicular = ("a horizontal axis" if abs(axis[2]) > 0.9 else
+                             f"an axis perpendicular to {_describe(axis, 'base')}")
+            hint = (f"All poses turn the tool about nearly one axis, {_describe(axis, 'base')}, "
+                    f"so the TCP component along {_describe(t_dir, 'flange')} is undetermined: "
+                    f"add a touch with the tool rotated by at least 30 degrees about "
+                    f"{perpendicular}.")
+    raise PoorlyDeterminedTool(message, hint, cond)
+
+
+def _result(name, method, t, cov, residuals, labels, sigma, cond, point=None, world=None):
+    labels = tuple(labels) if labels is not None else tuple(f"M{k + 1}"
+                                                            for k in range(len(residuals)))
+    return ToolCalibration(
+        name=name, xyz_m=t, xyz_std_m=np.sqrt(np.clip(np.diag(cov), 0, None)), quat_wxyz=None,
+        residuals_m=np.linalg.norm(residuals, axis=1), point_m=point, condition_number=cond,
+        method=method, residual_vectors_m=residuals, mark_names=labels, sigma_m=sigma,
+        world_T_base=world, xyz_cov_m2=cov)
+
+
+# -- the two methods ---------------------------------------------------------------------------
+
+def tool_from_fixed_point(base_T_flange, name: str = "tool", mark_names=None) -> ToolCalibration:
+    """TCP from m >= 4 touches of one unknown fixed point: ``R_i t + o_i = P``.
+
+    ``base_T_flange``: (m, 4, 4) metres. Returns the TCP (flange frame) and ``point_m`` (P,
+    base frame). Raises :class:`PoorlyDeterminedTool` when the orientations are too alike.
+    """
+    poses = _check_poses(base_T_flange, MIN_MARKS[("fixed_point", None)],
+                         "the fixed-point method")
+    m = len(poses)
+    rot, org = poses[:, :3, :3], poses[:, :3, 3]
+    a = np.concatenate([rot, -np.broadcast_to(np.eye(3), (m, 3, 3))], axis=2).reshape(3 * m, 6)
+    b = -org.reshape(3 * m)
+    rel, vt, cond = _scaled_svd(a)
+    _refuse(rel, vt, cond, rot, "fixed point", slice(0, 3),
+            lambda v, t_dir: v[3:] / (np.linalg.norm(v[3:]) or 1.0))
+    x, *_ = np.linalg.lstsq(a, b, rcond=None)
+    residuals = (a @ x - b).reshape(m, 3)
+    sigma2 = float(np.sum(residuals ** 2)) / (3 * m - 6)
+    cov = sigma2 * np.linalg.inv(a.T @ a)[:3, :3]
+    return _result(name, "fixed_point", x[:3], cov, residuals, mark_names, math.sqrt(sigma2),
+                   cond, point=x[3:])
+
+
+def tool_from_known_marks(base_T_flange, marks_m, frame: str = "base", name: str = "tool",
+                          mark_names=None, iterations: int = 30) -> ToolCalibration:
+    """TCP from touches of marks with known coordinates ``marks_m`` (m, 3), metres.
+
+    ``frame='base'``: marks in the robot base frame; linear, m >= 3. ``frame='world'``:
+    marks in another frame; ``world_T_base`` is solved as well (Gauss-Newton from a Kabsch
+    start, at most ``iterations`` steps), m >= 4.
+    """
+    if frame not in ("base", "world"):
+        raise DataError(f"frame: expected 'base' or 'world', got {frame!r}")
+    poses = _check_poses(base_T_flange, MIN_MARKS[("known_marks", frame)],
+                         f"the known-marks method in the {frame} frame")
+    marks = np.asarray(marks_m, dtype=float)
+    if marks.shape != (len(poses), 3):
+        raise DataError(f"marks: expected shape ({len(poses)}, 3) to match the poses, got "
+                        f"{marks.shape}")
+    if not np.all(np.isfinite(marks)):
+        raise DataError("marks: contain NaN or infinite values")
+    m = len(poses)
+    rot, org = poses[:, :3, :3], poses[:, :3, 3]
+    if frame == "base":
+        a = rot.reshape(3 * m, 3)
+        b = (marks - org).reshape(3 * m)
+        rel, vt, cond = _scaled_svd(a)
+        t, *_ = np.linalg.lstsq(a, b, rcond=None)
+        residuals = (a @ t - b).reshape(m, 3)
+        sigma2 = float(np.sum(residuals ** 2)) / (3 * m - 3)
+        cov = sigma2 * np.linalg.inv(a.T @ a)
+        return _result(name, "known_marks", t, cov, residuals, mark_names, math.sqrt(sigma2),
+                       cond)
+    return _known_marks_world(rot, org, marks, name, mark_names, iterations)
+
+
+def _kabsch(src: np.ndarray, dst: np.ndarray):
+    """Rotation and translation with ``R src + p ~ dst`` (rows are points)."""
+    cs, cd = src.mean(0), dst.mean(0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return r, cd - r @ cs
+
+
+def _known_marks_world(rot, org, marks, name, mark_names, iterations):
+    m = len(rot)
+    # Start: alternate registration and linear TCP a few times (robust for tools < ~1 m).
+    t = np.zeros(3)
+    for _ in range(5):
+        rw, pw = _kabsch(org + rot @ t, marks)
+        t, *_ = np.linalg.lstsq((rw @ rot).reshape(3 * m, 3),
+                                (marks - pw - org @ rw.T).reshape(3 * m), rcond=None)
+    centre = marks.mean(axis=0)  # rotate about the marks' centroid: decouples R and p
+
+    def linearize(rw, pw, t):
+        arm = (org + rot @ t) @ rw.T + pw - centre
+        jac = np.concatenate([-skew(arm), np.broadcast_to(np.eye(3), (m, 3, 3)), rw @ rot],
+                             axis=2).reshape(3 * m, 9)
+        return arm + centre - marks, jac
+
+    for _ in range(iterations):
+        residuals, jac = linearize(rw, pw, t)
+        step, *_ = np.linalg.lstsq(jac, -residuals.reshape(3 * m), rcond=None)
+        turn = rotation_from_rotvec(step[:3])
+        rw, pw = turn @ rw, turn @ (pw - centre) + centre + step[3:6]
+        t = t + step[6:]
+        if np.linalg.norm(step) < 1e-12:
+            break
+    residuals, jac = linearize(rw, pw, t)
+    rel, vt, cond = _scaled_svd(jac)
+
+    def axis_of(v, t_dir):
+        return None if np.linalg.norm(v[6:]) < 0.3 * np.linalg.norm(v) else \
+            rot[0] @ t_dir
+    _refuse(rel, vt, cond, rot, "known marks in a world frame", slice(6, 9), axis_of)
+    sigma2 = float(np.sum(residuals ** 2)) / (3 * m - 9)
+    cov = sigma2 * np.linalg.inv(jac.T @ jac)[6:, 6:]
+    world = np.eye(4)
+    world[:3, :3], world[:3, 3] = rw, pw
+    return _result(name, "known_marks", t, cov, residuals, mark_names, math.sqrt(sigma2), cond,
+                   world=world)
+
+
+def calibrate_tool(request: ToolRequest, flange_pose: FlangePose) -> ToolCalibration:
+    """The library call: joints -> flange poses -> the request's method.
+
+    ``flange_pose(q)`` maps joints (m, n) rad to ``base_T_flange`` (m, 4, 4) in metres.
+    """
+    joints = np.asarray(request.joints, dtype=float)
+    if joints.ndim != 2 or not np.all(np.isfinite(joints)):
+        raise DataError(f"joints: expected a finite (m, n) array in rad, got shape {joints.shape}")
+    if request.mark_names is not None and len(request.mark_names) != len(joints):
+        raise DataError(f"mark_names: {len(request.mark_names)} names for {len(joints)} touches")
+    poses = np.asarray(flange_pose(joints), dtype=float)
+    if poses.shape != (len(joints), 4, 4):
+        raise DataError(f"flange_pose returned shape {poses.shape}, expected ({len(joints)}, 4, 4)")
+    if request.method == "fixed_point":
+        return tool_from_fixed_point(poses, request.name, request.labels())
+    if request.method == "known_marks":
+        if request.marks is None:
+            raise DataError("the known-marks method needs the marks' coordinates")
+        return tool_from_known_marks(poses, request.marks, request.frame, request.name,
+                                     request.labels())
+    raise DataError(f"method: expected 'known_marks' or 'fixed_point', got {request.method!r}")
+
+
+# -- RAPID ------------------------------------------------------------------------------------
+
+def _num(value: float, decimals: int) -> str:
+    text = f"{round(float(value), decimals) + 0.0:.{decimals}f}"
+    return text.rstrip("0").rstrip(".") if "." in text else text
+
+
+def rapid_tooldata(result: ToolCalibration, mass_kg: float, cog_mm=(0.0, 0.0, 0.0),
+                   robhold: bool = True, quat_wxyz=None, aom_wxyz=(1.0, 0.0, 0.0, 0.0),
+                   inertia_kgm2=(0.0, 0.0, 0.0)) -> str:
+    """The RAPID ``tooldata`` literal of a calibrated tool.
+
+    ``[robhold,[[x,y,z],[q1,q2,q3,q4]],[mass,[cx,cy,cz],[a1,a2,a3,a4],ix,iy,iz]]`` with the
+    TCP in mm (0.001 mm resolution) in the flange frame, the orientation from the result, else
+    ``quat_wxyz``, else the flange's. RAPID refuses a tool mass <= 0 kg, so does this.
+    """
+    if not (mass_kg > 0 and math.isfinite(mass_kg)):
+        raise DataError(f"mass_kg: RAPID needs a tool mass > 0 kg, got {mass_kg}")
+    quat = result.quat_wxyz if result.quat_wxyz is not None else quat_wxyz
+    quat = np.array([1.0, 0.0, 0.0, 0.0] if quat is None else quat, dtype=float)
+    quat = quat / np.linalg.norm(quat)
+    aom = np.asarray(aom_wxyz, dtype=float) / np.linalg.norm(aom_wxyz)
+    xyz = ",".join(_num(v / MM, 3) for v in result.xyz_m)
+    q = ",".join(_num(v, 9) for v in quat)
+    cog = ",".join(_num(v, 3) for v in cog_mm)
+    a = ",".join(_num(v, 9) for v in aom)
+    inertia = ",".join(_num(v, 6) for v in inertia_kgm2)
+    return (f"[{'TRUE' if robhold else 'FALSE'},[[{xyz}],[{q}]],"
+            f"[{_num(mass_kg, 3)},[{cog}],[{a}],{inertia}]]")
+
+
+# -- files ------------------------------------------------------------------------------------
+
+def tool_to_dict(result: ToolCalibration) -> dict:
+    """The tool as a calib.json ``tools.NAME`` entry (mm, flange frame)."""
+    entry = {
+        "xyz_mm": [round(v / MM, 6) for v in result.xyz_m],
+        "xyz_std_mm": [round(v / MM, 6) for v in result.xyz_std_m],
+        "method": result.method,
+        "condition_number": round(result.condition_number, 4),
+        "rms_residual_mm": round(result.rms_m / MM, 6),
+        "residuals_mm": {n: round(r / MM, 6) for n, r in zip(result.mark_names,
+                                                             result.residuals_m)},
+    }
+    if result.quat_wxyz is not None:
+        entry["quat_wxyz"] = [float(v) for v in result.quat_wxyz]
+    if result.point_m is not None:
+        entry["fixed_point_base_mm"] = [round(v / MM, 6) for v in result.point_m]
+    return entry
+
+
+def write_tool_json(result: ToolCalibration, path) -> None:
+    """Write ``{"tools": {name: entry}}`` atomically (an entry to merge into calib.json)."""
+    text = json.dumps({"tools": {result.name: tool_to_dict(result)}}, indent=2)
+    write_text_atomic(path, text + "\n")
+
+
+def format_marks_csv(request: ToolRequest) -> str:
+    """The request as a marks CSV (the inverse of :func:`read_marks_csv`)."""
+    out = io.StringIO()
+    out.write(f"# olp-compensate tool marks v1\n# tool: {request.name}\n")
+    n = request.joints.shape[1]
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["mark"] + [f"q{k + 1}_deg" for k in range(n)]
+                    + ["x_mm", "y_mm", "z_mm", "frame"])
+    for k, label in enumerate(request.labels()):
+        xyz = [""] * 3 if request.marks is None else [f"{v / MM:.4f}" for v in request.marks[k]]
+        writer.writerow([label] + [f"{v:.6f}" for v in np.degrees(request.joints[k])] + xyz
+                        + [request.frame])
+    return out.getvalue()
+
+
+def _cell_number(text: str, source: str, line: int, column: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise DataError(f"{source}:{line}: column '{column}': '{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise DataError(f"{source}:{line}: column '{column}': {text} is not a finite number")
+    return value
+
+
+def read_marks_csv(path, n_joints: int) -> ToolRequest:
+    """Read a marks CSV: ``mark, q1_deg..qN_deg, x_mm, y_mm, z_mm[, frame]``.
+
+    Lines starting with ``#`` are metadata (``# tool: NAME`` names the tool, else the file
+    stem). Empty coordinates on every row select the fixed-point method; on every row filled,
+    known marks. ``frame`` is 'base' (default) or 'world' for all rows.
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{source}: cannot read ({getattr(exc, 'strerror', None) or exc})") \
+            from None
+    lines = text.splitlines()
+    name = Path(path).stem
+    start = 0
+    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
+        found = re.match(r"#\s*tool\s*:\s*(\S+)", lines[start])
+        name = found.group(1) if found else name
+        start += 1
+    if start == len(lines):
+        raise DataError(f"{source}: no header row (expected mark, q1_deg, ..., x_mm, y_mm, z_mm)")
+    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
+    header = [h.strip() for h in next(reader)]
+    joint_cols = [f"q{k + 1}_deg" for k in range(n_joints)]
+    for column in ["mark"] + joint_cols + ["x_mm", "y_mm", "z_mm"]:
+        if column not in header:
+            raise DataError(f"{source}:{start + 1}: missing column '{column}' "
+                            f"(header has: {', '.join(header)})")
+    index = {h: k for k, h in enumerate(header)}
+    labels, joints, marks, frames, filled = [], [], [], [], []
+    for offset, record in enumerate(reader):
+        line = start + 2 + offset
+        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
+            continue
+        if len(record) != len(header):
+            raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
+        cell = {h: record[k].strip() for h, k in index.items()}
+        labels.append(cell["mark"] or f"M{len(labels) + 1}")
+        joints.append([_cell_number(cell[c], source, line, c) for c in joint_cols])
+        xyz = [cell[c] for c in ("x_mm", "y_mm", "z_mm")]
+        filled.append((line, sum(bool(v) for v in xyz)))
+        if all(xyz):
+            marks.append([_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
+        frame = (cell.get("frame") or "base").lower()
+        if frame not in ("base", "world"):
+            raise DataError(f"{source}:{line}: column 'frame': expected 'base' or 'world', "
+                            f"got '{cell.get('frame')}'")
+        frames.append(frame)
+    if not joints:
+        raise DataError(f"{source}: no data rows after the header")
+    expected = 3 if filled[0][1] == 3 else 0
+    odd = [line for line, count in filled if count != expected]
+    if odd:
+        raise DataError(f"{source}:{odd[0]}: coordinates x_mm, y_mm, z_mm must be given on "
+                        f"every row (known marks) or left empty on every row (fixed point)")
+    if len(set(frames)) > 1:
+        raise DataError(f"{source}: column 'frame' mixes {sorted(set(frames))}; use one frame")
+    known = expected == 3
+    return ToolRequest(name=name, method="known_marks" if known else "fixed_point",
+                       joints=np.radians(np.array(joints)),
+                       marks=np.array(marks) * MM if known else None,
+                       frame=frames[0] if known else "base", mark_names=tuple(labels))
