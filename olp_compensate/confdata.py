@@ -1,0 +1,93 @@
+"""Controller configuration conventions: which of the 8 IK branches a program asks for.
+
+ABB ``confdata`` = ``[cf1, cf4, cf6, cfx]`` (ABB, *Technical reference manual - RAPID
+Instructions, Functions and Data types*, data type ``confdata``; the same text as ABB's
+*RAPID Reference Manual - Basic Characteristics* and RobotStudio's online
+``RapidIFDTechRefManual``, page "confdata"):
+
+- cf1, cf4, cf6: quadrant numbers of axes 1, 4 and 6. "Quadrant 0 is the first quarter
+  revolution, 0-90 deg, in a positive direction from the zero position; quadrant 1 is the
+  next, 90-180 deg, etc. Quadrant -1 is the revolution 0 deg - (-90 deg)": ``floor(q / 90
+  deg)``, so [-90, 0) deg is -1.
+- cfx (for robots with 8 solutions per pose, i.e. OPW arms), 0..7::
+
+      cfx  wrist centre vs axis 1   wrist centre vs lower arm   axis 5
+      0    in front of              in front of                 positive
+      1    in front of              in front of                 negative
+      2    in front of              behind                      positive
+      3    in front of              behind                      negative
+      4    behind                   in front of                 positive
+      5    behind                   in front of                 negative
+      6    behind                   behind                      positive
+      7    behind                   behind                      negative
+
+  Made precise here (:func:`olp_compensate.ik.configuration_bits`): "in front of axis 1"
+  means the wrist centre's coordinate along the arm's forward direction (axis 1 turned by
+  q1) is >= 0; "in front of the lower arm" means the wrist centre lies on the forward side
+  of the line through axes 2 and 3 (for the ABB home pose both hold, cfx = 0); "axis 5
+  positive" means ``sign5 * sin(theta5) >= 0`` (q5 in [0, 180] deg when axis 5 has no zero
+  offset). The closed forms of :mod:`olp_compensate.ik` return branch k = cfx k.
+  UR arms have no ABB cfx; the same function gives the analogous bits (shoulder, elbow,
+  wrist) of :func:`olp_compensate.ik.configuration_bits`.
+
+V+ (Adept, Staubli CS7) and similar PUMA-style flags (RIGHTY/LEFTY, ABOVE/BELOW,
+FLIP/NOFLIP); FLIP means joint 5 negative (Servotronix softMC wiki, ``robot.WRISTCMD`` for
+the PUMA model: "FLIP - value of joint 5 is negative"). RIGHTY: the arm plane is offset to
+the right of the line from axis 1 to the wrist centre, seen from above, as a human right
+arm (for an arm without shoulder offset, b = 0, RIGHTY is taken as "wrist centre in front
+of axis 1", an assumption of this module). ABOVE: the elbow is above the line from the
+shoulder (axis 2) to the wrist centre.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import DataError, ModelError
+from .ik import (OPWParameters, URParameters, _as_joints, _check_family, _margins,
+                 branch_of, select_branch)
+
+__all__ = ["abb_confdata", "select_branch", "vplus_configuration", "vplus_branch"]
+
+
+def abb_confdata(params: OPWParameters | URParameters, q) -> np.ndarray:
+    """ABB confdata ``(m, 4)`` int = (cf1, cf4, cf6, cfx) of joints ``q (m, 6)`` rad."""
+    _check_family(params)
+    q = _as_joints(q, 6, "q")
+    quadrants = np.floor(q[:, [0, 3, 5]] / (np.pi / 2)).astype(int)
+    return np.concatenate([quadrants, branch_of(params, q)[:, None]], 1)
+
+
+def vplus_configuration(params: OPWParameters, q) -> np.ndarray:
+    """V+ flags ``(m, 3)`` bool = (RIGHTY, ABOVE, FLIP) of joints ``q (m, 6)`` rad (OPW)."""
+    if not isinstance(params, OPWParameters):
+        raise ModelError(f"V+ configurations are defined here for OPW (PUMA-like) arms, "
+                         f"got {type(params).__name__}")
+    q = _as_joints(q, 6, "q", allow_nan=True)
+    front, lower_arm, wrist = _margins(params, q).T
+    righty = front >= 0 if params.b == 0 else front * params.b < 0
+    # elbow above the shoulder-wrist line: "front of lower arm" seen from the side the
+    # wrist centre is on
+    above = lower_arm * (front - params.a1) > 0
+    return np.stack([righty, above, wrist < 0], 1)
+
+
+def vplus_branch(params: OPWParameters, solutions, righty, above, flip):
+    """The solution with the given V+ flags, each (m,) bool or a scalar.
+
+    ``solutions (m, 8, 6)`` from :func:`olp_compensate.ik.opw_inverse`. Returns ``q (m, 6)``
+    rad (NaN where none) and ``found (m,)`` bool.
+    """
+    solutions = np.asarray(solutions, dtype=float)
+    if solutions.ndim != 3 or solutions.shape[1:] != (8, 6):
+        raise DataError(f"solutions must have shape (m, 8, 6), got {solutions.shape}")
+    m = len(solutions)
+    wanted = np.stack([np.broadcast_to(np.asarray(v, dtype=bool), (m,))
+                       for v in (righty, above, flip)], 1)
+    flags = vplus_configuration(params, solutions.reshape(-1, 6)).reshape(m, 8, 3)
+    match = np.all(flags == wanted[:, None, :], axis=2)
+    match &= np.all(np.isfinite(solutions), axis=2)
+    found = np.any(match, axis=1)
+    q = np.full((m, 6), np.nan)
+    q[found] = solutions[found, np.argmax(match[found], axis=1)]
+    return q, found

@@ -1,0 +1,1168 @@
+"""Inverse kinematics: closed forms of the nominal robot, Newton refinement on any model.
+
+Everything is batched over targets: poses ``(m, 4, 4)`` in metres, joint vectors ``(m, n)``
+in radians, the user's joint convention (signs and zero positions of the controller).
+
+- :class:`OPWParameters`, :func:`opw_forward`, :func:`opw_inverse`: 6R arms with an
+  ortho-parallel base and a spherical wrist (ABB, KUKA, FANUC, Staubli, PUMA...), after
+  M. Brandstoetter, A. Angerer, M. Hofbaur, "An analytical solution of the inverse kinematics
+  problem of industrial serial manipulators with an ortho-parallel basis and a spherical
+  wrist", Austrian Robotics Workshop 2014.
+- :class:`URParameters`, :func:`ur_forward`, :func:`ur_inverse`: 6R arms with axes 2, 3, 4
+  parallel (Universal Robots), after K. P. Hawkins, "Analytic inverse kinematics for the
+  Universal Robots UR-5/UR-10 arms", Georgia Tech, 2013.
+- :func:`fit_family`: which family a forward-kinematics callable belongs to, and its
+  parameters, verified to 1e-9 m / 1e-9 rad.
+- :func:`refine`: damped Newton on any model given as ``fk_jacobian``; :func:`solve`: closed
+  form on the nominal family, then :func:`refine` on the (calibrated) model.
+
+Branch numbering. The 8 solutions of both closed forms are ordered so that the index *is*
+the configuration number: ``index = 4 * behind + 2 * elbow + wrist``, with the three bits of
+:func:`configuration_bits`. For OPW arms this is ABB's ``cfx`` (see
+:mod:`olp_compensate.confdata`). Unreachable branches are NaN. Failure of an iterative solve
+is a value in :class:`IKSolution`, never an exception.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .conventions import (invert_pose, pose_from_rotation_translation, rot_y, rot_z,
+                          rotvec_from_rotation)
+from .errors import DataError, ModelError
+
+__all__ = [
+    "OPWParameters", "URParameters", "IKSolution", "REASONS",
+    "opw_forward", "opw_inverse", "ur_forward", "ur_inverse",
+    "closed_form_forward", "closed_form_inverse", "configuration_bits", "branch_of",
+    "select_branch", "fit_family", "refine", "solve",
+]
+
+REASONS = ("ok", "unreachable", "joint_limit", "singular", "branch_changed", "not_converged")
+"""Every value :attr:`IKSolution.reason` can take."""
+
+_TWO_PI = 2.0 * np.pi
+_WRIST_EPS = 1e-12     # |sin(theta5)| below this: the wrist is treated as exactly singular
+_DAMPING = 1e-10       # Tikhonov term of the Newton step, relative to mean(diag(J^T J))
+_STALL_STEPS = 20      # Newton steps in a row without progress before a target is given up
+
+
+# --------------------------------------------------------------------------- parameters
+
+def _transform_field(value, name):
+    if value is None:
+        return None
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
+        raise ModelError(f"{name} must be a finite (4, 4) pose, got shape {arr.shape}")
+    return tuple(tuple(float(v) for v in row) for row in arr)
+
+
+def _check_common(self, lengths):
+    for name in lengths:
+        value = getattr(self, name)
+        if not np.isfinite(value):
+            raise ModelError(f"{name} must be a finite length in metres, got {value!r}")
+        object.__setattr__(self, name, float(value))
+    offsets = tuple(float(v) for v in self.offsets)
+    signs = tuple(int(v) for v in self.signs)
+    if len(offsets) != 6 or not np.all(np.isfinite(offsets)):
+        raise ModelError(f"offsets must be 6 finite angles in radians, got {self.offsets!r}")
+    if len(signs) != 6 or any(s not in (1, -1) for s in signs):
+        raise ModelError(f"signs must be 6 values of +1 or -1, got {self.signs!r}")
+    object.__setattr__(self, "offsets", offsets)
+    object.__setattr__(self, "signs", signs)
+    object.__setattr__(self, "base_T_root", _transform_field(self.base_T_root, "base_T_root"))
+    object.__setattr__(self, "tip_T_flange", _transform_field(self.tip_T_flange, "tip_T_flange"))
+
+
+class _Family:
+    """Joint conventions shared by both families: ``theta = sign * q - offset``."""
+
+    def model_angles(self, q):
+        """Model angles ``theta (m, 6)`` (rad) from controller joints ``q (m, 6)``."""
+        return np.asarray(self.signs) * q - np.asarray(self.offsets)
+
+    def joint_angles(self, theta):
+        """Controller joints ``q (m, 6)`` (rad) from model angles ``theta (m, 6)``."""
+        return (theta + np.asarray(self.offsets)) * np.asarray(self.signs)
+
+    def _base(self):
+        return None if self.base_T_root is None else np.array(self.base_T_root)
+
+    def _tip(self):
+        return None if self.tip_T_flange is None else np.array(self.tip_T_flange)
+
+    def _to_base(self, root_T_tip):
+        base, tip = self._base(), self._tip()
+        if base is not None:
+            root_T_tip = base @ root_T_tip
+        if tip is not None:
+            root_T_tip = root_T_tip @ tip
+        return root_T_tip
+
+    def _to_root(self, base_T_flange):
+        base, tip = self._base(), self._tip()
+        if base is not None:
+            base_T_flange = invert_pose(base) @ base_T_flange
+        if tip is not None:
+            base_T_flange = base_T_flange @ invert_pose(tip)
+        return base_T_flange
+
+
+@dataclass(frozen=True)
+class OPWParameters(_Family):
+    """Ortho-parallel arm with spherical wrist (Brandstoetter et al. 2014), lengths in m.
+
+    Model angles ``theta = signs * q - offsets``; at ``theta = 0`` the arm stands straight up
+    in the root frame: axis 1 = root z, axes 2 and 3 along y, the wrist centre at
+    ``(a1 + a2, b, c1 + c2 + c3)``, the tip ``c4`` above it with the root orientation.
+    ``base_T_root`` (root frame in the caller's base frame) and ``tip_T_flange`` (flange in
+    the tip frame) are identity when None; they are given as (4, 4) poses and kept as
+    nested tuples (``np.array(...)`` gives them back). Example, ABB IRB 2400 (ABB joint
+    convention)::
+
+        OPWParameters(a1=0.100, a2=-0.135, b=0.0, c1=0.615, c2=0.705, c3=0.755, c4=0.085,
+                      offsets=(0, 0, -np.pi / 2, 0, 0, 0))
+    """
+
+    a1: float
+    a2: float
+    b: float
+    c1: float
+    c2: float
+    c3: float
+    c4: float
+    offsets: tuple = (0.0,) * 6
+    signs: tuple = (1,) * 6
+    base_T_root: tuple | None = field(default=None, repr=False)
+    tip_T_flange: tuple | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        _check_common(self, ("a1", "a2", "b", "c1", "c2", "c3", "c4"))
+        if self.c2 <= 0 or np.hypot(self.a2, self.c3) <= 0:
+            raise ModelError(f"c2 and hypot(a2, c3) must be positive lengths, got c2={self.c2}, "
+                             f"a2={self.a2}, c3={self.c3}")
+
+
+@dataclass(frozen=True)
+class URParameters(_Family):
+    """Arm with axes 2, 3, 4 parallel, as the standard DH table of Universal Robots (m).
+
+    DH rows ``(theta_i, d_i, a_i, alpha_i)``: ``(t1, d1, 0, pi/2)``, ``(t2, 0, a2, 0)``,
+    ``(t3, 0, a3, 0)``, ``(t4, d4, 0, pi/2)``, ``(t5, d5, 0, -pi/2)``, ``(t6, d6, 0, 0)`` with
+    ``theta = signs * q - offsets``. UR5e: ``d1=0.1625, a2=-0.425, a3=-0.3922, d4=0.1333,
+    d5=0.0997, d6=0.0996``. ``base_T_root`` and ``tip_T_flange`` as in :class:`OPWParameters`.
+    """
+
+    d1: float
+    a2: float
+    a3: float
+    d4: float
+    d5: float
+    d6: float
+    offsets: tuple = (0.0,) * 6
+    signs: tuple = (1,) * 6
+    base_T_root: tuple | None = field(default=None, repr=False)
+    tip_T_flange: tuple | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        _check_common(self, ("d1", "a2", "a3", "d4", "d5", "d6"))
+        if self.a2 == 0 or self.a3 == 0 or self.d6 == 0:
+            raise ModelError(f"a2, a3 and d6 must be non-zero, got a2={self.a2}, a3={self.a3}, "
+                             f"d6={self.d6}")
+
+
+# --------------------------------------------------------------------------- input checks
+
+def _as_poses(value, name):
+    arr = np.asarray(value, dtype=float)
+    if arr.shape == (4, 4):
+        arr = arr[None]
+    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
+        raise DataError(f"{name} must be poses of shape (m, 4, 4), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise DataError(f"{name} contains NaN or infinite values")
+    return arr
+
+
+def _as_joints(value, n, name, allow_nan=False):
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[None]
+    if arr.ndim != 2 or (n is not None and arr.shape[1] != n):
+        want = f"(m, {n})" if n is not None else "(m, n)"
+        raise DataError(f"{name} must be joint values of shape {want} in rad, "
+                        f"got shape {arr.shape}")
+    if not allow_nan and not np.all(np.isfinite(arr)):
+        raise DataError(f"{name} contains NaN or infinite values")
+    return arr
+
+
+def _as_limits(limits, n):
+    if limits is None:
+        return None
+    arr = np.asarray(limits, dtype=float)
+    if arr.shape != (n, 2):
+        raise DataError(f"limits must be (lower, upper) per joint, shape ({n}, 2) in rad, "
+                        f"got shape {arr.shape}")
+    if np.any(arr[:, 0] > arr[:, 1]):
+        raise DataError(f"limits have a lower bound above the upper bound: {arr.tolist()}")
+    return arr
+
+
+def _wrap(angle):
+    """Angles wrapped to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - angle, _TWO_PI)
+
+
+def _dh(theta, d, a, cos_alpha, sin_alpha):
+    """Standard DH transforms ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``, shape ``(..., 4, 4)``."""
+    c, s = np.cos(theta), np.sin(theta)
+    out = np.zeros(np.shape(theta) + (4, 4))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = (
+        c, -s * cos_alpha, s * sin_alpha, a * c)
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = (
+        s, c * cos_alpha, -c * sin_alpha, a * s)
+    out[..., 2, 1], out[..., 2, 2], out[..., 2, 3] = sin_alpha, cos_alpha, d
+    out[..., 3, 3] = 1.0
+    return out
+
+
+# --------------------------------------------------------------------------- OPW family
+
+def _opw_tip(params, theta):
+    """Tip frames ``(m, 4, 4)`` in the root frame for model angles ``theta (m, 6)``."""
+    t1, t2, t3, t4, t5, t6 = np.moveaxis(theta, -1, 0)
+    psi3 = np.arctan2(params.a2, params.c3)
+    k = np.hypot(params.a2, params.c3)
+    cx1 = params.c2 * np.sin(t2) + k * np.sin(t2 + t3 + psi3) + params.a1
+    cz1 = params.c2 * np.cos(t2) + k * np.cos(t2 + t3 + psi3)
+    c1, s1 = np.cos(t1), np.sin(t1)
+    centre = np.stack([cx1 * c1 - params.b * s1, cx1 * s1 + params.b * c1, cz1 + params.c1], -1)
+    rotation = rot_z(t1) @ rot_y(t2 + t3) @ rot_z(t4) @ rot_y(t5) @ rot_z(t6)
+    position = centre + params.c4 * rotation[..., :, 2]
+    return pose_from_rotation_translation(rotation, position)
+
+
+def opw_forward(params: OPWParameters, q) -> np.ndarray:
+    """Flange poses ``base_T_flange (m, 4, 4)`` (m) for joints ``q (m, 6)`` (rad)."""
+    q = _as_joints(q, 6, "q")
+    return params._to_base(_opw_tip(params, params.model_angles(q)))
+
+
+def _acos(x, clip):
+    return np.arccos(np.clip(x, -1.0, 1.0) if clip else x)
+
+
+def _opw_branch(params, root_T_tip, branch, clip):
+    """Model angles ``(k, 6)`` of one branch per row (``branch (k,)`` in 0..7) for tip poses
+    in the root frame; NaN where unreachable. ``clip``: out-of-reach targets get the
+    stretched arm instead of NaN."""
+    behind, elbow, negative = branch >= 4, (branch // 2) % 2 == 1, branch % 2 == 1
+    rotation, position = root_T_tip[:, :3, :3], root_T_tip[:, :3, 3]
+    c = position - params.c4 * rotation[:, :, 2]
+    cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
+    a1, a2, b, c1, c2, c3 = params.a1, params.a2, params.b, params.c1, params.c2, params.c3
+    kappa_2 = a2 * a2 + c3 * c3
+    psi3 = np.arctan2(a2, c3)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        radial2 = cx * cx + cy * cy - b * b
+        nx1 = np.sqrt(np.maximum(radial2, 0.0) if clip else radial2) - a1
+        tmp1, tmp2 = np.arctan2(cy, cx), np.arctan2(b, nx1 + a1)
+        theta1 = np.where(behind, tmp1 + tmp2 - np.pi, tmp1 - tmp2)
+        # wrist centre in the arm plane, relative to axis 2 (behind: the arm turned round)
+        forward = np.where(behind, nx1 + 2 * a1, nx1)
+        dz = cz - c1
+        s_2 = forward * forward + dz * dz
+        phi = np.where(behind, -1.0, 1.0) * np.arctan2(forward, dz)
+        g2 = _acos((s_2 + c2 * c2 - kappa_2) / (2 * np.sqrt(s_2) * c2), clip)
+        g3 = _acos((s_2 - c2 * c2 - kappa_2) / (2 * c2 * np.sqrt(kappa_2)), clip)
+    side = np.where(elbow, -1.0, 1.0)          # +1: wrist centre in front of the lower arm
+    theta2 = phi - side * g2
+    theta3 = side * g3 - psi3
+    theta4, theta5, theta6 = _spherical_wrist(rot_z(theta1) @ rot_y(theta2 + theta3), rotation,
+                                              -params.offsets[3], params.signs[4], negative)
+    theta = np.stack([theta1, theta2, theta3, theta4, theta5, theta6], 1)
+    theta[np.any(np.isnan(theta), axis=1)] = np.nan
+    return theta
+
+
+def _spherical_wrist(rotation_0c, rotation, free4, sign5, negative):
+    """Wrist angles (theta4, theta5, theta6), each ``(k,)``, of
+    ``rotation = rotation_0c Rz(t4) Ry(t5) Rz(t6)``: with ``sign5 * sin(t5) >= 0`` (positive
+    wrist), or the flipped wrist where ``negative``. At a singular wrist t4 = ``free4``."""
+    r = np.swapaxes(rotation_0c, -1, -2) @ rotation
+    horizontal = np.hypot(r[:, 0, 2], r[:, 1, 2])
+    t5 = np.arctan2(horizontal, r[:, 2, 2])
+    t4 = np.arctan2(r[:, 1, 2], r[:, 0, 2])
+    t6 = np.arctan2(r[:, 2, 1], -r[:, 2, 0])
+    singular = horizontal < _WRIST_EPS
+    if np.any(singular):
+        upright = r[:, 2, 2] > 0
+        t6_up = np.arctan2(r[:, 1, 0], r[:, 0, 0]) - free4
+        t6_down = free4 - np.arctan2(-r[:, 1, 0], -r[:, 0, 0])
+        t4 = np.where(singular, free4, t4)
+        t6 = np.where(singular, np.where(upright, t6_up, t6_down), t6)
+    flip = negative if sign5 > 0 else ~negative
+    return (np.where(flip, t4 + np.pi, t4), np.where(flip, -t5, t5),
+            np.where(flip, t6 + np.pi, t6))
+
+
+def _all_branches(solve_branch, params, base_T_flange, clip):
+    """``(m, 8, 6)`` controller joints, branch k in column k, wrapped to (-pi, pi]."""
+    T = params._to_root(base_T_flange)
+    m = len(T)
+    theta = solve_branch(params, np.repeat(T, 8, axis=0), np.tile(np.arange(8), m), clip)
+    return _wrap(params.joint_angles(theta)).reshape(m, 8, 6)
+
+
+def _one_branch(params, base_T_flange, branch, clip):
+    """``(m, 6)`` controller joints on ``branch (m,)``, wrapped to (-pi, pi]."""
+    solve_branch = _opw_branch if isinstance(params, OPWParameters) else _ur_branch
+    theta = solve_branch(params, params._to_root(base_T_flange), branch, clip)
+    return _wrap(params.joint_angles(theta))
+
+
+def opw_inverse(params: OPWParameters, base_T_flange) -> np.ndarray:
+    """All 8 joint solutions ``(m, 8, 6)`` (rad, in (-pi, pi]) for flange poses ``(m, 4, 4)``.
+
+    Branch ``k`` has configuration number ``k`` (ABB cfx, see :func:`configuration_bits`);
+    unreachable branches are NaN. At a singular wrist, axis 4 is set to 0.
+    """
+    return _all_branches(_opw_branch, params, _as_poses(base_T_flange, "base_T_flange"), False)
+
+
+# --------------------------------------------------------------------------- UR family
+
+_UR_ALPHA = ((0.0, 1.0), (1.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 0.0))
+
+
+def _ur_link(params, i, theta):
+    d = (params.d1, 0.0, 0.0, params.d4, params.d5, params.d6)[i]
+    a = (0.0, params.a2, params.a3, 0.0, 0.0, 0.0)[i]
+    return _dh(theta, d, a, *_UR_ALPHA[i])
+
+
+def _ur_frames(params, theta):
+    """DH frames 1..6 in the root frame, shape ``(6, m, 4, 4)``."""
+    frames = []
+    T = None
+    for i in range(6):
+        link = _ur_link(params, i, theta[..., i])
+        T = link if T is None else T @ link
+        frames.append(T)
+    return np.stack(frames)
+
+
+def ur_forward(params: URParameters, q) -> np.ndarray:
+    """Flange poses ``base_T_flange (m, 4, 4)`` (m) for joints ``q (m, 6)`` (rad)."""
+    q = _as_joints(q, 6, "q")
+    return params._to_base(_ur_frames(params, params.model_angles(q))[-1])
+
+
+def _ur_branch(params, root_T_tip, branch, clip):
+    """Model angles ``(k, 6)`` of one branch per row, as :func:`_opw_branch` (Hawkins)."""
+    behind, elbow, negative = branch >= 4, (branch // 2) % 2 == 1, branch % 2 == 1
+    T = root_T_tip
+    x_axis, y_axis, z_axis, p06 = T[:, :3, 0], T[:, :3, 1], T[:, :3, 2], T[:, :3, 3]
+    p05 = p06 - params.d6 * z_axis
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.hypot(p05[:, 0], p05[:, 1])
+        phi = _acos(params.d4 / r, clip)
+        # "+phi" puts the wrist point at p05 . x1 <= 0: in front when a2 < 0
+        plus = behind if params.a2 >= 0 else ~behind
+        t1 = np.arctan2(p05[:, 1], p05[:, 0]) + np.where(plus, phi, -phi) + np.pi / 2
+        s1, c1 = np.sin(t1), np.cos(t1)
+        t5 = _acos((p06[:, 0] * s1 - p06[:, 1] * c1 - params.d4) / params.d6, clip)
+        t5 = params.signs[4] * np.where(negative, -t5, t5)
+        s5 = np.sin(t5)
+        singular = np.abs(s5) < _WRIST_EPS
+        safe = np.where(singular, 1.0, s5)
+        t6 = np.where(singular, -params.offsets[5],
+                      np.arctan2((-y_axis[:, 0] * s1 + y_axis[:, 1] * c1) / safe,
+                                 (x_axis[:, 0] * s1 - x_axis[:, 1] * c1) / safe))
+        T14 = (invert_pose(_ur_link(params, 0, t1)) @ T
+               @ invert_pose(_ur_link(params, 4, t5) @ _ur_link(params, 5, t6)))
+        px, py = T14[:, 0, 3], T14[:, 1, 3]
+        g3 = _acos((px * px + py * py - params.a2 ** 2 - params.a3 ** 2)
+                   / (2 * params.a2 * params.a3), clip)
+    t3 = np.where(elbow, -g3, g3)
+    t2 = np.arctan2(py, px) - np.arctan2(params.a3 * np.sin(t3),
+                                         params.a2 + params.a3 * np.cos(t3))
+    t4 = np.arctan2(T14[:, 1, 0], T14[:, 0, 0]) - t2 - t3
+    theta = np.stack([t1, t2, t3, t4, t5, t6], 1)
+    theta[np.any(np.isnan(theta), axis=1)] = np.nan
+    return theta
+
+
+def ur_inverse(params: URParameters, base_T_flange) -> np.ndarray:
+    """All 8 joint solutions ``(m, 8, 6)`` (rad, in (-pi, pi]) for flange poses ``(m, 4, 4)``.
+
+    Branch ``k`` has configuration number ``k`` (:func:`configuration_bits`); unreachable
+    branches are NaN. At a singular wrist (sin(theta5) = 0), axis 6 is set to 0.
+    """
+    return _all_branches(_ur_branch, params, _as_poses(base_T_flange, "base_T_flange"), False)
+
+
+# --------------------------------------------------------------------------- both families
+
+def _check_family(params):
+    if not isinstance(params, (OPWParameters, URParameters)):
+        raise ModelError(f"expected OPWParameters or URParameters, got {type(params).__name__}")
+
+
+def closed_form_forward(params: OPWParameters | URParameters, q) -> np.ndarray:
+    """:func:`opw_forward` or :func:`ur_forward`, whichever family ``params`` is."""
+    _check_family(params)
+    return (opw_forward if isinstance(params, OPWParameters) else ur_forward)(params, q)
+
+
+def closed_form_inverse(params: OPWParameters | URParameters, base_T_flange) -> np.ndarray:
+    """:func:`opw_inverse` or :func:`ur_inverse`, whichever family ``params`` is."""
+    _check_family(params)
+    return (opw_inverse if isinstance(params, OPWParameters) else ur_inverse)(params,
+                                                                            base_T_flange)
+
+
+def _margins(params, q):
+    """Signed margins ``(m, 3)`` of the three configuration bits (>= 0 means bit 0)."""
+    theta = params.model_angles(q)
+    wrist = params.signs[4] * np.sin(theta[:, 4])
+    if isinstance(params, OPWParameters):
+        psi3 = np.arctan2(params.a2, params.c3)
+        k = np.hypot(params.a2, params.c3)
+        t2, t3 = theta[:, 1], theta[:, 2]
+        front = params.c2 * np.sin(t2) + k * np.sin(t2 + t3 + psi3) + params.a1
+        return np.stack([front, np.sin(t3 + psi3), wrist], 1)
+    frames = _ur_frames(params, theta)
+    x1 = frames[0][:, :3, 0]
+    p05 = frames[4][:, :3, 3]
+    front = np.sign(params.a2) * np.einsum("ij,ij->i", p05, x1)
+    return np.stack([front, np.sin(theta[:, 2]), wrist], 1)
+
+
+def configuration_bits(params: OPWParameters | URParameters, q, tolerance: float = 0.0):
+    """Configuration bits ``(m, 3)`` int of joints ``q (m, 6)``: (behind, elbow, wrist).
+
+    OPW arms (ABB's cfx, see :mod:`olp_compensate.confdata`): *behind* = wrist centre behind
+    axis 1 (its x in the arm plane < 0), *elbow* = wrist centre behind the lower arm
+    (``sin(theta3 + atan2(a2, c3)) < 0``), *wrist* = axis 5 negative
+    (``sign5 * sin(theta5) < 0``). UR arms: *behind* = wrist point (frame 5 origin) on the
+    side of axis 1 opposite to where the arm points at theta2 = 0; *elbow* =
+    ``sin(theta3) < 0``; *wrist* as above. A bit whose margin is within ``tolerance``
+    (m for *behind*, sine otherwise) is -1 (on a boundary).
+    """
+    _check_family(params)
+    return _bits(params, _as_joints(q, 6, "q"), tolerance)
+
+
+def _bits(params, q, tolerance):
+    margin = _margins(params, q)
+    bits = (margin < 0).astype(int)
+    bits[~(np.abs(margin) >= tolerance) if tolerance > 0 else np.isnan(margin)] = -1
+    return bits
+
+
+def branch_of(params: OPWParameters | URParameters, q) -> np.ndarray:
+    """Configuration number ``(m,)`` in 0..7 of joints ``q (m, 6)``; the closed forms'
+    branch index: ``4 * behind + 2 * elbow + wrist`` of :func:`configuration_bits`."""
+    bits = configuration_bits(params, q)
+    return 4 * bits[:, 0] + 2 * bits[:, 1] + bits[:, 2]
+
+
+# --------------------------------------------------------------------------- branch choice
+
+_QUADRANT_AXES = (0, 3, 5)
+
+
+def _shift_into(q, limits, lower, upper):
+    """Shift ``q (m,)`` by multiples of 2 pi to be nearest the interval [lower, upper)
+    (arrays ``(m,)``), staying inside ``limits`` (2,) if given (else as little outside as
+    possible). Returns (value, distance to the interval)."""
+    centre = 0.5 * (lower + upper)
+    k0 = np.round((centre - q) / _TWO_PI)
+    candidates = q[:, None] + _TWO_PI * (k0[:, None] + np.array([-1.0, 0.0, 1.0]))
+    distance = np.maximum(np.maximum(lower[:, None] - candidates, 0.0),
+                          candidates - upper[:, None])
+    # inside the limits first, then nearest the interval, then nearest its centre
+    score = distance + 1e-9 * np.abs(candidates - centre[:, None])
+    if limits is not None:
+        score += 1e6 * np.maximum(np.maximum(limits[0] - candidates, 0.0),
+                                  candidates - limits[1])
+    best = np.argmin(np.where(np.isnan(score), np.inf, score), axis=1)
+    rows = np.arange(len(q))
+    return candidates[rows, best], distance[rows, best]
+
+
+def _select(solutions, confdata, limits, quadrant_tolerance):
+    """Requested branches with 2 pi shifts; status 0 found, 1 no branch, 2 limits, 3 quadrant."""
+    m = len(solutions)
+    cfx = confdata[:, 3]
+    q = solutions[np.arange(m), cfx].copy()
+    exists = np.all(np.isfinite(q), axis=1)
+    quadrant_ok = np.ones(m, bool)
+    within = np.ones(m, bool)
+    for j in range(6):
+        lim = None if limits is None else limits[j]
+        if j in _QUADRANT_AXES:
+            lower = confdata[:, {0: 0, 3: 1, 5: 2}[j]] * (np.pi / 2)
+            value, dist = _shift_into(q[:, j], lim, lower, lower + np.pi / 2)
+            quadrant_ok &= ~(dist > quadrant_tolerance)
+        else:
+            value = q[:, j]
+            if lim is not None:
+                value, _ = _shift_into(value, lim, np.full(m, lim[0]), np.full(m, lim[1]))
+        q[:, j] = value
+        if lim is not None:
+            within &= (q[:, j] >= lim[0]) & (q[:, j] <= lim[1])
+    status = np.where(~exists, 1, np.where(~within, 2, np.where(~quadrant_ok, 3, 0)))
+    return q, status
+
+
+def _as_confdata(confdata, m):
+    arr = np.asarray(confdata)
+    if arr.ndim == 1:
+        arr = arr[None]
+    if arr.shape != (m, 4) or not np.all(np.equal(np.mod(arr, 1), 0)):
+        raise DataError(f"confdata must be integers (cf1, cf4, cf6, cfx) of shape ({m}, 4), "
+                        f"got shape {arr.shape}")
+    arr = arr.astype(int)
+    if np.any((arr[:, 3] < 0) | (arr[:, 3] > 7)):
+        raise DataError(f"cfx must be in 0..7, got {sorted(set(arr[:, 3].tolist()))}")
+    return arr
+
+
+def select_branch(solutions, confdata, limits=None, quadrant_tolerance: float = np.pi / 4):
+    """The solution matching ABB-style ``confdata (m, 4)`` = (cf1, cf4, cf6, cfx).
+
+    ``solutions (m, 8, 6)`` from :func:`opw_inverse` / :func:`ur_inverse` (branch index =
+    cfx). Axes 1, 4, 6 are shifted by multiples of 2 pi into the quadrants
+    ``[cf * 90 deg, (cf + 1) * 90 deg)``, or as near as ``limits (6, 2)`` (rad) allow; the
+    other axes by 2 pi only to enter the limits. Returns ``q (m, 6)`` rad and
+    ``found (m,)`` bool: False where the branch is unreachable, outside the limits, or an
+    axis lies more than ``quadrant_tolerance`` (rad) from its requested quadrant.
+    """
+    solutions = np.asarray(solutions, dtype=float)
+    if solutions.ndim != 3 or solutions.shape[1:] != (8, 6):
+        raise DataError(f"solutions must have shape (m, 8, 6), got {solutions.shape}")
+    confdata = _as_confdata(confdata, len(solutions))
+    q, status = _select(solutions, confdata, _as_limits(limits, 6), quadrant_tolerance)
+    return q, status == 0
+
+
+# --------------------------------------------------------------------------- family fit
+
+_FIT_ANGLE = 0.7          # rad, the finite rotation used to read each joint axis
+_STRUCTURE_TOL = 1e-7     # m or rad: how far from the family's geometry a fit may start
+_FOLD_TOL = 1e-9          # flange frame folded into c4 / d6 and the axis-6 offset below this
+_VERIFY_TOL = 1e-9        # m and rad: acceptance of a fitted family
+
+
+def _read_axes(flange_pose, n):
+    """Joint axes at q = 0 in the base frame: directions (n, 3), points (n, 3), and M (4, 4)."""
+    q = np.zeros((n + 1, n))
+    q[1:] = np.eye(n) * _FIT_ANGLE
+    poses = _as_poses(flange_pose(q), "flange_pose(q)")
+    if len(poses) != n + 1:
+        raise ModelError(f"flange_pose returned {len(poses)} poses for {n + 1} joint vectors")
+    M = poses[0]
+    G = poses[1:] @ invert_pose(M)
+    w = rotvec_from_rotation(G[:, :3, :3])
+    if np.any(np.abs(np.linalg.norm(w, axis=1) - _FIT_ANGLE) > _STRUCTURE_TOL):
+        return None                                              # not a unit-gain revolute
+    directions = w / _FIT_ANGLE
+    points = np.empty((n, 3))
+    for i in range(n):
+        A = np.eye(3) - G[i, :3, :3]
+        points[i] = np.linalg.lstsq(A, G[i, :3, 3], rcond=1e-9)[0]
+        if np.linalg.norm(A @ points[i] - G[i, :3, 3]) > _STRUCTURE_TOL:
+            return None                                          # a screw, not a rotation
+    return directions, points, M
+
+
+def _closest_point(points, directions):
+    """Point nearest to all lines (least squares) and the largest distance to them."""
+    P = np.eye(3) - directions[:, :, None] * directions[:, None, :]
+    A, rhs = P.sum(0), np.einsum("kij,kj->i", P, points)
+    if np.linalg.svd(A, compute_uv=False)[-1] < 1e-6:
+        return None, np.inf
+    x = np.linalg.solve(A, rhs)
+    dist = np.linalg.norm(np.einsum("kij,kj->ki", P, x - points), axis=1)
+    return x, dist.max()
+
+
+def _root_frame(direction1, point1):
+    """Root frame: z along axis 1, origin on it nearest the base origin, x from base x."""
+    z = direction1
+    x = np.array([1.0, 0.0, 0.0]) - z[0] * z
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([0.0, 1.0, 0.0]) - z[1] * z
+    x /= np.linalg.norm(x)
+    R = np.stack([x, np.cross(z, x), z], 1)
+    return pose_from_rotation_translation(R, point1)
+
+
+def _tidy_length(value):
+    """Round fitted lengths to 1e-12 m: fit noise of ~1e-16 m would only clutter a repr."""
+    return float(np.round(value, 12)) + 0.0
+
+
+def _tidy_angles(angles):
+    """Wrap to (-pi, pi] and snap to multiples of pi/2 within 1e-12 rad."""
+    angles = _wrap(np.asarray(angles, dtype=float))
+    snapped = np.round(angles / (np.pi / 2)) * (np.pi / 2)
+    return tuple(float(v) + 0.0 for v in np.where(np.abs(angles - snapped) < 1e-12,
+                                                   _wrap(snapped), angles))
+
+
+def _is_identity(T):
+    return np.allclose(T, np.eye(4), rtol=0.0, atol=1e-14)
+
+
+def _fold_tip(tip_T_flange):
+    """(along-z offset, rotation about z) if the flange lies on the tip z axis, else None."""
+    R, t = tip_T_flange[:3, :3], tip_T_flange[:3, 3]
+    if abs(R[2, 2] - 1.0) < _FOLD_TOL and np.hypot(t[0], t[1]) < _FOLD_TOL:
+        return t[2], np.arctan2(R[1, 0], R[0, 0])
+    return None
+
+
+def _fit_opw(directions, points, M):
+    """OPW parameters from joint axes at q = 0 (base frame) and the flange pose M, or None.
+
+    Frame choices: root z along axis 1 (sign1 = +1); arm x towards the front (a1 > 0);
+    sign4 so that c3 > 0; sign5 so that |offset4| <= pi/2; sign6 so that the flange z is
+    the tip z when it lies along axis 6 (then folded into c4 and offset6)."""
+    root = _root_frame(directions[0], points[0])
+    root_inv = invert_pose(root)
+    w = directions @ root_inv[:3, :3].T
+    p = points @ root_inv[:3, :3].T + root_inv[:3, 3]
+    flange = root_inv @ M
+    centre, spread = _closest_point(p[3:], w[3:])
+    if centre is None or spread > _STRUCTURE_TOL:
+        return None                                              # no spherical wrist
+    if (abs(w[0] @ w[1]) > _STRUCTURE_TOL or np.linalg.norm(np.cross(w[1], w[2])) > _STRUCTURE_TOL
+            or abs(w[2] @ w[3]) > _STRUCTURE_TOL):
+        return None
+    z = np.array([0.0, 0.0, 1.0])
+    # arm frame: y along axis 2, x towards the front (a1 > 0, else the wrist centre at q = 0)
+    choice = None
+    for sign2 in (1, -1):
+        y_arm = sign2 * w[1]
+        x_arm = np.cross(y_arm, z)
+        a1 = p[1] @ x_arm
+        key = (a1 > _STRUCTURE_TOL, abs(a1) <= _STRUCTURE_TOL and centre @ x_arm > _STRUCTURE_TOL)
+        if choice is None or key > choice[0]:
+            choice = (key, sign2, x_arm, y_arm, a1)
+    _, sign2, x_arm, y_arm, a1 = choice
+    theta1 = np.arctan2(x_arm[1], x_arm[0])
+    c1 = p[1] @ z
+    sign3 = 1 if w[2] @ y_arm > 0 else -1
+    x3, z3 = p[2] @ x_arm, p[2] @ z
+    c2 = np.hypot(x3 - a1, z3 - c1)
+    theta2 = np.arctan2(x3 - a1, z3 - c1)
+    b = centre @ y_arm
+    dx, dz = centre @ x_arm - x3, centre @ z - z3
+    best = None
+    for sign4 in (1, -1):
+        d4 = sign4 * w[3]
+        t23 = np.arctan2(d4 @ x_arm, d4 @ z)
+        a2 = dx * np.cos(t23) - dz * np.sin(t23)
+        c3 = dx * np.sin(t23) + dz * np.cos(t23)
+        if best is None or c3 > best[3]:
+            best = (sign4, t23, a2, c3)
+    sign4, t23, a2, c3 = best
+    arm = np.stack([x_arm, y_arm, z], 1)
+    R0c = arm @ rot_y(t23)
+    best = None
+    for sign5 in (1, -1):
+        v = R0c.T @ (sign5 * w[4])
+        t4 = np.arctan2(-v[0], v[1])
+        if best is None or abs(t4) < abs(best[1]):
+            best = (sign5, t4)
+    sign5, t4 = best
+    R04 = R0c @ rot_z(t4)
+    flange_z = flange[:3, 2]
+    if abs(abs(flange_z @ w[5]) - 1.0) < _FOLD_TOL:
+        candidates = (1 if flange_z @ w[5] > 0 else -1,)
+    else:
+        candidates = (1, -1)
+    best = None
+    for sign6 in candidates:
+        u = R04.T @ (sign6 * w[5])
+        t5 = np.arctan2(u[0], u[2])
+        if best is None or abs(t5) < abs(best[1]):
+            best = (sign6, t5)
+    sign6, t5 = best
+    tip0 = pose_from_rotation_translation(R04 @ rot_y(t5), centre)
+    tip_T_flange = invert_pose(tip0) @ flange
+    folded = _fold_tip(tip_T_flange)
+    if folded is not None:
+        c4, t6 = folded
+        tip_T_flange = None
+    else:
+        c4, t6 = 0.0, 0.0
+    theta0 = np.array([theta1, theta2, t23 - theta2, t4, t5, t6])
+    a1, a2, b, c1, c2, c3, c4 = map(_tidy_length, (a1, a2, b, c1, c2, c3, c4))
+    return OPWParameters(
+        a1=a1, a2=a2, b=b, c1=c1, c2=c2, c3=c3, c4=c4, offsets=_tidy_angles(-theta0),
+        signs=(1, sign2, sign3, sign4, sign5, sign6),
+        base_T_root=None if _is_identity(root) else root, tip_T_flange=tip_T_flange)
+
+
+def _line_intersection(p_a, d_a, p_b, d_b):
+    """Parameter along line a of its closest point to line b, and the lines' distance."""
+    n = np.cross(d_a, d_b)
+    if np.linalg.norm(n) < 1e-6:
+        return None, np.inf
+    n /= np.linalg.norm(n)
+    distance = abs((p_b - p_a) @ n)
+    # solve p_a + s d_a = p_b + t d_b in least squares
+    A = np.stack([d_a, -d_b], 1)
+    s, _ = np.linalg.lstsq(A, p_b - p_a, rcond=1e-12)[0]
+    return s, distance
+
+
+def _fit_ur(directions, points, M):
+    """UR (DH) parameters from joint axes at q = 0 (base frame) and the flange pose M, or
+    None. Signs of a2, a3 and of axes 5, 6 are chosen for the smallest zero offsets."""
+    root = _root_frame(directions[0], points[0])
+    root_inv = invert_pose(root)
+    w = directions @ root_inv[:3, :3].T
+    p = points @ root_inv[:3, :3].T + root_inv[:3, 3]
+    flange = root_inv @ M
+    z = np.array([0.0, 0.0, 1.0])
+    if abs(w[0] @ w[1]) > _STRUCTURE_TOL:
+        return None
+    if any(np.linalg.norm(np.cross(w[1], w[i])) > _STRUCTURE_TOL for i in (2, 3)):
+        return None
+    z1 = w[1]                                     # sign2 = +1 by choice of theta1
+    theta1 = np.arctan2(z1[0], -z1[1])
+    x1 = np.array([np.cos(theta1), np.sin(theta1), 0.0])
+    y1 = np.cross(z1, x1)
+    d1 = p[1] @ z
+    origin1 = d1 * z
+    if abs((p[1] - origin1) @ x1) > _STRUCTURE_TOL:
+        return None                                              # axis 2 misses axis 1
+
+    def planar(point):
+        rel = point - origin1
+        return np.array([rel @ x1, rel @ y1])
+
+    def length_and_angle(vec, previous):
+        best = None
+        for sign in (-1.0, 1.0):
+            length = sign * np.linalg.norm(vec)
+            angle = _wrap(np.arctan2(vec[1] / length, vec[0] / length) - previous)
+            if best is None or abs(angle) < abs(best[1]) - 1e-12:
+                best = (length, angle)
+        return best
+
+    P3, P4 = planar(p[2]), planar(p[3])
+    a2, theta2 = length_and_angle(P3, 0.0)
+    a3, theta3 = length_and_angle(P4 - P3, theta2)
+    sign3 = 1 if w[2] @ z1 > 0 else -1
+    sign4 = 1 if w[3] @ z1 > 0 else -1
+    t23 = theta2 + theta3
+    x3 = np.cos(t23) * x1 + np.sin(t23) * y1
+    y3 = np.cross(z1, x3)
+    origin3 = origin1 + a2 * (np.cos(theta2) * x1 + np.sin(theta2) * y1) + a3 * x3
+    d4, gap = _line_intersection(origin3, z1, p[4], w[4])
+    if d4 is None or gap > _STRUCTURE_TOL:
+        return None
+    origin4 = origin3 + d4 * z1
+    best = None
+    for sign5 in (1, -1):
+        z4 = sign5 * w[4]
+        t4 = np.arctan2(z4 @ x3, -(z4 @ y3))
+        if best is None or abs(t4) < abs(best[1]):
+            best = (sign5, t4, z4)
+    sign5, theta4, z4 = best
+    x4 = np.cos(theta4) * x3 + np.sin(theta4) * y3
+    y4 = np.cross(z4, x4)
+    d5, gap = _line_intersection(origin4, z4, p[5], w[5])
+    if d5 is None or gap > _STRUCTURE_TOL:
+        return None
+    origin5 = origin4 + d5 * z4
+    flange_z = flange[:3, 2]
+    if abs(abs(flange_z @ w[5]) - 1.0) < _FOLD_TOL:
+        candidates = (1 if flange_z @ w[5] > 0 else -1,)
+    else:
+        candidates = (1, -1)
+    best = None
+    for sign6 in candidates:
+        z5 = sign6 * w[5]
+        t5 = np.arctan2(-(z5 @ x4), z5 @ y4)
+        if best is None or abs(t5) < abs(best[1]):
+            best = (sign6, t5, z5)
+    sign6, theta5, z5 = best
+    x5 = np.cos(theta5) * x4 + np.sin(theta5) * y4
+    R5 = np.stack([x5, np.cross(z5, x5), z5], 1)
+    reach = (flange[:3, 3] - origin5) @ z5
+    d6 = reach if abs(reach) > 1e-3 else 0.1                 # d6 must not vanish
+    tip0 = pose_from_rotation_translation(R5, origin5 + d6 * z5)
+    tip_T_flange = invert_pose(tip0) @ flange
+    folded = _fold_tip(tip_T_flange)
+    if folded is not None:
+        d6, theta6 = d6 + folded[0], folded[1]
+        tip_T_flange = None
+    else:
+        theta6 = 0.0
+    theta0 = np.array([theta1, theta2, theta3, theta4, theta5, theta6])
+    d1, a2, a3, d4, d5, d6 = map(_tidy_length, (d1, a2, a3, d4, d5, d6))
+    return URParameters(
+        d1=d1, a2=a2, a3=a3, d4=d4, d5=d5, d6=d6, offsets=_tidy_angles(-theta0),
+        signs=(1, 1, sign3, sign4, sign5, sign6),
+        base_T_root=None if _is_identity(root) else root, tip_T_flange=tip_T_flange)
+
+
+def _pose_error(target, poses):
+    """Errors ``(m, 6)``: position (m) and rotation vector (rad), both in the base frame,
+    taking ``poses`` to ``target``."""
+    dp = target[:, :3, 3] - poses[:, :3, 3]
+    dr = rotvec_from_rotation(target[:, :3, :3] @ np.swapaxes(poses[:, :3, :3], -1, -2))
+    return np.concatenate([dp, dr], 1)
+
+
+def fit_family(flange_pose: Callable[[np.ndarray], np.ndarray], n_joints: int = 6,
+               seed: int = 0) -> OPWParameters | URParameters | None:
+    """Closed-form family and parameters of a robot given only its forward kinematics.
+
+    ``flange_pose(q (m, n_joints) rad) -> base_T_flange (m, 4, 4)`` (m). The joint axes are
+    read at q = 0 from finite rotations of each joint, the OPW or UR geometry is fitted to
+    them, and the fit is accepted only if the family's forward kinematics matches
+    ``flange_pose`` at 50 random configurations (uniform in [-pi, pi], ``seed``) within
+    1e-9 m and 1e-9 rad. Returns None for any other robot.
+    """
+    if n_joints != 6:
+        return None
+    axes = _read_axes(flange_pose, n_joints)
+    if axes is None:
+        return None
+    q = np.random.default_rng(seed).uniform(-np.pi, np.pi, (50, 6))
+    expected = _as_poses(flange_pose(q), "flange_pose(q)")
+    for fit, forward in ((_fit_opw, opw_forward), (_fit_ur, ur_forward)):
+        try:
+            params = fit(*axes)
+        except (ModelError, np.linalg.LinAlgError):
+            params = None
+        if params is None:
+            continue
+        err = _pose_error(expected, forward(params, q))
+        if (np.max(np.linalg.norm(err[:, :3], axis=1)) <= _VERIFY_TOL
+                and np.max(np.linalg.norm(err[:, 3:], axis=1)) <= _VERIFY_TOL):
+            return params
+    return None
+
+
+# --------------------------------------------------------------------------- refinement
+
+@dataclass
+class IKSolution:
+    """Result of :func:`refine` / :func:`solve` for m targets.
+
+    q : (m, n) rad, the last iterate (valid only where ``success``).
+    success : (m,) bool, True where the target is reached within tolerance, inside the
+        joint limits, on the requested configuration.
+    reason : (m,) str from :data:`REASONS`. 'ok'; 'singular' (reached, success True, but the
+        Jacobian's smallest singular value is below ``singular_tol`` times its largest, so
+        some joints, e.g. axes 4 and 6 at axis 5 = 0, are not unique); 'unreachable' (no
+        solution on the requested branch, or the iteration stalled short of the target);
+        'joint_limit'; 'branch_changed' (reached, but on another configuration than
+        requested); 'not_converged' (iteration limit).
+    iterations : (m,) int, Newton steps tried.
+    position_error_m, rotation_error_rad : (m,) final errors (norms, base frame).
+    """
+
+    q: np.ndarray
+    success: np.ndarray
+    reason: np.ndarray
+    iterations: np.ndarray
+    position_error_m: np.ndarray
+    rotation_error_rad: np.ndarray
+
+
+def _evaluate(fk_jacobian, q, target, n):
+    poses, jac = fk_jacobian(q)
+    poses, jac = np.asarray(poses, dtype=float), np.asarray(jac, dtype=float)
+    if poses.shape != (len(q), 4, 4) or jac.shape != (len(q), 6, n):
+        raise ModelError(f"fk_jacobian must return poses ({len(q)}, 4, 4) and a Jacobian "
+                         f"({len(q)}, 6, {n}); got {poses.shape} and {jac.shape}")
+    err = _pose_error(target, poses)
+    return jac, err
+
+
+def _singular(jac, tolerance):
+    """Rows ``(k,)`` of ``jac (k, 6, n)`` whose smallest singular value is below
+    ``tolerance`` times the largest. For square ones, |det J| / |J|_F^6 <= s_min / s_max
+    clears most rows without an SVD."""
+    candidates = np.ones(len(jac), bool)
+    if jac.shape[2] == 6:
+        frobenius = np.linalg.norm(jac, axis=(1, 2))
+        candidates = np.abs(np.linalg.det(jac)) < tolerance * frobenius ** 6
+    singular = np.zeros(len(jac), bool)
+    if np.any(candidates):
+        sv = np.linalg.svd(jac[candidates], compute_uv=False)
+        singular[candidates] = sv[:, -1] < tolerance * sv[:, 0]
+    return singular
+
+
+def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q0, target,
+           limits=None, position_tol: float = 1e-9, rotation_tol: float = 1e-9,
+           max_iterations: int = 50, *, singular_tol: float = 1e-7, max_step: float = 0.5,
+           configuration: Callable[[np.ndarray], np.ndarray] | None = None) -> IKSolution:
+    """Damped Newton from ``q0 (m, n)`` rad to ``target (m, 4, 4)`` m.
+
+    ``fk_jacobian(q (k, n)) -> (base_T_flange (k, 4, 4), jacobian (k, 6, n))``, the
+    geometric Jacobian in the base frame (rows: flange-origin linear velocity, then angular
+    velocity). All targets iterate together; converged ones are frozen. The Gauss-Newton
+    step (with a 1e-10 relative Tikhonov term) is scaled so no joint moves more than
+    ``max_step`` rad and is taken only if it lowers the squared error, else a quarter of it
+    is tried next (backtracking; the share doubles again after a success). A target whose
+    squared error has not dropped by a millionth in 20 steps in a row is 'unreachable'
+    (stuck at the workspace boundary or a singularity). Converged when the position error is at most
+    ``position_tol`` (m) and the rotation error at most ``rotation_tol`` (rad). Rows of
+    ``q0`` with NaN are 'unreachable'. ``limits (n, 2)`` rad are checked at the end, not
+    enforced. ``configuration(q (k, n)) -> (k,) or (k, b) int`` (-1 = undetermined), if
+    given, labels the configuration: a label of the result that differs from that of
+    ``q0`` gives 'branch_changed'. See :class:`IKSolution` for the reasons.
+    """
+    q0 = _as_joints(q0, None, "q0", allow_nan=True)
+    m, n = q0.shape
+    target = _as_poses(target, "target")
+    if len(target) != m:
+        raise DataError(f"target has {len(target)} poses but q0 has {m} rows")
+    limits = _as_limits(limits, n)
+    for name, value in (("position_tol", position_tol), ("rotation_tol", rotation_tol)):
+        if not value > 0:
+            raise DataError(f"{name} must be positive, got {value!r}")
+    if int(max_iterations) < 0:
+        raise DataError(f"max_iterations must be >= 0, got {max_iterations!r}")
+
+    q = q0.copy()
+    reason = np.full(m, "not_converged", dtype="<U14")
+    iterations = np.zeros(m, int)
+    err = np.full((m, 6), np.nan)
+    jac = np.full((m, 6, n), np.nan)
+    valid = np.all(np.isfinite(q0), axis=1)
+    reason[~valid] = "unreachable"
+    rows = np.flatnonzero(valid)
+    if len(rows):
+        jac[rows], err[rows] = _evaluate(fk_jacobian, q[rows], target[rows], n)
+    fraction = np.ones(m)                # backtracking: share of the Newton step tried
+    stale = np.zeros(m, int)             # steps in a row without real progress
+    converged = np.zeros(m, bool)
+    stalled = np.zeros(m, bool)
+    eye = np.eye(n)
+    for _ in range(int(max_iterations) + 1):
+        pos_err = np.linalg.norm(err[:, :3], axis=1)
+        rot_err = np.linalg.norm(err[:, 3:], axis=1)
+        converged |= valid & (pos_err <= position_tol) & (rot_err <= rotation_tol)
+        rows = np.flatnonzero(valid & ~converged & ~stalled & (iterations < max_iterations))
+        if len(rows) == 0:
+            break
+        J, e = jac[rows], err[rows]
+        JtJ = np.swapaxes(J, 1, 2) @ J
+        mu = _DAMPING * np.trace(JtJ, axis1=1, axis2=2) / n
+        step = np.linalg.solve(JtJ + mu[:, None, None] * eye,
+                               np.einsum("kji,kj->ki", J, e)[..., None])[..., 0]
+        biggest = np.max(np.abs(step), axis=1)
+        step *= (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300)) * fraction[rows])[:, None]
+        trial = q[rows] + step
+        jac_t, err_t = _evaluate(fk_jacobian, trial, target[rows], n)
+        iterations[rows] += 1
+        cost, cost_t = np.sum(e ** 2, 1), np.sum(err_t ** 2, 1)
+        better = cost_t < cost
+        good = rows[better]
+        q[good], jac[good], err[good] = trial[better], jac_t[better], err_t[better]
+        fraction[good] = np.minimum(1.0, 2.0 * fraction[good])
+        bad = rows[~better]
+        fraction[bad] *= 0.25
+        # stalled: _STALL_STEPS steps in a row without lowering the error by a millionth
+        progress = cost_t < (1.0 - 1e-6) * cost
+        stale[rows] = np.where(progress, 0, stale[rows] + 1)
+        stalled[rows] |= (stale[rows] >= _STALL_STEPS) | (fraction[rows] < 1e-9)
+    reason[valid & stalled & ~converged] = "unreachable"
+    reason[converged] = "ok"
+
+    done = np.flatnonzero(converged)
+    if len(done):
+        reason[done[_singular(jac[done], singular_tol)]] = "singular"
+        if limits is not None:
+            outside = np.any((q[done] < limits[:, 0]) | (q[done] > limits[:, 1]), axis=1)
+            reason[done[outside]] = "joint_limit"
+        if configuration is not None:
+            before = np.asarray(configuration(q0[done])).reshape(len(done), -1)
+            after = np.asarray(configuration(q[done])).reshape(len(done), -1)
+            changed = np.any((before >= 0) & (after >= 0) & (before != after), axis=1)
+            reason[done[changed]] = "branch_changed"
+    success = np.isin(reason, ("ok", "singular"))
+    return IKSolution(q=q, success=success, reason=reason, iterations=iterations,
+                      position_error_m=np.linalg.norm(err[:, :3], axis=1),
+                      rotation_error_rad=np.linalg.norm(err[:, 3:], axis=1))
+
+
+def _closed_form(params, T, clip):
+    solve_branch = _opw_branch if isinstance(params, OPWParameters) else _ur_branch
+    return _all_branches(solve_branch, params, T, clip)
+
+
+def _default_confdata(solutions, limits):
+    """Where no configuration is asked for: the reachable branch with the smallest |q|."""
+    q = solutions.copy()
+    if limits is not None:
+        outside = np.any((q < limits[:, 0]) | (q > limits[:, 1]), axis=2)
+        q[outside] = np.nan
+    norm = np.where(np.all(np.isfinite(q), 2), np.sum(q * q, 2), np.inf)
+    cfx = np.argmin(norm, axis=1)
+    chosen = solutions[np.arange(len(q)), cfx]
+    quadrant = np.floor(np.nan_to_num(chosen[:, list(_QUADRANT_AXES)]) / (np.pi / 2))
+    return np.concatenate([quadrant.astype(int), cfx[:, None]], 1)
+
+
+_FIXED_POINT_STEPS = 20
+_FIXED_POINT_TOL = 1e-6    # rad: the closed-form iteration hands over to Newton below this
+
+
+def _closed_form_on_model(params, fk_jacobian, T, cfx, q):
+    """Closed-form iteration onto the model: ``q <- IK_nominal(T inv(E(q)))`` on branch cfx,
+    with ``E(q) = inv(FK_nominal(q)) FK_model(q)`` the model's flange error. Keeps the
+    requested branch exactly and is robust where Newton is not (near the shoulder and wrist
+    singularities, whose closed form is exact); each step is one model evaluation.
+    Returns q and the number of steps per row."""
+    q = q.copy()
+    steps = np.zeros(len(q), int)
+    rows = np.flatnonzero(np.all(np.isfinite(q), axis=1))
+    forward = opw_forward if isinstance(params, OPWParameters) else ur_forward
+    for _ in range(_FIXED_POINT_STEPS):
+        if len(rows) == 0:
+            break
+        model_pose = np.asarray(fk_jacobian(q[rows])[0], dtype=float)
+        error = invert_pose(forward(params, q[rows])) @ model_pose
+        corrected = T[rows] @ invert_pose(error)
+        new = _one_branch(params, corrected, cfx[rows], clip=True)
+        new += _TWO_PI * np.round((q[rows] - new) / _TWO_PI)
+        ok = np.all(np.isfinite(new), axis=1)
+        moved = np.max(np.abs(new - q[rows]), axis=1)
+        q[rows[ok]] = new[ok]
+        steps[rows] += 1
+        rows = rows[ok & (moved > _FIXED_POINT_TOL)]
+    return q, steps
+
+
+def _wrist_in_quadrant(params, q, cf4, fraction):
+    """Axis 4 moved to ``(cf4 + fraction) * 90 deg``, axis 6 so that theta4 + theta6 stays."""
+    theta = params.model_angles(q)
+    theta4 = params.signs[3] * (cf4 + fraction) * (np.pi / 2) - params.offsets[3]
+    theta[:, 5] += theta[:, 3] - theta4
+    theta[:, 3] = theta4
+    return params.joint_angles(theta)
+
+
+def _flip_wrist(params, q):
+    theta = params.model_angles(q)
+    theta[:, 3] += np.pi
+    theta[:, 4] *= -1.0
+    theta[:, 5] += np.pi
+    return _wrap(params.joint_angles(theta))
+
+
+def solve(family_params: OPWParameters | URParameters,
+          fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], target,
+          confdata=None, limits=None, *, position_tol: float = 1e-9,
+          rotation_tol: float = 1e-9, max_iterations: int = 100,
+          quadrant_tolerance: float = np.pi / 4, boundary_tolerance: float = 1e-9,
+          singular_tol: float = 1e-7) -> IKSolution:
+    """Joints reaching ``target (m, 4, 4)`` (m) on the model ``fk_jacobian``, per branch.
+
+    1. The nominal closed form of ``family_params`` on the branch ``confdata (m, 4)`` =
+       (cf1, cf4, cf6, cfx) (see :func:`select_branch`; None: the reachable branch nearest
+       q = 0, and any configuration is accepted). Targets slightly outside the nominal
+       workspace start from the stretched arm; no start at all is 'unreachable'.
+    2. A closed-form iteration onto the model (``fk_jacobian``, e.g. the calibrated robot):
+       the nominal inverse of the target corrected by the model's flange error, on the same
+       branch, until joints move less than 1e-6 rad; then :func:`refine` to
+       ``position_tol`` (m) / ``rotation_tol`` (rad).
+    3. The result is shifted by multiples of 2 pi as :func:`select_branch` does and
+       checked: outside ``limits (6, 2)`` rad is 'joint_limit'; configuration bits
+       (:func:`configuration_bits` of the nominal family, bits within
+       ``boundary_tolerance`` of their boundary ignored) other than requested, or axis 1, 4
+       or 6 more than ``quadrant_tolerance`` rad from its quadrant, is 'branch_changed'.
+    4. Failed targets are retried from other starts (flipped wrist, axis 4 in its
+       quadrant, the neighbouring nominal branches): near singularities the model can have
+       several solutions per nominal configuration.
+    """
+    _check_family(family_params)
+    T = _as_poses(target, "target")
+    m = len(T)
+    limits = _as_limits(limits, 6)
+    solutions = _closed_form(family_params, T, clip=False)
+    check_configuration = confdata is not None
+    if confdata is None:
+        confdata = _default_confdata(solutions, limits)
+    else:
+        confdata = _as_confdata(confdata, m)
+    start, status = _select(solutions, confdata, limits, np.inf)
+    missing = np.flatnonzero(status == 1)
+    if len(missing):
+        clipped = _closed_form(family_params, T[missing], clip=True)
+        start[missing], status[missing] = _select(clipped, confdata[missing], limits, np.inf)
+    start[status == 1] = np.nan
+    requested = np.stack([confdata[:, 3] // 4, (confdata[:, 3] // 2) % 2, confdata[:, 3] % 2], 1)
+
+    def bits(q):
+        return _bits(family_params, q, boundary_tolerance)
+
+    def run(q_start, rows, first=False):
+        steps = np.zeros(len(rows), int)
+        if first:
+            q_start, steps = _closed_form_on_model(family_params, fk_jacobian, T[rows],
+                                                   confdata[rows, 3], q_start)
+        result = refine(fk_jacobian, q_start, T[rows], None, position_tol, rotation_tol,
+                        max_iterations, singular_tol=singular_tol)
+        result.iterations += steps
+        # back to the requested turns, then the checks refine was not asked to make
+        q, check = _select(np.repeat(result.q[:, None], 8, axis=1), confdata[rows], limits,
+                           quadrant_tolerance)
+        reached = np.isin(result.reason, ("ok", "singular"))
+        result.q = np.where(reached[:, None], q, result.q)
+        got = bits(result.q)
+        wrong = np.any((got >= 0) & (got != requested[rows]), axis=1) & check_configuration
+        result.reason[reached & (check == 3) & check_configuration] = "branch_changed"
+        result.reason[reached & wrong] = "branch_changed"
+        result.reason[reached & ~wrong & (check == 2)] = "joint_limit"
+        result.success = np.isin(result.reason, ("ok", "singular"))
+        return result
+
+    result = run(start, np.arange(m), first=True)
+    # Within millimetres of a singularity the model has several solutions per requested
+    # configuration (its wrist is not exactly spherical, its shoulder not exactly offset as
+    # nominal); the one in the requested quadrants and limits is searched from the flipped
+    # wrist (OPW), from axis 4 placed in its quadrant (theta4 + theta6 kept), then from the
+    # nominal solutions of the neighbouring branches.
+    restarts = []
+    if isinstance(family_params, OPWParameters):
+        restarts.append(lambda rows: _flip_wrist(family_params, result.q[rows]))
+    restarts += [lambda rows, f=f: _wrist_in_quadrant(family_params, result.q[rows],
+                                                      confdata[rows, 1], f)
+                 for f in (0.5, 0.25, 0.75)]
+    for flip in (4, 2, 1, 6, 5, 3, 7):
+        restarts.append(lambda rows, flip=flip: _select(
+            solutions[rows], np.concatenate([confdata[rows, :3], (confdata[rows, 3:] ^ flip)],
+                                            1), limits, np.inf)[0])
+    for restart in restarts:
+        retry = np.flatnonzero(~result.success & (status != 1))
+        if len(retry) == 0:
+            break
+        again = run(restart(retry), retry)
+        rows = retry[again.success]
+        for name in ("q", "success", "reason", "position_error_m", "rotation_error_rad"):
+            getattr(result, name)[rows] = getattr(again, name)[again.success]
+        result.iterations[retry] += again.iterations
+    result.reason[status == 1] = "unreachable"
+    result.success[status == 1] = False
+    return result
