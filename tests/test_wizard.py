@@ -150,6 +150,10 @@ def test_wizard_against_loopback_rtde_peer(tmp_path):
     with RtdePeer(lifetime_s=60) as peer:
         peer.set_joints(np.zeros(6))
         with RtdeJointSource(peer.host, stall_timeout_s=1.0) as source:
+            # the peer runs in its own process: wait (bounded) until it has seen the start
+            deadline = time.monotonic() + 5.0
+            while "S" not in peer.commands and time.monotonic() < deadline:
+                time.sleep(0.02)
             assert peer.requested_outputs == ["timestamp", "actual_q"]
             assert peer.commands[:4] == ["V", "v", "O", "S"]
             script = Script(["tLive", "2"] + [jog_to(q) for q in joints] + ["done"])
