@@ -1,0 +1,163 @@
+"""Grammar loading (package data), cached parser factories, and error conversion.
+
+The grammars live in the repository folder ``grammars/``, installed as the package
+``olp_compensate.grammars``. Lark's exceptions never leave this package: every parse error
+becomes one :class:`~olp_compensate.errors.ParseError` with file, line, column and the
+offending line with a caret under the spot.
+"""
+
+from __future__ import annotations
+
+import bisect
+import contextlib
+import contextvars
+import functools
+import gc
+import re
+
+import lark
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+
+from ..data import data_folder
+from ..errors import ParseError
+
+
+def grammar_text(name: str) -> str:
+    """The text of ``grammars/<name>`` (e.g. ``"rapid.lark"``): the package data
+    ``olp_compensate.grammars`` (the source folder in an editable install)."""
+    return (data_folder("grammars") / name).read_text("utf-8")
+
+
+@functools.lru_cache(maxsize=None)
+def parser(name: str, transformer_factory=None, start: tuple[str, ...] = ("start",)
+           ) -> lark.Lark:
+    """A cached LALR parser for ``grammars/<name>``, with an inline transformer when given
+    (``transformer_factory()`` is called once; its callbacks, and the token callbacks in its
+    ``lexer_callbacks`` mapping, keep no per-parse state: they reach the parse in progress
+    through :data:`current_sink`)."""
+    transformer = transformer_factory() if transformer_factory is not None else None
+    lexer_callbacks = getattr(transformer, "lexer_callbacks", None) or {}
+    return lark.Lark(grammar_text(name), parser="lalr", lexer="contextual",
+                     transformer=transformer, maybe_placeholders=False,
+                     propagate_positions=False, start=list(start),
+                     lexer_callbacks=dict(lexer_callbacks))
+
+
+# The records of the parse in progress; set by the dialect's parse function so that the
+# cached parser's callbacks can append to them (thread- and reentrancy-safe).
+current_sink: contextvars.ContextVar = contextvars.ContextVar("olp_program_sink")
+
+
+@contextlib.contextmanager
+def no_gc():
+    """Pause the cyclic garbage collector: a parse allocates millions of small acyclic
+    objects, and the collector's repeated full scans would make it several times slower."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
+class LineIndex:
+    """Offsets to 1-based (line, column), by bisection over line starts."""
+
+    __slots__ = ("starts",)
+
+    def __init__(self, text: str):
+        self.starts = [0]
+        self.starts.extend(m.end() for m in re.finditer("\n", text))
+
+    def line_col(self, offset: int) -> tuple[int, int]:
+        line = bisect.bisect_right(self.starts, offset)
+        return line, offset - self.starts[line - 1] + 1
+
+
+def caret_context(text: str, line: int, column: int) -> str:
+    """The source line ``line`` (1-based) and a caret under ``column``."""
+    lines = text.split("\n")  # as LineIndex and lark count lines: '\n' only
+    src = lines[line - 1].rstrip("\r") if 0 < line <= len(lines) else ""
+    pad = "".join("\t" if c == "\t" else " " for c in src[:max(column - 1, 0)])
+    return f"{src}\n{pad}^"
+
+
+def error_at(message: str, text: str, file: str, offset: int,
+             index: LineIndex | None = None) -> ParseError:
+    """A ParseError pointing at character ``offset`` of ``text``."""
+    line, col = (index or LineIndex(text)).line_col(offset)
+    return ParseError(message, file, line, col, caret_context(text, line, col))
+
+
+_FRIENDLY = {
+    "SEMICOLON": "';'", "COMMA": "','", "COLON": "':'", "DOT": "'.'", "EQUAL": "'='",
+    "LPAR": "'('", "RPAR": "')'", "LBRACE": "'{'", "RBRACE": "'}'", "MINUS": "'-'",
+    "PLUS": "'+'", "STAR": "'*'", "SLASH": "'/'", "BACKSLASH": "'\\'", "PERCENT": "'%'",
+    "QMARK": "'?'", "LESSTHAN": "'<'", "MORETHAN": "'>'", "NAME": "a name",
+    "NUM": "a number", "STRING": "a string", "AGGREGATE": "a bracketed value [...]",
+    "PARAMS": "a parameter list (...)", "MODATTRS": "module attributes (...)",
+    "$END": "end of file", "_NL": "end of line", "LOC": "a location name",
+    "ARGS": "an argument list (...)", "LOC_LINES": "a location line",
+    "MOTION_KW": "a motion instruction", "END_DOT": ".END", "OTHER": "a program step",
+}
+_HIDDEN = {"FAST_CALLS", "FAST_DECLS", "WS", "COMMENT", "HEADER"}
+
+
+def _describe(names) -> str:
+    names = sorted({n for n in names if n not in _HIDDEN and not n.startswith("__ANON")},
+                   key=lambda n: (n not in ("SEMICOLON", "COMMA", "RPAR", "_NL"), n))
+    shown = [_FRIENDLY.get(n, n) for n in names]
+    if not shown:
+        return "something else"
+    if len(shown) > 10:
+        shown = shown[:10] + ["..."]
+    return ", ".join(shown)
+
+
+def convert_lark_error(exc: UnexpectedInput, text: str, file: str) -> ParseError:
+    """Turn lark's UnexpectedInput into a ParseError with a caret under the spot."""
+    if isinstance(exc, UnexpectedEOF) or (
+            isinstance(exc, UnexpectedToken) and exc.token.type == "$END"):
+        index = LineIndex(text)
+        end = len(text.rstrip())
+        expected = getattr(exc, "expected", None) or getattr(exc, "accepts", None) or ()
+        err = error_at(f"unexpected end of file (truncated?); expected {_describe(expected)}",
+                       text, file, max(end - 1, 0), index)
+        return err
+    if isinstance(exc, UnexpectedCharacters):
+        ch = text[exc.pos_in_stream] if exc.pos_in_stream < len(text) else ""
+        if ch == "[":
+            msg = "unterminated or too deeply nested bracket '['"
+        elif ch == '"':
+            msg = "unterminated string"
+        else:
+            msg = f"unexpected character {ch!r}; expected {_describe(exc.allowed or ())}"
+        return error_at(msg, text, file, exc.pos_in_stream)
+    if isinstance(exc, UnexpectedToken):
+        tok = exc.token
+        shown = str(tok).splitlines()[0] if str(tok) else tok.type
+        if tok.type in _HIDDEN or len(shown) > 40:  # a whole-run token: show its first word
+            shown = re.match(r"[^\s,;(\[]*", shown).group() or shown[:1]
+        msg = f"unexpected {shown!r}; expected {_describe(exc.expected or ())}"
+        offset = tok.start_pos if tok.start_pos is not None else 0
+        return error_at(msg, text, file, offset)
+    line, col = getattr(exc, "line", None), getattr(exc, "column", None)
+    return ParseError(str(exc).splitlines()[0], file, line, col)
+
+
+def check_text(text: str, file: str) -> None:
+    """Reject binary input (NUL bytes) before the parser sees it."""
+    nul = text.find("\x00")
+    if nul >= 0:
+        raise error_at("binary file (NUL byte found); expected a text program", text, file,
+                       nul)
+
+
+def newline_style(text: str) -> str:
+    """'\\r\\n', '\\n', 'mixed' or '' for a text without line breaks."""
+    lf = text.count("\n")
+    if lf == 0:
+        return ""
+    crlf = text.count("\r\n")
+    return "\r\n" if crlf == lf else ("\n" if crlf == 0 else "mixed")

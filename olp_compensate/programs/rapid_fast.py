@@ -1,0 +1,470 @@
+"""RAPID parse records and the two hot paths (whole runs of simple statements).
+
+The grammar hands over runs of one-line declarations (FAST_DECLS) and calls (FAST_CALLS) as
+single tokens; the lexer callbacks here split them with anchored regular expressions, in
+text order. The plainest forms are built into model objects at once (a module-level
+``CONST robtarget p := [...]`` and ``MoveL p, v, z, tool\\WObj:=w`` each take one regex
+match); the others become the same records the grammar rules produce (``Sink``), so one
+builder (rapid.py) handles both. A motion call these regexes cannot read is parsed again by
+the grammar (start symbol ``call``), which gives the exact error if it is wrong.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from lark import Token
+
+from .grammar import LineIndex, current_sink
+from .literals import ROBTARGET_PATTERN
+from .targets import QUAT_WXYZ, CartesianTarget, MotionUse
+
+
+@dataclass(frozen=True, slots=True)
+class MotionSpec:
+    """Where a motion instruction keeps its targets and its tool.
+
+    targets : (positional index, role) pairs; tool : positional index (-1 = last);
+    joint : the target is a jointtarget; writes : positional index of a robtarget the
+    instruction writes (SearchL's search point), or None.
+    """
+
+    targets: tuple[tuple[int, str], ...]
+    tool: int = -1
+    joint: bool = False
+    writes: int | None = None
+
+
+_TO = ((0, "to"),)
+_CIRC = ((0, "circle"), (1, "to"))
+MOTIONS: dict[str, MotionSpec] = {}
+for _n in ("MoveL", "MoveJ", "TriggL", "TriggJ", "TriggLIOs", "TriggJIOs", "ArcL",
+           "ArcLStart", "ArcLEnd", "ArcL1", "ArcL2", "ArcRepL", "SpotL", "SpotJ", "SpotML",
+           "SpotMJ", "CapL", "PaintL", "DispL", "MoveLFF", "MoveLStart", "MoveLEnd"):
+    MOTIONS[_n.lower()] = MotionSpec(_TO)
+for _n in ("MoveC", "TriggC", "ArcC", "ArcCStart", "ArcCEnd", "ArcC1", "ArcC2", "CapC",
+           "PaintC", "DispC"):
+    MOTIONS[_n.lower()] = MotionSpec(_CIRC)
+for _n in ("MoveLDO", "MoveJDO", "MoveLAO", "MoveJAO", "MoveLGO", "MoveJGO", "MoveLSync",
+           "MoveJSync"):
+    MOTIONS[_n.lower()] = MotionSpec(_TO, tool=3)
+for _n in ("MoveCDO", "MoveCAO", "MoveCGO", "MoveCSync"):
+    MOTIONS[_n.lower()] = MotionSpec(_CIRC, tool=4)
+MOTIONS["searchl"] = MotionSpec(((2, "to"),), writes=1)
+MOTIONS["searchc"] = MotionSpec(((2, "circle"), (3, "to")), writes=1)
+MOTIONS["moveabsj"] = MotionSpec(_TO, joint=True)
+
+RUNTIME_FUNCS = {
+    "offs": "Offs() displaces the target at run time",
+    "reltool": "RelTool() displaces the target in the tool frame at run time",
+    "crobt": "CRobT() reads the current position at run time",
+    "cjointt": "CJointT() reads the current joints at run time",
+    "calcrobt": "CalcRobT() computes the target from joints at run time",
+    "calcjointt": "CalcJointT() computes joints at run time",
+    "mirpos": "MirPos() mirrors the target at run time",
+    "poseinv": "pose arithmetic at run time",
+    "posemult": "pose arithmetic at run time",
+}
+
+
+# ---- records appended by the parser callbacks -----------------------------------------
+
+class Ex:
+    """An expression's span and what it is (kind: name, index, call, complex, aggregate,
+    num, string, star, expr)."""
+
+    __slots__ = ("start", "end", "kind", "name", "index", "args")
+
+    def __init__(self, start, end, kind, name=None, index=None, args=None):
+        self.start, self.end, self.kind = start, end, kind
+        self.name, self.index, self.args = name, index, args
+
+
+class Opt:
+    """An optional argument ``\\name``, ``\\name:=value`` or ``\\name?param``."""
+
+    __slots__ = ("name", "value", "cond", "start", "end")
+
+    def __init__(self, name, value, cond, start, end):
+        self.name, self.value, self.cond, self.start, self.end = name, value, cond, start, end
+
+
+class Arg:
+    """One comma-separated argument: a value (or None) and its optional arguments."""
+
+    __slots__ = ("value", "opts")
+
+    def __init__(self, value, opts):
+        self.value, self.opts = value, opts
+
+
+class Sink:
+    """The records of one parse. The fast paths build module-level robtarget declarations
+    and the plainest MoveL/MoveJ into model objects at once (``targets``, ``names``,
+    ``motions``); everything else is recorded for the builder."""
+
+    __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
+                 "targets", "names", "motions", "depth", "routine", "pending", "reparse",
+                 "types")
+
+    def __init__(self, text: str, file: str, reparse):
+        self.text, self.file, self.reparse = text, file, reparse
+        self.index = LineIndex(text)
+        self.decls, self.calls, self.assigns, self.routines, self.modules = [], [], [], [], []
+        self.targets: list = []
+        self.names: set = set()
+        self.motions: list = []
+        self.types: dict = {}  # ALIAS and RECORD definitions: lower name -> (kind, data)
+        # set by lexer callbacks, in text order: routine nesting, name, names still to skip
+        self.depth = 0
+        self.routine: str | None = None
+        self.pending = 0
+
+
+_TOKEN_KIND = {"NUM": "num", "STRING": "string", "AGGREGATE": "aggregate", "STAR": "star"}
+
+
+def as_ex(x) -> Ex:
+    if type(x) is Ex:
+        return x
+    return Ex(x.start_pos, x.end_pos, _TOKEN_KIND.get(x.type, "expr"))
+
+
+def start_of(x) -> int:
+    return x.start if type(x) is Ex else x.start_pos
+
+
+def end_of(x) -> int:
+    """End offset of an Ex, a lark Token or a (start, end) span."""
+    t = type(x)
+    return x.end if t is Ex else (x[1] if t is tuple else x.end_pos)
+
+
+# ---- the two hot-path tokens ----------------------------------------------------------
+
+_SEP = re.compile(r"(?:[ \t\r\n\f]+|![^\r\n]*)*")
+_FAST_DECL = re.compile(
+    r"(?:(LOCAL|TASK)[ \t]+)?(CONST|PERS|VAR)[ \t]+([A-Za-z_][A-Za-z0-9_]*)[ \t]+"
+    r"([A-Za-z_][A-Za-z0-9_]*)[ \t]*(?:\{([^{}]*)\}[ \t]*)?:=[ \t\r\n]*(\[[^\"!;]*\])[ \t]*;",
+    re.I)
+
+
+_FAST_ROBTARGET = re.compile(
+    r"(?:(?i:LOCAL|TASK)[ \t]+)?((?i:CONST|PERS|VAR))[ \t]+((?i:robtarget))[ \t]+"
+    r"([A-Za-z_][A-Za-z0-9_]*)[ \t]*:=[ \t\r\n]*(" + ROBTARGET_PATTERN + r")[ \t]*;")
+
+
+def _on_fast_decls(tok: Token) -> Token:
+    """Lexer callback: split a FAST_DECLS run. At module level a plain robtarget becomes a
+    target at once (one regex match for the whole declaration); the rest is recorded."""
+    sink = current_sink.get()
+    _split_fast_decls(tok, sink.decls, sink if sink.depth == 0 else None)
+    return tok
+
+
+def _split_fast_decls(tok: Token, out: list, direct=None) -> None:
+    """Append the declaration records of a FAST_DECLS run (anchored, in order)."""
+    text = tok.value
+    p0 = tok.start_pos
+    pos, n = 0, len(text)
+    match, skip = _FAST_DECL.match, _SEP.match
+    rt_match = _FAST_ROBTARGET.match if direct is not None else None
+    while pos < n:
+        if rt_match is not None:
+            m = rt_match(text, pos)
+            if m is not None:
+                direct.targets.append(_direct_robtarget(direct, m, p0))
+                pos = skip(text, m.end()).end()
+                continue
+        m = match(text, pos)
+        dims = m.group(5)
+        out.append((m.group(1), m.group(2).upper(), m.group(3),
+                    (p0 + m.start(3), p0 + m.end(3)), m.group(4), p0 + m.start(4),
+                    dims.count(",") + 1 if dims is not None else 0,
+                    Ex(p0 + m.start(6), p0 + m.end(6), "aggregate"), p0 + m.start()))
+        pos = skip(text, m.end()).end()
+
+
+def _direct_robtarget(sink: Sink, m: re.Match, p0: int) -> CartesianTarget:
+    name = m.group(3)
+    sink.names.add(name.lower())
+    name_pos = p0 + m.start(3)
+    line, col = sink.index.line_col(name_pos)
+    return CartesianTarget(
+        name, (sink.file, line, col), m.groups()[4:],
+        tuple([r[0] + p0 for r in m.regs[5:]]), QUAT_WXYZ, (p0 + m.start(4), p0 + m.end(4)),
+        m.group(1).upper(), None, None, (p0 + m.start(2), p0 + m.end(2)))
+
+
+def _enter_routine(tok: Token) -> Token:
+    sink = current_sink.get()
+    sink.depth += 1
+    sink.pending = 2 if tok.type == "FUNC" else 1  # FUNC <type> <name>, PROC/TRAP <name>
+    return tok
+
+
+def _on_name(tok: Token) -> Token:
+    sink = current_sink.get()
+    if sink.pending:
+        sink.pending -= 1
+        if not sink.pending:
+            sink.routine = tok.value
+    return tok
+
+
+def _leave_routine(tok: Token) -> Token:
+    sink = current_sink.get()
+    sink.depth -= 1
+    sink.routine = None
+    return tok
+
+
+def call_record(name: str, start: int, name_end: int, args) -> tuple:
+    """The unified call record: (name, start, name_end, end, positional, opts).
+
+    positional : the values in order, each an :class:`Ex` or a (start, end) span;
+    opts : the optional arguments, :class:`Opt` (value an Ex, a span or None).
+    """
+    positional = [a.value for a in args if a.value is not None]
+    opts = [o for a in args for o in a.opts]
+    end = max([name_end] + [end_of(v) for v in positional] + [o.end for o in opts])
+    return (name, start, name_end, end, positional, opts)
+
+
+_VAL = (r"-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+        r"(?:\{[^{}]*\})?|\[(?:[^\[\]]++|\[[^\[\]]*+\])*+\]|\*"
+        r"|[A-Za-z_]\w*\((?:[^()]++|\((?:[^()]++|\([^()]*+\))*+\))*+\)")
+_FAST_ITEM = re.compile(r"""
+    [ \t]*(?:
+      \\(?P<opt>[A-Za-z_]\w*)(?:[ \t]*(?P<op>:=|\?)[ \t]*(?P<oval>VAL))?
+    | (?P<val>VAL)
+    )?[ \t]*(?P<sep>[,;])?""".replace("VAL", _VAL), re.X)
+_NAME_RE = re.compile(r"[A-Za-z_]\w*")
+_IDX_RE = re.compile(r"([A-Za-z_]\w*)\{([^{}]*)\}")
+_CALL_RE = re.compile(r"([A-Za-z_]\w*)\(\s*([A-Za-z_]\w*)?")
+
+
+def value_ex(text: str, start: int, end: int) -> Ex:
+    """The Ex of a fast-path value ``text[start:end]``: name, name{index}, number,
+    aggregate, ``*``, function call (only its name and first argument's name are read),
+    field chain, or anything else ("expr")."""
+    c = text[start]
+    if c == "[":
+        return Ex(start, end, "aggregate")
+    if c == "*":
+        return Ex(start, end, "star")
+    if c.isalpha() or c == "_":
+        s = text[start:end]
+        if s.isidentifier():
+            return Ex(start, end, "name", s)
+        if s[-1] == ")":
+            m = _CALL_RE.match(s)
+            first = [Arg(Ex(0, 0, "name", m.group(2)), ())] if m.group(2) else []
+            return Ex(start, end, "call", m.group(1), None, first)
+        if "{" in s:
+            m = _IDX_RE.fullmatch(s)
+            if m is None:
+                return Ex(start, end, "complex", _NAME_RE.match(s).group())
+            base = start + m.start(2)
+            idx = []
+            pos = 0
+            for part in m.group(2).split(","):
+                a = base + pos + (len(part) - len(part.lstrip()))
+                b = base + pos + len(part.rstrip())
+                idx.append(Ex(a, b, "num" if part.strip().isdigit() else "expr"))
+                pos += len(part) + 1
+            return Ex(start, end, "index", m.group(1), idx)
+        return Ex(start, end, "complex", _NAME_RE.match(s).group())
+    return Ex(start, end, "num" if c != "-" else "expr")
+
+
+# MoveL/MoveJ <name or name{k}>, <speed>, <zone>, <tool>[\WObj:=<wobj>] in one match;
+# the same with an inline robtarget (as RoboDK writes them)
+_SIMPLE_MOVE = re.compile(
+    r"[ \t]+([A-Za-z_][A-Za-z0-9_]*)(?:\{[ \t]*(\d+)[ \t]*\})?[ \t]*,[ \t]*[A-Za-z_0-9.]+"
+    r"[ \t]*,[ \t]*[A-Za-z_0-9.]+[ \t]*,[ \t]*([A-Za-z_][A-Za-z0-9_]*)"
+    r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?[ \t]*")
+_INLINE_MOVE = re.compile(
+    r"[ \t]+(" + ROBTARGET_PATTERN + r")[ \t]*,[ \t]*[A-Za-z_0-9.]+"
+    r"[ \t]*,[ \t]*[A-Za-z_0-9.]+[ \t]*,[ \t]*([A-Za-z_][A-Za-z0-9_]*)"
+    r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?[ \t]*")
+_SIMPLE_MOVES = {"movel", "movej"}
+
+
+def _on_fast_calls(tok: Token) -> Token:
+    """Lexer callback: split a FAST_CALLS run (see _split_fast_calls)."""
+    _split_fast_calls(tok, current_sink.get())
+    return tok
+
+
+def _split_fast_calls(tok: Token, sink: Sink) -> None:
+    """Record the calls of a FAST_CALLS run (anchored, in order).
+
+    MoveL/MoveJ of the plainest form become MotionUse at once (one regex match each);
+    other argument lists are split by one regex (plain values and optional arguments) or
+    item by item. A motion instruction whose arguments none of these reads is parsed
+    again by the grammar (start symbol ``call``), which records it or raises the error;
+    other calls are opaque (only plain-name arguments are kept, as references).
+    """
+    s = tok.value
+    p0 = tok.start_pos
+    n = len(s)
+    pos = 0
+    out = sink.calls
+    name_match, skip = _NAME_RE.match, _SEP.match
+    simple, inline = _SIMPLE_MOVE.fullmatch, _INLINE_MOVE.fullmatch
+    while pos < n:
+        semi = s.index(";", pos)
+        ne = name_match(s, pos).end()
+        name = s[pos:ne]
+        key = name.lower()
+        if key in _SIMPLE_MOVES:
+            m = simple(s, ne, semi)
+            if m is not None:
+                sink.motions.append(_direct_move(sink, m, name, p0 + pos, p0 + ne, p0 + semi,
+                                                 p0))
+                pos = skip(s, semi + 1).end()
+                continue
+            m = inline(s, ne, semi)
+            if m is not None:
+                sink.motions.append(_direct_inline_move(sink, m, name, p0 + pos, p0 + ne,
+                                                        p0 + semi, p0))
+                pos = skip(s, semi + 1).end()
+                continue
+        seg = s[ne:semi]
+        motion = key in MOTIONS
+        if "[" in seg or "{" in seg or "(" in seg:
+            items = _items_regex(s, ne, p0)
+        else:
+            items = _items_split(seg, p0 + ne)
+        if items is not None:
+            out.append((name, p0 + pos, p0 + ne, p0 + semi, items[0], items[1]))
+        elif motion:
+            sink.reparse(p0 + pos, p0 + semi + 1)  # the grammar reads it, or says why not
+        pos = skip(s, semi + 1).end()
+
+
+def _location(sink: Sink, offset: int) -> tuple[str, int, int]:
+    line, col = sink.index.line_col(offset)
+    return (sink.file, line, col)
+
+
+def _direct_move(sink, m, name, start, name_end, end, p0) -> MotionUse:
+    a = p0 + m.start(1)
+    if m.group(2) is None:
+        index, b = None, p0 + m.end(1)
+    else:
+        index, b = (int(m.group(2)),), p0 + m.string.index("}", m.end(2)) + 1
+    return MotionUse(name, _location(sink, a), "to", m.group(1), index, None, None,
+                     m.group(3), None, m.group(4), None, False, sink.routine,
+                     (start, name_end), (start, end), (a, b))
+
+
+def _direct_inline_move(sink, m, name, start, name_end, end, p0) -> MotionUse:
+    a, b = p0 + m.start(1), p0 + m.end(1)
+    loc = _location(sink, a)
+    target = CartesianTarget(None, loc, m.groups()[1:18],
+                             tuple([r[0] + p0 for r in m.regs[2:19]]), QUAT_WXYZ, (a, b),
+                             "inline", None, sink.routine, None)
+    sink.targets.append(target)
+    return MotionUse(name, loc, "to", None, None, target, None, m.group(19), None,
+                     m.group(20), None, False, sink.routine, (start, name_end), (start, end),
+                     (a, b))
+
+
+_ARG_VAL = r"(-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|\*)"
+_ARG_OPTS = r"((?:[ \t]*\\[A-Za-z_]\w*(?:[ \t]*(?::=|\?)[ \t]*-?[A-Za-z0-9_.]+)?)*)"
+_ARG_ITEM = r"[ \t]*" + _ARG_VAL + r"?" + _ARG_OPTS + r"[ \t]*"
+_OPT_RE = re.compile(r"\\([A-Za-z_]\w*)(?:[ \t]*(:=|\?)[ \t]*(-?[A-Za-z0-9_.]+))?")
+_ARGS_RES: dict[int, re.Pattern] = {}
+
+
+def _args_re(n: int) -> re.Pattern:
+    """A regex for n comma-separated simple items (value and/or optional arguments)."""
+    r = _ARGS_RES.get(n)
+    if r is None:
+        r = _ARGS_RES[n] = re.compile(r"(?:[ \t]+|(?=\\))" + ",".join([_ARG_ITEM] * n))
+    return r
+
+
+def _items_split(seg: str, base: int):
+    """(positional spans, opts) of a bracket-free argument list by one regex match, or
+    None when it is not a list of simple values and optional arguments."""
+    positional: list = []
+    opts: list = []
+    if not seg or seg.isspace():
+        return positional, opts
+    n = seg.count(",") + 1
+    m = _args_re(n).fullmatch(seg)
+    if m is None:
+        return None
+    regs = m.regs
+    for k in range(1, 2 * n, 2):
+        a, b = regs[k]
+        if a >= 0:
+            positional.append((base + a, base + b))
+        elif regs[k + 1][0] == regs[k + 1][1]:
+            return None  # an empty argument
+        a, b = regs[k + 1]
+        if a != b:
+            for o in _OPT_RE.finditer(seg, a, b):
+                if o.group(2) == ":=":
+                    opts.append(Opt(o.group(1), (base + o.start(3), base + o.end(3)), None,
+                                    base + o.start(), base + o.end()))
+                elif o.group(2) == "?":
+                    if not o.group(3).isidentifier():
+                        return None
+                    opts.append(Opt(o.group(1), None, o.group(3), base + o.start(),
+                                    base + o.end()))
+                else:
+                    opts.append(Opt(o.group(1), None, None, base + o.start(),
+                                    base + o.end()))
+    return positional, opts
+
+
+def _items_regex(s: str, pos: int, p0: int):
+    """(positional spans, opts) read item by item with a strict regex, or None."""
+    positional: list = []
+    opts: list = []
+    item_match = _FAST_ITEM.match
+    has_value = has_opt = False  # within the current comma-separated item
+    if s[pos] not in " \t\\":
+        return None
+    while True:
+        m = item_match(s, pos)
+        if m.end() == pos:
+            return None
+        pos = m.end()
+        if m.group("opt") is not None:
+            has_opt = True
+            bs = p0 + m.start("opt") - 1
+            if m.group("oval") is None:
+                opts.append(Opt(m.group("opt"), None, None, bs, p0 + m.end("opt")))
+            elif m.group("op") == "?":
+                if not m.group("oval").isidentifier():
+                    return None
+                opts.append(Opt(m.group("opt"), None, m.group("oval"), bs,
+                                p0 + m.end("oval")))
+            else:
+                span = (p0 + m.start("oval"), p0 + m.end("oval"))
+                opts.append(Opt(m.group("opt"), span, None, bs, span[1]))
+        elif m.group("val") is not None:
+            if has_value or has_opt:  # two values, or a value after \opt, in one item
+                return None
+            has_value = True
+            positional.append((p0 + m.start("val"), p0 + m.end("val")))
+        sep = m.group("sep")
+        if sep == ";":
+            return positional, opts
+        if sep == ",":
+            has_value = has_opt = False
+        elif m.group("opt") is None and m.group("val") is None:
+            return None
+
+
+LEXER_CALLBACKS = {
+    "FAST_DECLS": _on_fast_decls, "FAST_CALLS": _on_fast_calls, "NAME": _on_name,
+    "PROC": _enter_routine, "FUNC": _enter_routine, "TRAP": _enter_routine,
+    "ENDPROC": _leave_routine, "ENDFUNC": _leave_routine, "ENDTRAP": _leave_routine}
+"""Token callbacks (lark ``lexer_callbacks``): they run in text order, as tokens are read."""

@@ -1,0 +1,3 @@
+MODULE Bad
+  CONST robtarget p1:=[[1,2,3],[1,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+ENDMODULE

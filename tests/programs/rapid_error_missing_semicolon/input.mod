@@ -1,0 +1,4 @@
+MODULE Semi
+  VAR num a := 1
+  VAR num b := 2;
+ENDMODULE

@@ -1,0 +1,170 @@
+"""The splice emitter: number style, edit builders, --emit joints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from olp_compensate.conventions import matrix_from_euler_zyz
+from olp_compensate.errors import DataError
+from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like,
+                                     joint_emit_edits, joint_target_edits, load, loads,
+                                     splice, target_edits, tool_edits)
+from olp_compensate.programs.emit import aligned_quaternion, nearest_euler_zyz_deg
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("original, value, decimals, expected", [
+    ("1020.35", 1020.1234567, 3, "1020.123"),
+    ("1020.35", 1020.1, 3, "1020.100"),
+    ("100", 100.25, 3, "100.250"),
+    ("0.707107", 0.70710678, 6, "0.707107"),
+    ("0.7071068", 0.70710678, 6, "0.7071068"),  # more decimals kept
+    ("0", -0.00001, 3, "0.000"),  # no "-0.000"
+    ("-0.5", -0.25, 3, "-0.250"),
+    ("+12", 12.5, 3, "+12.500"),
+    (".5", 0.75, 3, ".750"),
+    ("-.5", -0.75, 3, "-.750"),
+    ("5.", 5.5, 3, "5.500"),
+    ("1.10307E-06", 1.2e-6, 3, "1.20000E-06"),
+    ("1.05E+03", 1050.1234, 3, "1.050123E+03"),
+    ("9E9", 8.5e9, 3, "8.500000000000E9"),
+    ("2.5e1", 25.5, 4, "2.55000e1"),
+    ("-1.5E+02", -150.25, 3, "-1.50250E+02"),
+    ("90.000", 90.00004, 4, "90.0000"),
+])
+def test_format_like(original, value, decimals, expected):
+    s = format_like(original, value, decimals)
+    assert s == expected
+    assert abs(float(s) - value) <= 0.5 * 10.0 ** -decimals + 1e-12
+
+
+def test_format_rejects_nan():
+    with pytest.raises(DataError):
+        format_like("1.0", float("nan"), 3)
+
+
+def test_splice_checks_overlap_and_order():
+    assert splice("abcdef", [Edit(4, 5, "E"), Edit(0, 1, "A")]) == "AbcdEf"
+    assert splice("abc", [Edit(1, 1, "x"), Edit(1, 1, "y")]) == "axybc"
+    with pytest.raises(DataError, match="overlapping"):
+        splice("abcdef", [Edit(0, 3, "x"), Edit(2, 4, "y")])
+    with pytest.raises(DataError, match="outside"):
+        splice("abc", [Edit(2, 9, "x")])
+
+
+def test_quaternion_sign_is_kept_and_unchanged_numbers_stay():
+    program = load(ROOT / "samples" / "cell_a.mod")
+    t = program.target("p10")
+    q = t.orientation_values()
+    assert target_edits(t, orientation=-q) == []  # same rotation, same text
+    assert np.allclose(aligned_quaternion(-q, q), q / np.linalg.norm(q))
+    assert target_edits(t, position_mm=t.position_mm(), config=t.config_values()) == []
+
+
+def test_config_and_external_edits():
+    program = load(ROOT / "samples" / "cell_a.mod")
+    t = program.target("p10")
+    edits = target_edits(t, config=[0, 0, 0, 1], external=[9e9] * 5 + [12.5])
+    out = loads(dumps(program, edits), "rapid").target("p10")
+    assert out.config_values() == (0, 0, 0, 1)
+    assert out.external[-1].text == "1.250000E+01" or out.external[-1].value == 12.5
+    with pytest.raises(DataError, match="integers"):
+        target_edits(t, config=[0, 0.5, 0, 0])
+    with pytest.raises(DataError, match="expected 3 values"):
+        target_edits(t, position_mm=[1, 2])
+
+
+@pytest.mark.parametrize("name, index", [("spare", None), ("tray", (3,)), ("fixture", None)])
+def test_vplus_edit_keeps_euler_branch(name, index):
+    program = load(ROOT / "samples" / "cell_b.pg")
+    t = program.target(name, index)
+    ref, r = t.orientation_values(), t.rotation()
+    # an unchanged rotation keeps its numbers, also at pitch 180 (gimbal lock)
+    np.testing.assert_allclose(nearest_euler_zyz_deg(r, ref), ref, atol=1e-9)
+    tilt = matrix_from_euler_zyz(0.0, np.deg2rad(0.01), 0.0)
+    ypr = nearest_euler_zyz_deg(r @ tilt, ref)
+    if abs(ref[1] % 180) > 1:  # away from gimbal lock the angles move by about the tilt
+        assert np.allclose(ypr, ref, atol=0.02)
+    edits = target_edits(t, position_mm=t.position_mm() + [0.5, 0, 0], orientation=ypr)
+    out = loads(dumps(program, edits), "vplus").target(name, index)
+    np.testing.assert_allclose(out.rotation(), r @ tilt, atol=2e-6)
+    np.testing.assert_allclose(out.position_mm(), t.position_mm() + [0.5, 0, 0], atol=5e-4)
+
+
+def test_joint_and_tool_edits():
+    program = load(ROOT / "samples" / "cell_a.mod")
+    j = program.joint_targets[0]
+    out = dumps(program, joint_target_edits(j, [1, 2, 3, 4, 5, 6]))
+    assert "[[1.0000,2.0000,3.0000,4.0000,5.0000,6.0000],[9E+09" in out
+    tool = program.tools[0]
+    out = loads(dumps(program, tool_edits(tool, [121, 0.5, 209.75])), "rapid").tools[0]
+    assert [n.text for n in out.position] == ["121.000", "0.500", "209.750"]
+
+
+def test_emit_joints_rapid():
+    program = load(ROOT / "samples" / "cell_a.mod")
+    p10, p20 = program.target("p10"), program.target("p20")
+    inline = [t for t in program.targets if t.storage == "inline"][0]
+    joints = {p10: [1, 2, 3, 4, 5, 6], p20: [-1, -2, -3, -4, -5, -6], inline: [0] * 6}
+    text = dumps(program, joint_emit_edits(program, joints))
+    again = loads(text, "rapid")
+    names = [j.name for j in again.joint_targets]
+    assert names == ["jHome", "p10", "p20", None]
+    assert "CONST jointtarget p10:=[[1.0000,2.0000,3.0000,4.0000,5.0000,6.0000],[9E+09" in text
+    moves = [(m.instruction, m.target_name) for m in again.motions if m.target_name in
+             ("p10", "p20") or m.inline is not None]
+    assert moves == [("MoveAbsJ", "p10"), ("MoveAbsJ", "p20"), ("MoveAbsJ", None)]
+    assert len(again.targets) == len(program.targets) - 3
+
+
+def test_emit_joints_refuses_what_cannot_take_a_joint_target():
+    program = load(ROOT / "samples" / "cell_a.mod")
+    with pytest.raises(DataError, match="MoveC"):
+        joint_emit_edits(program, {program.target("p30"): [0] * 6})
+    with pytest.raises(DataError, match="whole"):
+        joint_emit_edits(program, {program.target("pWeld", (1,)): [0] * 6})
+    welds = [t for t in program.targets if t.name == "pWeld"]
+    with pytest.raises(DataError, match="Offs"):
+        joint_emit_edits(program, {t: [0] * 6 for t in welds})
+
+
+def test_emit_joints_vplus():
+    program = load(ROOT / "samples" / "cell_b.pg")
+    fixture = program.target("fixture")
+    drop = program.target("drop")
+    text = dumps(program, joint_emit_edits(program, {fixture: [10, -80, 170, 0, 5, 0],
+                                                     drop: [1, 2, 3, 4, 5, 6]}))
+    assert "\n#fixture      10.0000 -80.0000 170.0000 0.0000 5.0000 0.0000\n" in text
+    assert "APPRO #fixture, 80" in text and "MOVES #fixture" in text
+    assert "SET #drop = #PPOINT(1.0000,2.0000,3.0000,4.0000,5.0000,6.0000)" in text
+    again = loads(text, "vplus")
+    assert {j.name for j in again.joint_targets} >= {"#fixture", "#drop"}
+    with pytest.raises(DataError, match="frame"):
+        joint_emit_edits(program, {program.target("inspect"): [0] * 6})
+    with pytest.raises(DataError, match="whole"):
+        joint_emit_edits(program, {program.target("tray", (1,)): [0] * 6})
+
+
+@pytest.mark.parametrize("name", ["cell_a.mod", "cell_b.pg"])
+def test_batch_and_single_target_edits_agree(name):
+    program = load(ROOT / "samples" / name)
+    targets = program.targets
+    rng = np.random.default_rng(1)
+    pos = np.array([t.position_mm() for t in targets]) + rng.normal(0, 0.5, (len(targets), 3))
+    ori = np.array([t.orientation_values() for t in targets])
+    if program.dialect == "rapid":
+        ori = -(ori + rng.normal(0, 1e-3, ori.shape))  # the sign is for the emitter to fix
+    else:
+        ori = ori + rng.normal(0, 0.01, ori.shape)
+    ori[0] = targets[0].orientation_values()  # one orientation left as it is
+    batch = dumps(program, edits_for_targets(program, pos, ori))
+    single = []
+    for t, p, o in zip(targets, pos, ori):
+        single += target_edits(t, position_mm=p, orientation=o)
+    assert batch == dumps(program, single)
+    with pytest.raises(DataError, match="shape"):
+        edits_for_targets(program, pos[:-1])
