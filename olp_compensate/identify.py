@@ -21,7 +21,7 @@ from scipy.linalg import qr
 from scipy.optimize import least_squares
 
 from .calibration import Calibration, ToolPoint, Validation
-from .conventions import rotation_from_rotvec, skew
+from .conventions import rotation_from_rotvec, rotvec_from_rotation, skew
 from .errors import DataError
 from .io.measurements import Measurements
 from .lm import levenberg_marquardt
@@ -137,7 +137,6 @@ class IdentificationProblem:
 
     def pack(self, values: np.ndarray, device_T_base: np.ndarray, tools: np.ndarray) -> np.ndarray:
         """Unknown vector for the given state, relative to the reference registration."""
-        from .conventions import rotvec_from_rotation
         rho = self.r0.T @ (device_T_base[:3, 3] - self.t0)
         phi = rotvec_from_rotation(self.r0.T @ device_T_base[:3, :3])
         return np.concatenate([rho, phi, values[self.free], np.asarray(tools).ravel()])

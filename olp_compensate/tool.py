@@ -40,6 +40,7 @@ import numpy as np
 from .conventions import MM, rotation_angle_between, rotation_from_rotvec, skew
 from .errors import DataError
 from .io.atomic import write_text_atomic
+from .io.measurements import parse_cell_number
 
 COND_LIMIT = 25.0
 """Largest accepted condition number of the column-scaled design matrix (see module doc)."""
@@ -392,15 +393,6 @@ def format_marks_csv(request: ToolRequest) -> str:
     return out.getvalue()
 
 
-def _cell_number(text: str, source: str, line: int, column: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise DataError(f"{source}:{line}: column '{column}': '{text}' is not a number") from None
-    if not math.isfinite(value):
-        raise DataError(f"{source}:{line}: column '{column}': {text} is not a finite number")
-    return value
-
 
 def read_marks_csv(path, n_joints: int) -> ToolRequest:
     """Read a marks CSV: ``mark, q1_deg..qN_deg, x_mm, y_mm, z_mm[, frame]``.
@@ -441,11 +433,11 @@ def read_marks_csv(path, n_joints: int) -> ToolRequest:
             raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
         cell = {h: record[k].strip() for h, k in index.items()}
         labels.append(cell["mark"] or f"M{len(labels) + 1}")
-        joints.append([_cell_number(cell[c], source, line, c) for c in joint_cols])
+        joints.append([parse_cell_number(cell[c], source, line, c) for c in joint_cols])
         xyz = [cell[c] for c in ("x_mm", "y_mm", "z_mm")]
         filled.append((line, sum(bool(v) for v in xyz)))
         if all(xyz):
-            marks.append([_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
+            marks.append([parse_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
         frame = (cell.get("frame") or "base").lower()
         if frame not in ("base", "world"):
             raise DataError(f"{source}:{line}: column 'frame': expected 'base' or 'world', "

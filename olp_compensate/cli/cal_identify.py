@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..identify import IdentificationOptions, identify
 from ..io.calibration_file import write_calibration
 from ..io.measurements import read_measurements
@@ -36,7 +34,7 @@ def report(result) -> str:
         f"robot {cal.robot.name}: {result.n_poses} poses, {result.n_equations} equations, "
         f"{result.n_unknowns} unknowns (6 device registration + "
         f"{result.n_unknowns - 6 - 3 * len(cal.tools)} geometric + {3 * len(cal.tools)} tool)",
-        f"links: " + ", ".join(f"{k + 1}-{k + 2} {c}" for k, c in enumerate(cal.model.conventions)),
+        "links: " + ", ".join(f"{k + 1}-{k + 2} {c}" for k, c in enumerate(cal.model.conventions)),
         f"solver: {result.message} after {result.iterations} iterations",
         f"condition number (unit-scaled Jacobian): {ident.condition_number:.1f}",
         "",

@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import read_calibration
-from ..io.measurements import joint_columns
+from ..io.measurements import joint_columns, parse_cell_number
 
 HELP = "predict measured-point positions (device frame, mm) for joint rows of a CSV"
 
@@ -43,16 +43,7 @@ def run(args) -> int:
     for line_no, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
             raise DataError(f"{path}:{line_no}: {len(row)} fields, the header has {len(header)}")
-        values = []
-        for c in columns:
-            try:
-                v = float(row[index[c]])
-            except ValueError:
-                raise DataError(f"{path}:{line_no}: column '{c}': '{row[index[c]]}' is not a number") from None
-            if not np.isfinite(v):
-                raise DataError(f"{path}:{line_no}: column '{c}': {v} is not finite")
-            values.append(v)
-        readings.append(values)
+        readings.append([parse_cell_number(row[index[c]], str(path), line_no, c) for c in columns])
         names.append(row[index["point"]].strip() if "point" in index and row[index["point"]].strip()
                      else ("tcp" if "tcp" in cal.tools or not cal.tools else sorted(cal.tools)[0]))
     q = cal.robot.to_radians_or_metres(np.array(readings).reshape(-1, len(columns)))

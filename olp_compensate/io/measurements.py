@@ -76,7 +76,8 @@ def joint_columns(joint_units: list[str]) -> list[str]:
     return [f"q{k + 1}_{unit}" for k, unit in enumerate(joint_units)]
 
 
-def _number(text: str, source: str, line: int, column: str) -> float:
+def parse_cell_number(text: str, source: str, line: int, column: str) -> float:
+    """A finite number from a CSV cell; :class:`DataError` naming file, line and column."""
     try:
         value = float(text)
     except ValueError:
@@ -130,18 +131,18 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
         if len(record) != len(header):
             raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
         cell = {h: record[k].strip() for h, k in index.items()}
-        joints.append([_number(cell[c], source, line, c) for c in expected_joints])
-        points.append([_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
+        joints.append([parse_cell_number(cell[c], source, line, c) for c in expected_joints])
+        points.append([parse_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
         poses.append(cell.get("pose") or str(len(poses)))
         names.append(cell.get("point") or "tcp")
         if has_orientation:
-            quats.append([_number(cell[c], source, line, c) for c in ("qw", "qx", "qy", "qz")])
+            quats.append([parse_cell_number(cell[c], source, line, c) for c in ("qw", "qx", "qy", "qz")])
         for column, target in (("payload_kg", payload), ("temperature_c", temperature),
                                ("time_s", time_s)):
             if column in index:
-                target.append(_number(cell[column], source, line, column) if cell[column] else 0.0)
+                target.append(parse_cell_number(cell[column], source, line, column) if cell[column] else 0.0)
         if direction_cols:
-            directions.append([_number(cell[c], source, line, c) if cell[c] else 0.0
+            directions.append([parse_cell_number(cell[c], source, line, c) if cell[c] else 0.0
                                for c in direction_cols])
         for h in extra_cols:
             extra[h].append(cell[h])

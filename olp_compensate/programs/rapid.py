@@ -248,7 +248,7 @@ class _Builder:
         if kind in ("robtarget", "jointtarget"):
             self.target_names.add(name.lower())
         if init is None or init.kind != "aggregate":
-            what = (f"declared without a value (set at run time or in another module)"
+            what = ("declared without a value (set at run time or in another module)"
                     if init is None else "initialized from an expression at run time")
             expr = self.text[start:(init.end if init is not None else name_pos + len(name))]
             if kind in ("robtarget", "jointtarget"):
