@@ -20,6 +20,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..data import data_folder
 from ..errors import ParseError
+from .targets import SourceLocation
 
 
 def grammar_text(name: str) -> str:
@@ -73,6 +74,23 @@ class LineIndex:
     def line_col(self, offset: int) -> tuple[int, int]:
         line = bisect.bisect_right(self.starts, offset)
         return line, offset - self.starts[line - 1] + 1
+
+
+class PositionedBuilder:
+    """Base of the dialect builders: turns character offsets into source positions.
+    Subclasses set ``self.file`` and ``self.index`` (a :class:`LineIndex`)."""
+
+    file: str
+    index: LineIndex
+
+    def loc(self, offset: int) -> SourceLocation:
+        """The source location of a character offset."""
+        return SourceLocation(*self.src(offset))
+
+    def src(self, offset: int) -> tuple[str, int, int]:
+        """The ``source`` tuple (file, line, column) of targets and motion uses."""
+        line, col = self.index.line_col(offset)
+        return (self.file, line, col)
 
 
 def caret_context(text: str, line: int, column: int) -> str:

@@ -20,7 +20,7 @@ from lark import Token
 from lark.exceptions import UnexpectedInput
 from lark.utils import TextSlice
 
-from .grammar import (check_text, convert_lark_error, current_sink, error_at, newline_style,
+from .grammar import (PositionedBuilder, check_text, convert_lark_error, current_sink, error_at, newline_style,
                       no_gc, parser)
 from .literals import (JOINTTARGET_RE, ROBTARGET_RE, Agg, Atom, LiteralError, fast_groups,
                        literal_error, numbers_of, read_aggregate, read_elements, shape_of)
@@ -170,7 +170,7 @@ class Callbacks(lark.Transformer):
 
 # ---- building the Program -------------------------------------------------------------
 
-class _Builder:
+class _Builder(PositionedBuilder):
     """Turns the sink's records into model objects (one per parse)."""
 
     def __init__(self, text: str, file: str, sink: Sink):
@@ -190,15 +190,6 @@ class _Builder:
             Routine(name, kind, self.loc(name_pos), (start, end), _param_names(params))
             for name, kind, start, end, params, name_pos in routines)
         self.target_names: set[str] = set()
-
-    def loc(self, offset: int) -> SourceLocation:
-        line, col = self.index.line_col(offset)
-        return SourceLocation(self.file, line, col)
-
-    def src(self, offset: int) -> tuple[str, int, int]:
-        """The ``source`` tuple of targets and motion uses."""
-        line, col = self.index.line_col(offset)
-        return (self.file, line, col)
 
     def routine_at(self, offset: int) -> str | None:
         k = bisect.bisect_right(self.routine_starts, offset) - 1

@@ -30,7 +30,7 @@ import re
 import lark
 from lark.exceptions import UnexpectedInput
 
-from .grammar import (LineIndex, check_text, convert_lark_error, current_sink, error_at,
+from .grammar import (PositionedBuilder, LineIndex, check_text, convert_lark_error, current_sink, error_at,
                       newline_style, no_gc, parser)
 from .targets import (EULER_ZYZ_DEG, CartesianTarget, JointTarget, MotionUse, Program,
                       Routine, RuntimeTarget, SourceLocation, ToolData)
@@ -101,7 +101,7 @@ def _index(text: str | None):
     return ",".join(parts)
 
 
-class _Builder:
+class _Builder(PositionedBuilder):
     def __init__(self, text: str, file: str):
         self.text, self.file = text, file
         self.index = LineIndex(text)
@@ -111,14 +111,6 @@ class _Builder:
         self.runtime: list = []
         self.motions: list = []
         self.routines: list = []
-
-    def loc(self, offset: int) -> SourceLocation:
-        line, col = self.index.line_col(offset)
-        return SourceLocation(self.file, line, col)
-
-    def src(self, offset: int) -> tuple[str, int, int]:
-        line, col = self.index.line_col(offset)
-        return (self.file, line, col)
 
     # -- .LOCATIONS lines
     def loc_block(self, tok) -> None:
