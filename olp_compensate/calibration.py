@@ -53,9 +53,20 @@ class Calibration:
     effects: tuple = ()
     validation: Validation | None = None
 
+    def actual_joints(self, q_urdf: np.ndarray, jacobian: bool = False):
+        """The joint values (m, n) the arm really takes when commanded ``q_urdf`` (m, n),
+        URDF axes, rad/m, after the joint-space effects in ``effects``; with ``jacobian``
+        also d(actual)/d(commanded) (m, n, n), or None when there are no such effects.
+
+        This is the single hook through which non-geometric joint effects (compliance,
+        gear error, backlash, scale) reach prediction and compensation."""
+        q_urdf = np.asarray(q_urdf, dtype=float)
+        return (q_urdf, None) if jacobian else q_urdf
+
     def flange_poses(self, q: np.ndarray) -> np.ndarray:
         """Flange poses (m, 4, 4) in the base frame for controller axis values (m, n), rad/m."""
-        return forward(self.model, self.values, self.robot.joints_from_controller(q)).flange
+        q_actual = self.actual_joints(self.robot.joints_from_controller(q))
+        return forward(self.model, self.values, q_actual).flange
 
     def tool_points(self, names) -> np.ndarray:
         """Tool points (m, 3) in the flange frame for an array of point names."""
@@ -68,8 +79,8 @@ class Calibration:
     def predict_points(self, q: np.ndarray, names) -> np.ndarray:
         """Positions (m, 3) of the named tool points in the device frame, metres, for
         controller axis values (m, n)."""
-        base = forward(self.model, self.values, self.robot.joints_from_controller(q),
-                       self.tool_points(names)).points
+        q_actual = self.actual_joints(self.robot.joints_from_controller(q))
+        base = forward(self.model, self.values, q_actual, self.tool_points(names)).points
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
 
 
