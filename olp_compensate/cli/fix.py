@@ -1,10 +1,111 @@
-"""``olp-fix``: compensate a robot program on a calibrated model (see issue: programs)."""
+"""``olp-fix``: rewrite a robot program so the real (calibrated) robot reaches what it meant.
+
+Exit codes: 0 every target compensated (joint targets need none); 2 some targets were not
+(each in the report); 1 bad input (parse error with file:line:column and a caret, unknown
+robot, a calibration of another robot).
+"""
 
 from __future__ import annotations
 
+import argparse
 import sys
+import time
+from pathlib import Path
+
+from .. import __version__
+from ..errors import DataError, ParseError
+from ..io.atomic import write_bytes_atomic, write_text_atomic
+from ..io.calibration_file import read_calibration
+from ..program_compensation import EMIT_MODES, compensate_program
+from ..programs import DIALECTS, ENCODING, dialect_for, load
+from .common import run_guarded
+
+SHOWN_PROBLEMS = 20
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="olp-fix", description=__doc__.splitlines()[0])
+    p.add_argument("program", help="ABB RAPID module (.mod .modx .prg .sys) or V+ location "
+                                   "file (.pg .v2 .lc .loc .as)")
+    p.add_argument("--model", required=True, help="calib.json from olp-cal identify/nominal")
+    p.add_argument("-o", "--output", help="compensated program to write (default: beside the "
+                                          "input, NAME_compensated.EXT); never the input")
+    p.add_argument("--emit", choices=EMIT_MODES, default="pose",
+                   help="'pose': rewrite Cartesian targets (default); 'joints': turn them "
+                        "into joint targets (jointtarget + MoveAbsJ, V+ precision points)")
+    p.add_argument("--report", help="CSV with one row per target use (mm, deg)")
+    p.add_argument("--dialect", choices=DIALECTS, help="default: from the file extension")
+    p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
+                   help="targets never moved to in this file: leave them ('skip', default) "
+                        "or compensate them with tool0/wobj0 ('tool0')")
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary on the terminal")
+    p.add_argument("--version", action="version", version=f"olp-fix {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0,
+                   help="more logging; -v also shows tracebacks")
+    return p
+
+
+def default_output(path: Path) -> Path:
+    """``cell.mod`` -> ``cell_compensated.mod`` in the same folder."""
+    return path.with_name(f"{path.stem}_compensated{path.suffix}")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (b.exists() and a.samefile(b))
+    except OSError:
+        return False
+
+
+def run(args) -> int:
+    started = time.perf_counter()
+    path = Path(args.program)
+    out = Path(args.output) if args.output else default_output(path)
+    if _same_file(path, out):
+        raise DataError(f"{out}: refusing to overwrite the input program; choose another -o")
+    if args.report and _same_file(path, Path(args.report)):
+        raise DataError(f"{args.report}: refusing to overwrite the input program")
+    dialect = args.dialect or dialect_for(path)
+    calibration = read_calibration(args.model)
+    try:
+        program = load(path, dialect)
+    except ParseError as exc:
+        if exc.context:
+            print(exc.context, file=sys.stderr)
+        raise
+    text, report = compensate_program(program, None, calibration, emit=args.emit,
+                                      unused=args.unused)
+    write_bytes_atomic(out, text.encode(ENCODING))
+    if args.report:
+        write_text_atomic(args.report, report.to_csv())
+    if not args.quiet:
+        _summary(report, out, args.report, time.perf_counter() - started)
+    return report.exit_code
+
+
+def _summary(report, out: Path, report_path: str | None, seconds: float) -> None:
+    rows = report.rows
+    done = [r for r in rows if r.compensated]
+    counts = report.counts()
+    parts = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
+    print(f"olp-fix: {report.file}: {len(rows)} target uses ({parts}) in {seconds:.2f} s")
+    if done:
+        shift = max(sum(c * c for c in r.correction_mm) ** 0.5 for r in done)
+        turn = max(r.correction_deg for r in done)
+        dq = max((r.joint_change for r in done if r.joint_change == r.joint_change), default=0.0)
+        print(f"  largest correction {shift:.3f} mm and {turn:.4f} deg; largest joint "
+              f"change {dq:.4f} deg")
+    problems = [r for r in rows if not r.fine]
+    for r in problems[:SHOWN_PROBLEMS]:
+        print(f"  {r.file}:{r.line}:{r.column}: {r.target}: {r.status}"
+              + (f" ({r.note})" if r.note else ""))
+    if len(problems) > SHOWN_PROBLEMS:
+        print(f"  ... and {len(problems) - SHOWN_PROBLEMS} more (see --report)")
+    for w in report.warnings[:SHOWN_PROBLEMS]:
+        print(f"  warning: {w}")
+    print(f"  wrote {out}" + (f" and {report_path}" if report_path else ""))
 
 
 def main(argv: list[str] | None = None) -> int:
-    print("olp-fix: program compensation is not available in this version yet", file=sys.stderr)
-    return 1
+    args = build_parser().parse_args(argv)
+    return run_guarded(lambda: run(args), args.verbose, "olp-fix")

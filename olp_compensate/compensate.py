@@ -1,0 +1,249 @@
+"""Pose compensation: the target that makes the nominal controller drive the real robot
+to where the program meant.
+
+The controller turns a target into joints with the data-sheet (nominal) kinematics. The real
+arm is the calibrated model. For a desired tool pose we therefore
+
+1. solve the joints ``q`` at which the *calibrated* arm (its effects included) puts its real
+   tool on the desired pose, on the configuration the program asks for
+   (:func:`olp_compensate.ik.solve`: the nominal closed form, then Newton on the model);
+2. write the target the *nominal* controller maps to exactly those joints: the nominal
+   forward kinematics of ``q``, through the program's own tool and work object, with the
+   configuration (ABB ``confdata``) of ``q``.
+
+All poses are 4x4 in metres; joints are controller axes in rad (m for prismatic axes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .calibration import Calibration
+from .conventions import invert_pose, rotation_angle_between
+from .errors import DataError, ModelError
+from .ik import IKSolution, OPWParameters, URParameters, branch_of, closed_form_inverse, fit_family, solve
+from .model import forward
+
+__all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
+           "compensate_poses", "COMPENSATED"]
+
+COMPENSATED = ("ok", "singular")
+"""IK reasons that count as compensated ('singular': reached, but near a singularity)."""
+
+
+@dataclass(frozen=True)
+class BatchCompensation:
+    """Compensation of m poses.
+
+    poses : (m, 4, 4) the targets to write, in the frame the inputs were given in, m.
+    joints : (m, n) controller axes the real robot takes, rad/m (NaN where not solved).
+    nominal_joints : (m, n) controller axes the nominal controller gives the original
+        targets, rad/m (NaN where the nominal arm cannot reach them).
+    config : (m, 4) int, ABB confdata (cf1, cf4, cf6, cfx) of ``joints``.
+    status : (m,) str, the reasons of :data:`olp_compensate.ik.REASONS`.
+    position_error_m, rotation_error_rad : (m,) how closely the calibrated model reaches.
+    """
+
+    poses: np.ndarray
+    joints: np.ndarray
+    nominal_joints: np.ndarray
+    config: np.ndarray
+    status: np.ndarray
+    position_error_m: np.ndarray
+    rotation_error_rad: np.ndarray
+
+    @property
+    def success(self) -> np.ndarray:
+        """(m,) bool, where the target was compensated."""
+        return np.isin(self.status, COMPENSATED)
+
+
+@dataclass(frozen=True)
+class PoseCompensation:
+    """One compensated pose: ``pose`` (4, 4) m to write, ``joints`` (n,) controller axes
+    rad/m the real robot takes, ``config`` ABB confdata, ``status`` ('ok', 'singular' or
+    the reason it failed), and the change of the target (mm, degrees)."""
+
+    pose: np.ndarray
+    joints: np.ndarray
+    config: tuple[int, int, int, int]
+    status: str
+    correction_mm: np.ndarray
+    correction_deg: float
+
+    @property
+    def success(self) -> bool:
+        return self.status in COMPENSATED
+
+
+class Compensator:
+    """Joint solutions of the real (calibrated) arm and of the nominal controller.
+
+    Internally joints are URDF axes (the closed forms are fitted on them); the public
+    methods that say so take and return controller axes.
+    """
+
+    def __init__(self, calibration: Calibration):
+        self.calibration = calibration
+        self.robot = calibration.robot
+        self.model = calibration.model
+        if self.robot.n_joints != 6:
+            raise ModelError(f"{self.robot.name}: compensation needs a 6-axis arm, this one "
+                             f"has {self.robot.n_joints} axes")
+        family = fit_family(self.nominal_flange)
+        if family is None:
+            raise ModelError(f"{self.robot.name}: no closed-form family (spherical-wrist OPW "
+                             f"or UR) fits this arm, so program configurations cannot be "
+                             f"chosen")
+        self.family: OPWParameters | URParameters = family
+        self.limits = np.stack([self.robot.lower_limits, self.robot.upper_limits], 1)
+
+    # -- kinematics, URDF axes ------------------------------------------------------------
+
+    def nominal_flange(self, q_urdf: np.ndarray) -> np.ndarray:
+        """Flange poses (m, 4, 4) of the data-sheet arm, base frame, m."""
+        return forward(self.model, self.model.nominal, q_urdf).flange
+
+    def real_flange_and_jacobian(self, q_urdf: np.ndarray):
+        """Flange poses (m, 4, 4) of the calibrated arm and its geometric Jacobian
+        (m, 6, n) (flange-origin velocity, then angular velocity, base frame) with respect
+        to the commanded joints, effects included."""
+        q_actual, dactual = self.calibration.actual_joints(q_urdf, jacobian=True)
+        chain = forward(self.model, self.calibration.values, q_actual, jacobian=True)
+        jac = np.concatenate([chain.dpoint_dq, chain.drot_dq], axis=1)
+        if dactual is not None:
+            jac = jac @ dactual
+        return chain.flange, jac
+
+    def solve_real(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> IKSolution:
+        """Joints (URDF axes) at which the calibrated arm reaches ``base_T_flange``
+        (m, 4, 4), on ``confdata`` (m, 4) (None: nearest to zero, any configuration), to
+        1e-9 m and 1e-9 rad."""
+        return solve(self.family, self.real_flange_and_jacobian, base_T_flange, confdata,
+                     self.limits)
+
+    def solve_nominal(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> np.ndarray:
+        """Joints (m, n) (URDF axes) the nominal controller takes for ``base_T_flange``:
+        the closed form on the requested branch (NaN where unreachable)."""
+        from .ik import select_branch
+
+        solutions = closed_form_inverse(self.family, base_T_flange)
+        if confdata is None:
+            finite = np.all(np.isfinite(solutions), axis=2)
+            norm = np.where(finite, np.sum(solutions ** 2, axis=2), np.inf)
+            pick = np.argmin(norm, axis=1)
+            return solutions[np.arange(len(solutions)), pick]
+        q, _ = select_branch(solutions, confdata, self.limits)
+        return q
+
+    def confdata(self, q_urdf: np.ndarray) -> np.ndarray:
+        """ABB confdata (m, 4) int of joints (URDF axes): quadrants of controller axes 1, 4
+        and 6, and the branch index cfx."""
+        q_ctrl = self.robot.controller_from_joints(q_urdf)
+        quadrants = np.floor(q_ctrl[:, [0, 3, 5]] / (np.pi / 2) + 1e-12).astype(int)
+        return np.concatenate([quadrants, branch_of(self.family, q_urdf)[:, None]], 1)
+
+    # -- poses ----------------------------------------------------------------------------
+
+    def compensate_flanges(self, desired_real_flange: np.ndarray,
+                           requested_flange: np.ndarray | None = None,
+                           confdata: np.ndarray | None = None):
+        """Solve the real arm for ``desired_real_flange`` (m, 4, 4); return
+        (joints URDF (m, n), nominal flange at those joints (m, 4, 4), IKSolution,
+        nominal joints of ``requested_flange`` (URDF, m, n) or None)."""
+        solution = self.solve_real(desired_real_flange, confdata)
+        q = np.where(solution.success[:, None], solution.q, np.nan)
+        flange = np.full((len(q), 4, 4), np.nan)
+        ok = solution.success
+        if np.any(ok):
+            flange[ok] = self.nominal_flange(q[ok])
+        nominal = None
+        if requested_flange is not None:
+            nominal = self.solve_nominal(requested_flange, confdata)
+        return q, flange, solution, nominal
+
+    @cached_property
+    def identity(self) -> np.ndarray:
+        return np.eye(4)
+
+
+def _stack(pose, m: int, name: str) -> np.ndarray:
+    if pose is None:
+        return np.broadcast_to(np.eye(4), (m, 4, 4))
+    a = np.asarray(pose, dtype=float)
+    if a.shape == (4, 4):
+        return np.broadcast_to(a, (m, 4, 4))
+    if a.shape != (m, 4, 4):
+        raise DataError(f"{name}: expected shape (4, 4) or ({m}, 4, 4), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise DataError(f"{name}: poses must be finite")
+    return a
+
+
+def compensate_poses(calibration: Calibration | Compensator, wobj_T_target, tool=None,
+                     wobj=None, confdata=None, real_tool=None) -> BatchCompensation:
+    """Compensate m targets of a robot-held tool (batched).
+
+    wobj_T_target : (m, 4, 4) targets in their work object, m.
+    tool : flange_T_tool the controller uses (the program's tooldata), (4, 4) or
+        (m, 4, 4); default the flange.
+    wobj : base_T_wobj, (4, 4) or (m, 4, 4); default the base frame.
+    confdata : (m, 4) ABB (cf1, cf4, cf6, cfx) asked for, or None for the branch nearest
+        zero (any configuration accepted).
+    real_tool : flange_T_tool of the real tool (e.g. from calib.json); default ``tool``.
+    """
+    comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
+    targets = np.asarray(wobj_T_target, dtype=float)
+    if targets.ndim == 2:
+        targets = targets[None]
+    m = len(targets)
+    targets = _stack(targets, m, "wobj_T_target")
+    tool = _stack(tool, m, "tool")
+    wobj = _stack(wobj, m, "wobj")
+    real_tool = tool if real_tool is None else _stack(real_tool, m, "real_tool")
+    if confdata is not None:
+        confdata = np.asarray(confdata, dtype=int).reshape(m, 4)
+    tcp = wobj @ targets
+    desired = tcp @ invert_pose(real_tool)
+    requested = tcp @ invert_pose(tool)
+    q, flange, solution, nominal = comp.compensate_flanges(desired, requested, confdata)
+    poses = invert_pose(wobj) @ flange @ tool
+    config = np.full((m, 4), -99, dtype=int)
+    ok = solution.success
+    if np.any(ok):
+        config[ok] = comp.confdata(q[ok])
+    robot = comp.robot
+    return BatchCompensation(poses=poses, joints=robot.controller_from_joints(q),
+                             nominal_joints=robot.controller_from_joints(nominal),
+                             config=config, status=solution.reason.astype(str),
+                             position_error_m=solution.position_error_m,
+                             rotation_error_rad=solution.rotation_error_rad)
+
+
+def compensate_pose(calibration: Calibration | Compensator, pose, tool=None, wobj=None,
+                    config=None, real_tool=None) -> PoseCompensation:
+    """Compensate one target for offline-programming software.
+
+    pose : wobj_T_target (4, 4), m. tool : flange_T_tool the controller uses (4, 4), m.
+    wobj : base_T_wobj (4, 4), m. config : ABB confdata (cf1, cf4, cf6, cfx) or None.
+    real_tool : the calibrated tool if it differs from ``tool``.
+    Returns the target to write (same frame as ``pose``), the joints the real robot will
+    take (controller axes, rad) and a status; a failure is a status, not an exception.
+    """
+    batch = compensate_poses(calibration, np.asarray(pose, dtype=float)[None], tool, wobj,
+                             None if config is None else [config], real_tool)
+    original = np.asarray(pose, dtype=float)
+    new = batch.poses[0]
+    if batch.success[0]:
+        correction_mm = (new[:3, 3] - original[:3, 3]) * 1e3
+        correction_deg = float(np.degrees(rotation_angle_between(new[:3, :3], original[:3, :3])))
+    else:
+        new = original.copy()
+        correction_mm, correction_deg = np.zeros(3), 0.0
+    return PoseCompensation(pose=new, joints=batch.joints[0],
+                            config=tuple(int(c) for c in batch.config[0]),
+                            status=str(batch.status[0]), correction_mm=correction_mm,
+                            correction_deg=correction_deg)

@@ -1,0 +1,404 @@
+"""Compensate a whole robot program: parse, resolve, solve the real arm, splice the numbers.
+
+Only the numbers of compensated targets change (see :mod:`olp_compensate.programs.emit`);
+with the nominal calibration nothing changes at all. What is done with each target:
+
+- a Cartesian target (robtarget, V+ transformation) with known tool and work object is
+  compensated (:mod:`olp_compensate.compensate`); a calibrated tool of the same name as
+  the program's tooldata is the real tool; its confdata is kept unless the joints left the
+  written quadrant by more than a degree;
+- a target used with several tool/work-object pairs is compensated only when every pair
+  gives the same numbers (within the written resolution); otherwise it is left as written
+  and reported 'ambiguous';
+- joint targets (jointtarget, V+ precision points) are joints already: kept, 'joint_target';
+- targets never moved to in the file are left as written ('unused'), unless the caller
+  assumes tool0/wobj0 for them;
+- motions whose target is computed at run time (Offs(), RelTool(), CRobT(), parameters)
+  are listed 'runtime' / 'unresolved' with their reason.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .calibration import Calibration
+from .compensate import COMPENSATED, Compensator
+from .confdata import vplus_configuration
+from .conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
+                          quat_wxyz_from_matrix, rotation_angle_between)
+from .errors import DataError
+from .ik import OPWParameters
+from .programs import Program, loads, resolve
+from .programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
+                            target_edits)
+from .programs.targets import QUAT_WXYZ, CartesianTarget, JointTarget
+
+__all__ = ["TargetReport", "CompensationReport", "compensate_program", "KEPT", "EMIT_MODES"]
+
+KEPT = ("joint_target",)
+"""Statuses of targets that need no compensation (the program is still fully compensated)."""
+EMIT_MODES = ("pose", "joints")
+CONFIG_SLACK_RAD = math.radians(1.0)
+"""A written quadrant is kept while its axis is less than this outside it."""
+_SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree within this
+
+
+@dataclass(frozen=True)
+class TargetReport:
+    """One row of the report: one target with one tool/work-object pair (or one run-time
+    motion). Lengths in mm, angles in degrees; NaN where not compensated.
+
+    correction_mm : (dx, dy, dz) change of the written target, in its work object.
+    joints : (n,) controller axes the real robot takes, deg (mm for prismatic axes).
+    joint_change : largest |real - nominal| joint value for the original target, deg.
+    """
+
+    target: str
+    file: str
+    line: int
+    column: int
+    status: str
+    tool: str = ""
+    wobj: str = ""
+    correction_mm: tuple[float, float, float] = (math.nan,) * 3
+    correction_deg: float = math.nan
+    joint_change: float = math.nan
+    config_before: str = ""
+    config_after: str = ""
+    joints: tuple[float, ...] = ()
+    note: str = ""
+
+    @property
+    def compensated(self) -> bool:
+        return self.status in COMPENSATED
+
+    @property
+    def fine(self) -> bool:
+        """Compensated, or needing no compensation."""
+        return self.status in COMPENSATED or self.status in KEPT
+
+
+@dataclass(frozen=True)
+class CompensationReport:
+    """Everything :func:`compensate_program` did: one row per target use, and warnings
+    (one line each, file:line first)."""
+
+    file: str
+    rows: tuple[TargetReport, ...]
+    warnings: tuple[str, ...] = ()
+    n_joints: int = 6
+    emit: str = "pose"
+    edits: int = 0
+
+    @property
+    def all_compensated(self) -> bool:
+        return all(r.fine for r in self.rows)
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every target was compensated (or needs no compensation), else 2."""
+        return 0 if self.all_compensated else 2
+
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for r in self.rows:
+            out[r.status] = out.get(r.status, 0) + 1
+        return out
+
+    def to_csv(self) -> str:
+        """The report as CSV text (one row per target use; units in the column names)."""
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        joints = [f"q{k + 1}_deg" for k in range(self.n_joints)]
+        writer.writerow(["target", "file", "line", "column", "status", "tool", "wobj",
+                         "dx_mm", "dy_mm", "dz_mm", "drot_deg", "dq_max_deg",
+                         "config_before", "config_after", *joints, "note"])
+        for r in self.rows:
+            q = list(r.joints) if r.joints else [math.nan] * self.n_joints
+            writer.writerow([r.target, r.file, r.line, r.column, r.status, r.tool, r.wobj,
+                             *(_num(v, 4) for v in r.correction_mm), _num(r.correction_deg, 5),
+                             _num(r.joint_change, 5), r.config_before, r.config_after,
+                             *(_num(v, 6) for v in q), r.note])
+        return buf.getvalue()
+
+
+def _num(value: float, decimals: int) -> str:
+    return "" if value is None or not math.isfinite(value) else f"{value:.{decimals}f}"
+
+
+# ----------------------------------------------------------------------------------------
+
+@dataclass
+class _Job:
+    """Targets to solve: desired real flange, the flange the program asks the nominal
+    controller for, and how to turn a flange back into the written target."""
+
+    entries: list = field(default_factory=list)       # ResolvedTarget
+    desired: list = field(default_factory=list)       # (4, 4) real flange
+    requested: list = field(default_factory=list)     # (4, 4) nominal flange
+    confdata: list = field(default_factory=list)      # (4,) or None
+    real_tool_note: list = field(default_factory=list)
+
+
+def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
+    """flange_T_tool of the real robot for the program tool ``name``, and a note."""
+    for cal_name, tool in calibration.tools.items():
+        if cal_name.lower() == name.lower():
+            rotation = (program_tool[:3, :3] if tool.quat_wxyz is None
+                        else matrix_from_quat_wxyz(tool.quat_wxyz))
+            return (pose_from_rotation_translation(rotation, tool.xyz_m),
+                    f"real TCP of {name} from the calibration")
+    return program_tool, ""
+
+
+def _config_text(values) -> str:
+    return "[" + ",".join(str(int(v)) for v in values) + "]" if len(values) else ""
+
+
+def _vplus_text(family, q_urdf) -> str:
+    if not isinstance(family, OPWParameters) or not np.all(np.isfinite(q_urdf)):
+        return ""
+    righty, above, flip = vplus_configuration(family, q_urdf[None])[0]
+    return " ".join(("RIGHTY" if righty else "LEFTY", "ABOVE" if above else "BELOW",
+                     "FLIP" if flip else "NOFLIP"))
+
+
+def _keep_config(original, computed, q_ctrl, nominal_ctrl) -> list[int]:
+    """The confdata to write: the original, unless compensation moved axis 1, 4 or 6 out of
+    the quadrant the nominal controller was in for the original target and more than
+    :data:`CONFIG_SLACK_RAD` out of the written one (cfx: the solver kept the requested
+    branch). So a written confdata is never rewritten just for being slightly off."""
+    out = list(original)
+    for k, axis in enumerate((0, 3, 5)):
+        lower = original[k] * (math.pi / 2)
+        outside = not (lower - CONFIG_SLACK_RAD <= q_ctrl[axis]
+                       <= lower + math.pi / 2 + CONFIG_SLACK_RAD)
+        before = math.floor(nominal_ctrl[axis] / (math.pi / 2) + 1e-12) \
+            if math.isfinite(nominal_ctrl[axis]) else None
+        if outside and before != int(computed[k]):
+            out[k] = int(computed[k])
+    return out
+
+
+def compensate_program(program: Program | str | bytes, dialect: str | None,
+                       calibration: Calibration | Compensator, *, emit: str = "pose",
+                       file: str = "<string>", unused: str = "skip"):
+    """Compensate every target of a program on a calibration.
+
+    program : a parsed :class:`Program`, or its text (str or latin-1 bytes) of ``dialect``
+        ('rapid' or 'vplus'), named ``file`` in messages.
+    emit : 'pose' rewrites Cartesian targets; 'joints' turns them into joint targets
+        (RAPID jointtarget + MoveAbsJ, V+ precision points) where every use allows it.
+    unused : 'skip' leaves targets never moved to as written; 'tool0' compensates them with
+        tool0 and wobj0 (for data modules whose motions live elsewhere).
+    Returns ``(text, report)``: the compensated program text and a
+    :class:`CompensationReport`. Raises :class:`~olp_compensate.errors.ParseError` for a
+    malformed program and DataError for bad arguments.
+    """
+    if emit not in EMIT_MODES:
+        raise DataError(f"emit: expected one of {', '.join(EMIT_MODES)}, got {emit!r}")
+    if unused not in ("skip", "tool0"):
+        raise DataError(f"unused: expected 'skip' or 'tool0', got {unused!r}")
+    if not isinstance(program, Program):
+        if dialect is None:
+            raise DataError("dialect: needed when the program is given as text")
+        program = loads(program, dialect, file)
+    comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
+    cal, robot = comp.calibration, comp.robot
+    resolution = resolve(program)
+    vplus = program.dialect == "vplus"
+    rows: dict[int, TargetReport] = {}          # index in resolution.targets -> row
+    job = _Job()
+    index_of = {}
+    for k, rt in enumerate(resolution.targets):
+        t = rt.target
+        where = t.location
+        base = dict(target=t.display_name, file=where.file, line=where.line,
+                    column=where.column, tool=rt.tool_name, wobj=rt.wobj_name)
+        if isinstance(t, JointTarget):
+            rows[k] = TargetReport(**base, status="joint_target",
+                                   joints=tuple(t.joints_deg()), note="joints kept as written")
+            continue
+        config = t.config_values() if not vplus else ()
+        base["config_before"] = _config_text(config)
+        if "unused" in rt.notes and not rt.uses and unused == "skip":
+            rows[k] = TargetReport(**base, status="unused",
+                                   note="not moved to in this file: tool and work object "
+                                        "unknown, left as written")
+            continue
+        if rt.base_T_flange is None:
+            rows[k] = TargetReport(**base, status="unresolved", note="; ".join(rt.notes))
+            continue
+        if rt.stationary_tool:
+            desired, note = rt.base_T_flange, "stationary tool"
+        else:
+            real_tool, note = _real_tool(cal, rt.tool_name, rt.flange_T_tool)
+            desired = rt.base_T_wobj @ rt.wobj_T_target @ invert_pose(real_tool)
+        index_of[k] = len(job.entries)
+        job.entries.append(rt)
+        job.desired.append(desired)
+        job.requested.append(rt.base_T_flange)
+        job.confdata.append(config if config else None)
+        job.real_tool_note.append(note)
+
+    n = len(job.entries)
+    if n:
+        with_conf = [i for i, c in enumerate(job.confdata) if c is not None]
+        without = [i for i, c in enumerate(job.confdata) if c is None]
+        desired = np.array(job.desired)
+        requested = np.array(job.requested)
+        q = np.full((n, robot.n_joints), np.nan)
+        flange = np.full((n, 4, 4), np.nan)
+        nominal = np.full((n, robot.n_joints), np.nan)
+        status = np.empty(n, dtype=object)
+        if without:
+            # no written configuration (V+): the arm stays in the one the nominal
+            # controller takes for the original target (the branch nearest zero)
+            q_nominal = comp.solve_nominal(requested[without], None)
+            reachable = np.all(np.isfinite(q_nominal), axis=1)
+            implied = [i for i, r in zip(without, reachable) if r]
+            implied_conf = comp.confdata(q_nominal[reachable]) if implied else None
+            without = [i for i, r in zip(without, reachable) if not r]
+            with_conf_arr = np.array([job.confdata[i] for i in with_conf], int).reshape(-1, 4)
+            with_conf = with_conf + implied
+            conf_all = np.concatenate([with_conf_arr, implied_conf.reshape(-1, 4)]) \
+                if implied else with_conf_arr
+        else:
+            conf_all = np.array([job.confdata[i] for i in with_conf], int).reshape(-1, 4)
+        for idx, conf in ((with_conf, conf_all), (without, None)):
+            if not idx:
+                continue
+            qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
+            q[idx], flange[idx], nominal[idx] = qi, fi, nomi
+            status[idx] = sol.reason
+        new_targets = np.full((n, 4, 4), np.nan)
+        ok = np.isin(status.astype(str), COMPENSATED)
+        for i in np.flatnonzero(ok):
+            rt = job.entries[i]
+            if rt.stationary_tool:
+                new_targets[i] = invert_pose(rt.base_T_wobj) @ invert_pose(flange[i]) @ rt.flange_T_tool
+            else:
+                new_targets[i] = invert_pose(rt.base_T_wobj) @ flange[i] @ rt.flange_T_tool
+        q_ctrl = robot.controller_from_joints(q)
+        nominal_ctrl = robot.controller_from_joints(nominal)
+        computed_conf = np.full((n, 4), -99, int)
+        if np.any(ok):
+            computed_conf[ok] = comp.confdata(q[ok])
+    else:
+        ok = np.zeros(0, bool)
+
+    # one target, several tool/work-object pairs: write only when they agree
+    by_target: dict[int, list[int]] = {}
+    for k, i in index_of.items():
+        by_target.setdefault(id(job.entries[i].target), []).append(i)
+    ambiguous = set()
+    for members in by_target.values():
+        if len(members) < 2:
+            continue
+        good = [i for i in members if ok[i]]
+        if len(good) < len(members):
+            ambiguous.update(members)
+            continue
+        first = new_targets[good[0]]
+        for i in good[1:]:
+            if (np.linalg.norm(new_targets[i][:3, 3] - first[:3, 3]) > _SAME_MM * MM
+                    or rotation_angle_between(new_targets[i][:3, :3], first[:3, :3]) > _SAME_RAD):
+                ambiguous.update(members)
+                break
+
+    write: dict[int, int] = {}                   # id(target) -> job index to write
+    for k, i in index_of.items():
+        rt = job.entries[i]
+        t = rt.target
+        where = t.location
+        base = dict(target=t.display_name, file=where.file, line=where.line,
+                    column=where.column, tool=rt.tool_name, wobj=rt.wobj_name,
+                    config_before=_config_text(job.confdata[i] or ()))
+        notes = [x for x in rt.notes if x != "unused"] + [job.real_tool_note[i]]
+        if "unused" in rt.notes:
+            notes.append("not moved to in this file: tool0/wobj0 assumed")
+        if not ok[i]:
+            rows[k] = TargetReport(**base, status=str(status[i]), note="; ".join(x for x in notes if x))
+            continue
+        if i in ambiguous:
+            rows[k] = TargetReport(**base, status="ambiguous",
+                                   joints=tuple(robot.to_degrees_or_mm(q_ctrl[i])),
+                                   note="used with several tools/work objects needing "
+                                        "different corrections; left as written")
+            continue
+        write[id(t)] = i
+        original = rt.wobj_T_target
+        if vplus:
+            config_after = _vplus_text(comp.family, q[i])
+        else:
+            kept = _keep_config(job.confdata[i], computed_conf[i], q_ctrl[i], nominal_ctrl[i])
+            config_after = _config_text(kept)
+            computed_conf[i] = kept
+        change = robot.to_degrees_or_mm(q_ctrl[i] - nominal_ctrl[i])
+        rows[k] = TargetReport(
+            **{**base, "config_after": config_after}, status=str(status[i]),
+            correction_mm=tuple((new_targets[i][:3, 3] - original[:3, 3]) / MM),
+            correction_deg=math.degrees(rotation_angle_between(new_targets[i][:3, :3],
+                                                               original[:3, :3])),
+            joint_change=float(np.nanmax(np.abs(change))) if np.any(np.isfinite(change)) else math.nan,
+            joints=tuple(robot.to_degrees_or_mm(q_ctrl[i])),
+            note="; ".join(x for x in notes if x))
+
+    order = [rows[k] for k in sorted(rows)]
+    for use, why in resolution.unresolved:
+        where = use.location
+        name = (use.runtime.expression if use.runtime is not None
+                else use.target_name or "<target>")
+        order.append(TargetReport(target=name, file=where.file, line=where.line,
+                                  column=where.column,
+                                  status="runtime" if use.runtime is not None else "unresolved",
+                                  tool=use.tool or "", wobj=use.wobj or "", note=why))
+    order.sort(key=lambda r: (r.line, r.column))
+
+    edits = _edits(program, comp, job, write, new_targets if n else None,
+                   computed_conf if n else None, q_ctrl if n else None, emit, vplus)
+    warnings = list(resolution.warnings)
+    text = splice(program.text, edits) if edits else program.text
+    report = CompensationReport(file=program.file, rows=tuple(order), warnings=tuple(warnings),
+                                n_joints=robot.n_joints, emit=emit, edits=len(edits))
+    return text, report
+
+
+def _orientation(t: CartesianTarget, rotation: np.ndarray, vplus: bool) -> np.ndarray:
+    """Orientation numbers for ``rotation``: the written ones when the rotation did not
+    change at their resolution (so unnormalized quaternions and equivalent Euler triples
+    survive), else a unit quaternion (RAPID) or the nearest Z-Y-Z triple in degrees (V+)."""
+    written = t.orientation_values()
+    if rotation_angle_between(rotation, t.rotation()) < 1e-7:
+        return written
+    if vplus:
+        return nearest_euler_zyz_deg(rotation, written)
+    return quat_wxyz_from_matrix(rotation)
+
+
+def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus):
+    if not write:
+        return []
+    robot = comp.robot
+    chosen = sorted(write.items(), key=lambda kv: job.entries[kv[1]].target.span[0])
+    targets = [job.entries[i].target for _, i in chosen]
+    rows = [i for _, i in chosen]
+    edits = []
+    if emit == "joints":
+        joints = {t: robot.to_degrees_or_mm(q_ctrl[i]) for t, i in zip(targets, rows)}
+        return joint_emit_edits(program, joints)
+    positions = np.array([new_targets[i][:3, 3] / MM for i in rows])
+    orientation = np.array([_orientation(t, new_targets[i][:3, :3], vplus)
+                            for t, i in zip(targets, rows)])
+    edits = edits_for_targets(program, positions, orientation, None, targets)
+    if not vplus:
+        for t, i in zip(targets, rows):
+            if tuple(conf[i]) != t.config_values():
+                edits += target_edits(t, config=conf[i])
+        edits.sort(key=lambda e: e.start)
+    return edits

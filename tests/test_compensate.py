@@ -1,0 +1,279 @@
+"""The whole loop: measure a virtual robot, identify it, compensate a program, run the
+compensated program on a simulated nominal controller and on the virtual real arm.
+
+The nominal controller here is the closed form of the data-sheet arm (fitted on
+pinocchio's forward kinematics of the nominal URDF) choosing the branch the written
+confdata asks for; the real arm is the virtual robot (pinocchio on the perturbed URDF).
+Both are independent of the calibrated model that olp-fix solves on. Targets are compared
+in the measuring device's frame, where both the calibration and the truth place the robot.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from olp_compensate.calibration import ToolPoint, nominal_calibration
+from olp_compensate.compensate import Compensator, compensate_pose
+from olp_compensate.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
+                                        pose_from_rotation_translation, quat_wxyz_from_matrix,
+                                        rotation_angle_between, rotation_from_rotvec)
+from olp_compensate.ik import branch_of, closed_form_inverse, fit_family, select_branch
+from olp_compensate.identify import IdentificationOptions, identify
+from olp_compensate.program_compensation import compensate_program
+from olp_compensate.programs import loads
+from olp_compensate.model import build_model, forward
+from olp_compensate.registration import kabsch
+from olp_compensate.robot import load_robot
+from olp_compensate.simulate import VirtualRobot, make_virtual_robot, random_joints
+
+NOISE_M = 0.01e-3
+TOLERANCE_M = 0.05e-3
+
+
+class World:
+    """A virtual robot, its identified calibration, and a nominal controller."""
+
+    def __init__(self, robot_name: str, seed: int):
+        self.robot = load_robot(robot_name)
+        self.virtual = make_virtual_robot(self.robot, seed=seed, n_points=3)
+        rng = np.random.default_rng(seed)
+        meas = self.virtual.measure(random_joints(self.robot, 60, rng), NOISE_M, rng)
+        self.calibration = identify(self.robot, meas, IdentificationOptions(folds=0)).calibration
+        n = self.robot.n_joints
+        self.nominal = VirtualRobot(self.robot, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
+        self.family = fit_family(lambda q: self.nominal.flange_poses(
+            self.robot.controller_from_joints(q)))
+        assert self.family is not None
+        self.limits = np.stack([self.robot.lower_limits, self.robot.upper_limits], 1)
+
+    def controller(self, base_T_flange, confdata=None):
+        """Controller axes (m, n) rad the nominal controller takes for flange poses."""
+        solutions = closed_form_inverse(self.family, base_T_flange)
+        if confdata is None:  # V+: the branch the arm is in, here the one nearest zero
+            norm = np.where(np.all(np.isfinite(solutions), 2), np.sum(solutions ** 2, 2), np.inf)
+            q = solutions[np.arange(len(solutions)), np.argmin(norm, 1)]
+        else:
+            q, found = select_branch(solutions, confdata, self.limits)
+            assert np.all(found)
+        return self.robot.controller_from_joints(q)
+
+    def real_tool(self, tool_rotation):
+        """The real tool (true flange frame) of the measured point 'tcp' whose orientation
+        is ``tool_rotation`` in the calibrated flange frame. The calibrated flange frame is
+        defined by the measured points; it is placed in the true one by the three points."""
+        names = sorted(self.virtual.tools)
+        true_T_cal = kabsch(np.array([self.calibration.tools[n].xyz_m for n in names]),
+                            np.array([self.virtual.tools[n] for n in names]))
+        return true_T_cal @ pose_from_rotation_translation(
+            tool_rotation, self.calibration.tools["tcp"].xyz_m)
+
+    def real_tcp_in_device(self, q_ctrl, flange_T_tool):
+        return self.virtual.device_T_base @ self.virtual.flange_poses(q_ctrl) @ flange_T_tool
+
+    def desired_in_device(self, base_T_tcp):
+        return self.calibration.device_T_base @ base_T_tcp
+
+    def program_joints(self, m: int, seed: int) -> np.ndarray:
+        """URDF joints of m poses the program was written for: inside the limits, wrist
+        away from its singularity."""
+        rng = np.random.default_rng(seed)
+        q = self.robot.joints_from_controller(random_joints(self.robot, 4 * m, rng, margin=0.3))
+        q = q[np.abs(np.sin(q[:, 4])) > math.sin(math.radians(15))]
+        # away from the stretched or folded elbow too (a program's targets are not at the
+        # edge of the workspace, where the real arm may reach a target the nominal cannot)
+        model = build_model(self.robot)
+        chain = forward(model, model.nominal, q, jacobian=True)
+        jac = np.concatenate([chain.dpoint_dq, chain.drot_dq], axis=1)
+        smallest = np.linalg.svd(jac, compute_uv=False)[:, -1]
+        return q[smallest > 0.02][:m]
+
+
+def rapid_module(targets, tool_xyz_mm, tool_quat, wobj_xyz_mm, wobj_quat) -> str:
+    """A RAPID module with one tooldata 'tcp', one wobjdata, and robtargets p1..pm moved to
+    with MoveL (odd: tool tcp in wobj, even: tool tcp in wobj0)."""
+    def nums(v, d):
+        return ",".join(f"{x:.{d}f}" for x in v)
+    lines = ["MODULE Loop",
+             f"  PERS tooldata tcp:=[TRUE,[[{nums(tool_xyz_mm, 3)}],[{nums(tool_quat, 6)}]],"
+             f"[1,[0,0,50],[1,0,0,0],0,0,0]];",
+             f"  PERS wobjdata wTable:=[FALSE,TRUE,\"\",[[{nums(wobj_xyz_mm, 3)}],"
+             f"[{nums(wobj_quat, 6)}]],[[0,0,0],[1,0,0,0]]];"]
+    for k, (pos, quat, conf) in enumerate(targets, 1):
+        lines.append(f"  CONST robtarget p{k}:=[[{nums(pos, 3)}],[{nums(quat, 6)}],"
+                     f"[{','.join(str(int(c)) for c in conf)}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    lines.append("  PROC main()")
+    for k in range(1, len(targets) + 1):
+        wobj = "\\WObj:=wTable" if k % 2 else ""
+        lines.append(f"    MoveL p{k},v100,fine,tcp{wobj};")
+    lines += ["  ENDPROC", "ENDMODULE", ""]
+    return "\r\n".join(lines)
+
+
+def written_targets(world: World, q_urdf, flange_T_tool, base_T_wobj, odd_in_wobj=True):
+    """Robtarget numbers (position mm, quaternion, confdata) of the nominal TCP at q."""
+    tcp = world.nominal.flange_poses(world.robot.controller_from_joints(q_urdf)) @ flange_T_tool
+    out = []
+    for k, pose in enumerate(tcp, 1):
+        wobj = base_T_wobj if (odd_in_wobj and k % 2) else np.eye(4)
+        local = invert_pose(wobj) @ pose
+        conf = np.concatenate([np.floor(q_urdf[k - 1, [0, 3, 5]] / (np.pi / 2)),
+                               branch_of(world.family, q_urdf[k - 1:k])])
+        out.append((local[:3, 3] / MM, quat_wxyz_from_matrix(local[:3, :3]), conf))
+    return out
+
+
+def read_rapid_targets(text):
+    """name -> (pose (4, 4) m, confdata) or (joints deg,) from RAPID text."""
+    program = loads(text, "rapid")
+    cart = {t.name: (t.pose(), np.array(t.config_values())) for t in program.targets}
+    joints = {t.name: t.joints_deg() for t in program.joint_targets}
+    return program, cart, joints
+
+
+def _frames(world: World, seed: int):
+    rng = np.random.default_rng(seed + 100)
+    true_tool = world.virtual.tools["tcp"]
+    # the program's tooldata: the data-sheet tool, off by about a millimetre from the truth
+    program_xyz = true_tool + rng.normal(0, 1e-3, 3)
+    tool_rot = rotation_from_rotvec(np.radians([0, 30, 0]))
+    program_tool = pose_from_rotation_translation(tool_rot, np.round(program_xyz / MM, 3) * MM)
+    wobj = pose_from_rotation_translation(rotation_from_rotvec(np.radians([0, 0, 20])),
+                                          np.array([0.6, -0.2, 0.3]))
+    return program_tool, wobj, tool_rot, true_tool
+
+
+@pytest.fixture(scope="module", params=["abb_irb2400", "ur5e"])
+def rapid_world(request):
+    return World(request.param, seed=3)
+
+
+@pytest.mark.parametrize("emit", ["pose", "joints"])
+def test_compensated_rapid_program_reaches_the_targets(rapid_world, emit):
+    world = rapid_world
+    program_tool, wobj, tool_rot, true_tool = _frames(world, 3)
+    q = world.program_joints(12, seed=21)
+    numbers = written_targets(world, q, program_tool, wobj)
+    text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
+                        wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
+    out, report = compensate_program(text, "rapid", world.calibration, emit=emit)
+    assert report.exit_code == 0, [(r.target, r.status, r.note) for r in report.rows]
+    assert all("real TCP of tcp" in r.note for r in report.rows)
+    program, cart, joints = read_rapid_targets(out)
+    _, original, _ = read_rapid_targets(text)
+    real_tool = world.real_tool(tool_rot)
+    errors, before = [], []
+    for k in range(1, len(numbers) + 1):
+        name = f"p{k}"
+        frame = wobj if k % 2 else np.eye(4)
+        intended = world.desired_in_device(frame @ original[name][0])
+        if emit == "joints":
+            q_ctrl = np.radians(joints[name])[None]
+        else:
+            pose, conf = cart[name]
+            q_ctrl = world.controller((frame @ pose @ invert_pose(program_tool))[None], conf[None])
+        reached = world.real_tcp_in_device(q_ctrl, real_tool)[0]
+        errors.append(np.linalg.norm(reached[:3, 3] - intended[:3, 3]))
+        assert rotation_angle_between(reached[:3, :3], intended[:3, :3]) < math.radians(0.005)
+        pose, conf = original[name]
+        q0 = world.controller((frame @ pose @ invert_pose(program_tool))[None], conf[None])
+        before.append(np.linalg.norm(world.real_tcp_in_device(q0, real_tool)[0, :3, 3]
+                                     - intended[:3, 3]))
+    assert max(errors) < TOLERANCE_M, np.array(errors) / MM
+    assert min(before) > 0.5e-3, np.array(before) / MM   # uncompensated: millimetres off
+    if emit == "joints":
+        assert len(program.joint_targets) == len(numbers)
+        assert out.count("MoveAbsJ") == len(numbers)
+
+
+def vplus_file(names, poses) -> str:
+    lines = [".PROGRAM loop()"] + [f"    MOVES {n}" for n in names] + [".END", ".LOCATIONS", ""]
+    for name, pose in zip(names, poses):
+        lines.append(f"{name:<8}" + " ".join(f"{v:10.3f}" for v in pose))
+    lines += [".END", ""]
+    return "\n".join(lines)
+
+
+@pytest.fixture(scope="module")
+def puma_world():
+    return World("unimation_puma560", seed=5)
+
+
+@pytest.mark.parametrize("emit", ["pose", "joints"])
+def test_compensated_vplus_locations_reach_the_targets(puma_world, emit):
+    from olp_compensate.conventions import euler_zyz_from_matrix
+
+    world = puma_world
+    q = world.program_joints(10, seed=8)
+    # the branch nearest zero is what the test controller assumes for V+
+    flange = world.nominal.flange_poses(world.robot.controller_from_joints(q))
+    q_ctrl = world.controller(flange)
+    flange = world.nominal.flange_poses(q_ctrl)
+    names = [f"loc{k}" for k in range(len(flange))]
+    poses = [np.concatenate([f[:3, 3] / MM, np.degrees(euler_zyz_from_matrix(f[:3, :3]))])
+             for f in flange]
+    text = vplus_file(names, poses)
+    out, report = compensate_program(text, "vplus", world.calibration, emit=emit)
+    assert report.exit_code == 0, [(r.target, r.status) for r in report.rows]
+    program = loads(out, "vplus")
+    original = {t.name: t.pose() for t in loads(text, "vplus").targets}
+    for name in names:
+        intended = world.desired_in_device(original[name])
+        if emit == "joints":
+            (point,) = [j for j in program.joint_targets if j.name.lstrip("#").lower() == name]
+            qc = np.radians(point.joints_deg())[None]
+        else:
+            (target,) = [t for t in program.targets if t.name == name]
+            qc = world.controller(target.pose()[None])
+        reached = world.real_tcp_in_device(qc, world.real_tool(np.eye(3)) @ invert_pose(
+            pose_from_rotation_translation(np.eye(3), world.calibration.tools['tcp'].xyz_m)))[0]
+        assert np.linalg.norm(reached[:3, 3] - intended[:3, 3]) < TOLERANCE_M
+        assert rotation_angle_between(reached[:3, :3], intended[:3, :3]) < math.radians(0.005)
+    if emit == "joints":
+        assert re.search(r"MOVES #loc0", out)
+
+
+def test_nominal_calibration_changes_no_byte():
+    robot = load_robot("abb_irb2400")
+    world_nominal = nominal_calibration(robot)
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "samples" / "cell_a.mod"
+    data = path.read_bytes()
+    out, report = compensate_program(data, "rapid", world_nominal, file=str(path))
+    assert out.encode("latin-1") == data
+    assert report.edits == 0
+    assert any(r.status == "ok" for r in report.rows)
+
+
+def test_compensate_pose_library_call_matches_program_path(rapid_world):
+    world = rapid_world
+    program_tool, wobj, tool_rot, _ = _frames(world, 3)
+    q = world.program_joints(1, seed=4)
+    (pos, quat, conf), = written_targets(world, q, program_tool, wobj)
+    pose = pose_from_rotation_translation(matrix_from_quat_wxyz(quat), pos * MM)
+    result = compensate_pose(world.calibration, pose, program_tool, wobj, conf)
+    assert result.success
+    # run it: the nominal controller takes exactly the joints reported
+    q_ctrl = world.controller((wobj @ result.pose @ invert_pose(program_tool))[None],
+                              np.array(result.config)[None])
+    np.testing.assert_allclose(q_ctrl[0], result.joints, atol=1e-8)
+    assert 0.05 < np.linalg.norm(result.correction_mm) < 20
+
+
+def test_unreachable_target_is_a_status_not_an_exception():
+    cal = nominal_calibration(load_robot("abb_irb2400"))
+    far = pose_from_rotation_translation(np.eye(3), [5.0, 0.0, 0.5])
+    result = compensate_pose(cal, far)
+    assert not result.success and result.status == "unreachable"
+    np.testing.assert_array_equal(result.pose, far)
+
+
+def test_euler_reader_is_the_one_vplus_uses():
+    # guards the V+ test above: the location numbers round-trip through the parser
+    R = matrix_from_euler_zyz(*np.radians([30.0, 100.0, -45.0]))
+    text = vplus_file(["a"], [np.concatenate([[1, 2, 3], [30.0, 100.0, -45.0]])])
+    assert rotation_angle_between(loads(text, "vplus").targets[0].rotation(), R) < 1e-12
