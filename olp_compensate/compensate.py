@@ -132,11 +132,19 @@ class Compensator:
 
         solutions = closed_form_inverse(self.family, base_T_flange)
         if confdata is None:
-            finite = np.all(np.isfinite(solutions), axis=2)
-            norm = np.where(finite, np.sum(solutions ** 2, axis=2), np.inf)
+            # each branch turned by 2 pi towards zero, then the one inside the limits
+            # nearest zero
+            turned = solutions - 2 * np.pi * np.round(solutions / (2 * np.pi))
+            lower, upper = self.limits[:, 0], self.limits[:, 1]
+            turned = np.where(turned < lower, turned + 2 * np.pi, turned)
+            turned = np.where(turned > upper, turned - 2 * np.pi, turned)
+            inside = np.all((turned >= lower) & (turned <= upper), axis=2)
+            norm = np.where(inside, np.sum(turned ** 2, axis=2), np.inf)
             pick = np.argmin(norm, axis=1)
-            return solutions[np.arange(len(solutions)), pick]
-        q, _ = select_branch(solutions, confdata, self.limits)
+            q = turned[np.arange(len(turned)), pick]
+            q[~np.isfinite(norm[np.arange(len(norm)), pick])] = np.nan
+            return q
+        q, found = select_branch(solutions, confdata, self.limits)
         return q
 
     def confdata(self, q_urdf: np.ndarray) -> np.ndarray:

@@ -360,9 +360,9 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
                                   tool=use.tool or "", wobj=use.wobj or "", note=why))
     order.sort(key=lambda r: (r.line, r.column))
 
-    edits = _edits(program, comp, job, write, new_targets if n else None,
-                   computed_conf if n else None, q_ctrl if n else None, emit, vplus)
     warnings = list(resolution.warnings)
+    edits = _edits(program, comp, job, write, new_targets if n else None,
+                   computed_conf if n else None, q_ctrl if n else None, emit, vplus, warnings)
     text = splice(program.text, edits) if edits else program.text
     report = CompensationReport(file=program.file, rows=tuple(order), warnings=tuple(warnings),
                                 n_joints=robot.n_joints, emit=emit, edits=len(edits))
@@ -381,7 +381,7 @@ def _orientation(t: CartesianTarget, rotation: np.ndarray, vplus: bool) -> np.nd
     return quat_wxyz_from_matrix(rotation)
 
 
-def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus):
+def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus, warnings):
     if not write:
         return []
     robot = comp.robot
@@ -390,15 +390,69 @@ def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus):
     rows = [i for _, i in chosen]
     edits = []
     if emit == "joints":
-        joints = {t: robot.to_degrees_or_mm(q_ctrl[i]) for t, i in zip(targets, rows)}
-        return joint_emit_edits(program, joints)
+        convertible = _joint_convertible(program, job, targets)
+        as_joints = [(t, i) for t, i in zip(targets, rows) if id(t) in convertible]
+        try:
+            edits = joint_emit_edits(program, {t: robot.to_degrees_or_mm(q_ctrl[i])
+                                               for t, i in as_joints})
+        except DataError as exc:
+            warnings.append(f"{exc}; every target is written as a pose instead")
+            edits, as_joints = [], []
+        for t, i in zip(targets, rows):
+            if id(t) not in convertible:
+                warnings.append(f"{t.location}: {t.display_name} stays a Cartesian target "
+                                f"(compensated): {_joint_blocker(program, job, t)}")
+        done = {id(t) for t, _ in as_joints}
+        rest = [(t, i) for t, i in zip(targets, rows) if id(t) not in done]
+        if not rest:
+            return sorted(edits, key=lambda e: e.start)
+        targets, rows = [t for t, _ in rest], [i for _, i in rest]
     positions = np.array([new_targets[i][:3, 3] / MM for i in rows])
     orientation = np.array([_orientation(t, new_targets[i][:3, :3], vplus)
                             for t, i in zip(targets, rows)])
-    edits = edits_for_targets(program, positions, orientation, None, targets)
+    edits += edits_for_targets(program, positions, orientation, None, targets)
     if not vplus:
         for t, i in zip(targets, rows):
             if tuple(conf[i]) != t.config_values():
                 edits += target_edits(t, config=conf[i])
-        edits.sort(key=lambda e: e.start)
+    edits.sort(key=lambda e: e.start)
     return edits
+
+
+_JOINT_INSTRUCTIONS = {"movel", "movej", "move", "moves", "appro", "appros", "depart", "departs"}
+
+
+def _joint_blocker(program: Program, job, t) -> str | None:
+    """Why target ``t`` cannot become a joint target, or None."""
+    uses = [u for rt in job.entries if rt.target is t for u in rt.uses]
+    for u in uses:
+        if u.instruction.lower() not in _JOINT_INSTRUCTIONS:
+            return f"{u.instruction} at line {u.location.line} needs a Cartesian target"
+        if u.wobj is not None and program.dialect == "vplus":
+            return f"used relative to frame {u.wobj} at line {u.location.line}"
+    if t.name is None:
+        return None
+    key = t.name.lower()
+    for r in program.runtime:
+        if r.base_name and r.base_name.lower() == key:
+            return f"{r.expression!r} at line {r.location.line} needs a Cartesian target"
+    for r in program.references:
+        if r.name.lower() == key:
+            return f"passed to {r.context} at line {r.location.line}"
+    return None
+
+
+def _joint_convertible(program: Program, job, targets) -> set[int]:
+    """ids of the targets that can become joint targets: every use a plain move, no
+    run-time use, and (RAPID arrays) every element of the declaration convertible."""
+    chosen = {id(t) for t in targets}
+    ok = {id(t) for t in targets if _joint_blocker(program, job, t) is None}
+    if program.dialect == "rapid":
+        by_decl: dict = {}
+        for t in program.targets:
+            if t.storage != "inline":
+                by_decl.setdefault(t.type_span, []).append(t)
+        for members in by_decl.values():
+            if any(id(m) not in ok or id(m) not in chosen for m in members):
+                ok -= {id(m) for m in members}
+    return ok

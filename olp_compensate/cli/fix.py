@@ -18,6 +18,7 @@ from ..io.atomic import write_bytes_atomic, write_text_atomic
 from ..io.calibration_file import read_calibration
 from ..program_compensation import EMIT_MODES, compensate_program
 from ..programs import DIALECTS, ENCODING, dialect_for, load
+from ..robot import load_robot
 from .common import run_guarded
 
 SHOWN_PROBLEMS = 20
@@ -35,6 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "into joint targets (jointtarget + MoveAbsJ, V+ precision points)")
     p.add_argument("--report", help="CSV with one row per target use (mm, deg)")
     p.add_argument("--dialect", choices=DIALECTS, help="default: from the file extension")
+    p.add_argument("--robot", help="refuse a calibration that is not of this robot (bundled "
+                                   "name or URDF path)")
     p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
                    help="targets never moved to in this file: leave them ('skip', default) "
                         "or compensate them with tool0/wobj0 ('tool0')")
@@ -66,7 +69,8 @@ def run(args) -> int:
     if args.report and _same_file(path, Path(args.report)):
         raise DataError(f"{args.report}: refusing to overwrite the input program")
     dialect = args.dialect or dialect_for(path)
-    calibration = read_calibration(args.model)
+    robot = load_robot(args.robot) if args.robot else None
+    calibration = read_calibration(args.model, robot)
     try:
         program = load(path, dialect)
     except ParseError as exc:
