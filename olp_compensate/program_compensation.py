@@ -36,7 +36,7 @@ from .ik import OPWParameters
 from .programs import Program, loads, resolve
 from .programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
                             target_edits)
-from .programs.targets import QUAT_WXYZ, CartesianTarget, JointTarget
+from .programs.targets import JointTarget
 
 __all__ = ["TargetReport", "CompensationReport", "compensate_program", "KEPT", "EMIT_MODES"]
 
@@ -160,14 +160,6 @@ def _config_text(values) -> str:
     return "[" + ",".join(str(int(v)) for v in values) + "]" if len(values) else ""
 
 
-def _vplus_text(family, q_urdf) -> str:
-    if not isinstance(family, OPWParameters) or not np.all(np.isfinite(q_urdf)):
-        return ""
-    righty, above, flip = vplus_configuration(family, q_urdf[None])[0]
-    return " ".join(("RIGHTY" if righty else "LEFTY", "ABOVE" if above else "BELOW",
-                     "FLIP" if flip else "NOFLIP"))
-
-
 def _keep_config(original, computed, q_ctrl, nominal_ctrl) -> list[int]:
     """The confdata to write: the original, unless compensation moved axis 1, 4 or 6 out of
     the quadrant the nominal controller was in for the original target and more than
@@ -276,19 +268,35 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
             qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
             q[idx], flange[idx], nominal[idx] = qi, fi, nomi
             status[idx] = sol.reason
-        new_targets = np.full((n, 4, 4), np.nan)
         ok = np.isin(status.astype(str), COMPENSATED)
-        for i in np.flatnonzero(ok):
-            rt = job.entries[i]
-            if rt.stationary_tool:
-                new_targets[i] = invert_pose(rt.base_T_wobj) @ invert_pose(flange[i]) @ rt.flange_T_tool
-            else:
-                new_targets[i] = invert_pose(rt.base_T_wobj) @ flange[i] @ rt.flange_T_tool
+        wobj = np.array([rt.base_T_wobj for rt in job.entries])
+        tool = np.array([rt.flange_T_tool for rt in job.entries])
+        original = np.array([rt.wobj_T_target for rt in job.entries])
+        stationary = np.array([rt.stationary_tool for rt in job.entries], bool)
+        moved = np.where(stationary[:, None, None], invert_pose(np.nan_to_num(flange)), flange)
+        new_targets = invert_pose(wobj) @ moved @ tool
+        new_targets[stationary] = invert_pose(wobj[stationary]) @ moved[stationary] @ tool[stationary]
+        new_targets[~ok] = np.nan
         q_ctrl = robot.controller_from_joints(q)
         nominal_ctrl = robot.controller_from_joints(nominal)
         computed_conf = np.full((n, 4), -99, int)
         if np.any(ok):
             computed_conf[ok] = comp.confdata(q[ok])
+        shift_mm = ((new_targets[:, :3, 3] - original[:, :3, 3]) / MM).tolist()
+        turn_deg = np.degrees(rotation_angle_between(new_targets[:, :3, :3],
+                                                     original[:, :3, :3])).tolist()
+        joints_deg = robot.to_degrees_or_mm(q_ctrl).tolist()
+        change = np.abs(robot.to_degrees_or_mm(q_ctrl - nominal_ctrl))
+        change = np.where(np.all(np.isnan(change), axis=1), np.nan,
+                          np.nanmax(np.where(np.isnan(change), -np.inf, change), axis=1)).tolist()
+        q_ctrl_list, nominal_list = q_ctrl.tolist(), nominal_ctrl.tolist()
+        vplus_text = {}
+        if vplus and isinstance(comp.family, OPWParameters) and np.any(ok):
+            flags = vplus_configuration(comp.family, q[ok])
+            for i, (righty, above, flip) in zip(np.flatnonzero(ok), flags):
+                vplus_text[i] = " ".join(("RIGHTY" if righty else "LEFTY",
+                                          "ABOVE" if above else "BELOW",
+                                          "FLIP" if flip else "NOFLIP"))
     else:
         ok = np.zeros(0, bool)
 
@@ -327,26 +335,21 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
             continue
         if i in ambiguous:
             rows[k] = TargetReport(**base, status="ambiguous",
-                                   joints=tuple(robot.to_degrees_or_mm(q_ctrl[i])),
+                                   joints=tuple(joints_deg[i]),
                                    note="used with several tools/work objects needing "
                                         "different corrections; left as written")
             continue
         write[id(t)] = i
-        original = rt.wobj_T_target
         if vplus:
-            config_after = _vplus_text(comp.family, q[i])
+            config_after = vplus_text.get(i, "")
         else:
-            kept = _keep_config(job.confdata[i], computed_conf[i], q_ctrl[i], nominal_ctrl[i])
+            kept = _keep_config(job.confdata[i], computed_conf[i], q_ctrl_list[i], nominal_list[i])
             config_after = _config_text(kept)
             computed_conf[i] = kept
-        change = robot.to_degrees_or_mm(q_ctrl[i] - nominal_ctrl[i])
         rows[k] = TargetReport(
-            **{**base, "config_after": config_after}, status=str(status[i]),
-            correction_mm=tuple((new_targets[i][:3, 3] - original[:3, 3]) / MM),
-            correction_deg=math.degrees(rotation_angle_between(new_targets[i][:3, :3],
-                                                               original[:3, :3])),
-            joint_change=float(np.nanmax(np.abs(change))) if np.any(np.isfinite(change)) else math.nan,
-            joints=tuple(robot.to_degrees_or_mm(q_ctrl[i])),
+            **base, config_after=config_after, status=str(status[i]),
+            correction_mm=tuple(shift_mm[i]), correction_deg=turn_deg[i],
+            joint_change=change[i], joints=tuple(joints_deg[i]),
             note="; ".join(x for x in notes if x))
 
     order = [rows[k] for k in sorted(rows)]
@@ -369,16 +372,21 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
     return text, report
 
 
-def _orientation(t: CartesianTarget, rotation: np.ndarray, vplus: bool) -> np.ndarray:
-    """Orientation numbers for ``rotation``: the written ones when the rotation did not
-    change at their resolution (so unnormalized quaternions and equivalent Euler triples
-    survive), else a unit quaternion (RAPID) or the nearest Z-Y-Z triple in degrees (V+)."""
-    written = t.orientation_values()
-    if rotation_angle_between(rotation, t.rotation()) < 1e-7:
-        return written
-    if vplus:
-        return nearest_euler_zyz_deg(rotation, written)
-    return quat_wxyz_from_matrix(rotation)
+def _orientations(targets, rotations: np.ndarray, vplus: bool) -> np.ndarray:
+    """Orientation numbers for ``rotations`` (k, 3, 3): unit quaternions (RAPID; the
+    emitter leaves a written one alone when it is the same rotation), or Z-Y-Z degrees
+    (V+): the written triple when the rotation did not change at its resolution, else the
+    equivalent triple nearest to it."""
+    if not vplus:
+        return quat_wxyz_from_matrix(rotations)
+    out = []
+    for t, rotation in zip(targets, rotations):
+        written = t.orientation_values()
+        if rotation_angle_between(rotation, t.rotation()) < 1e-7:
+            out.append(written)
+        else:
+            out.append(nearest_euler_zyz_deg(rotation, written))
+    return np.array(out).reshape(-1, 3)
 
 
 def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus, warnings):
@@ -407,9 +415,8 @@ def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus, wa
         if not rest:
             return sorted(edits, key=lambda e: e.start)
         targets, rows = [t for t, _ in rest], [i for _, i in rest]
-    positions = np.array([new_targets[i][:3, 3] / MM for i in rows])
-    orientation = np.array([_orientation(t, new_targets[i][:3, :3], vplus)
-                            for t, i in zip(targets, rows)])
+    positions = new_targets[rows, :3, 3] / MM
+    orientation = _orientations(targets, new_targets[rows, :3, :3], vplus)
     edits += edits_for_targets(program, positions, orientation, None, targets)
     if not vplus:
         for t, i in zip(targets, rows):

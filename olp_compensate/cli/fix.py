@@ -113,3 +113,7 @@ def _summary(report, out: Path, report_path: str | None, seconds: float) -> None
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     return run_guarded(lambda: run(args), args.verbose, "olp-fix")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

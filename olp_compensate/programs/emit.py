@@ -270,7 +270,22 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
             cols = [lo + j for lo, v, _ in parts for j in range(v.shape[1])]
             tol = np.concatenate([np.full(v.shape[1], 0.5 * 10.0 ** -d) for _, v, d in parts])
             decimals = [d for _, v, d in parts for _ in range(v.shape[1])]
-            mask = (np.abs(new - old[:, cols]) >= tol).tolist()
+            reference = old[:, cols]
+            if quat and orientation is not None:
+                # compare with the written quaternion normalized (an unnormalized one that
+                # describes the same rotation is left alone); a changed unnormalized
+                # quaternion is rewritten whole, never mixed with its old scale
+                q_cols = [c for c, col in enumerate(cols) if 3 <= col < 7]
+                written = old[:, 3:7]
+                w_norm = np.linalg.norm(written, axis=1, keepdims=True)
+                reference[:, q_cols] = written / np.where(w_norm > 0, w_norm, 1.0)
+                mask = np.abs(new - reference) >= tol
+                scaled = np.abs(w_norm[:, 0] - 1.0) > 1e-6
+                rewrite = scaled & np.any(mask[:, q_cols], axis=1)
+                mask[np.ix_(rewrite, q_cols)] = True
+                mask = mask.tolist()
+            else:
+                mask = (np.abs(new - reference) >= tol).tolist()
             new = new.tolist()
         out: list[Edit] = []
         fmt = _format

@@ -1,0 +1,131 @@
+"""Throughput of the whole ``olp-fix`` command on a generated RAPID module.
+
+Generates a module of N robtargets (default 100,000) for an ABB IRB 2400 (random reachable
+joints away from singularities, a tool and a work object, confdata of the nominal
+solution), calibrates a virtual robot, and times ``olp-fix`` as a user runs it (a new
+process: start-up, reading calib.json, parsing, resolving, IK on the calibrated model,
+splicing, writing the program and the report). Prints targets/s (target: >= 20,000/s) and
+the share of each stage measured in-process. The IK comparison with roboticstoolbox's
+``ik_LM`` is ``benchmarks/ik_peer.py`` (run it too; it uses the same IK entry point).
+
+Run: ``python benchmarks/compensate.py [--targets N]``. Exit code 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from olp_compensate.calibration import nominal_calibration
+from olp_compensate.compensate import Compensator
+from olp_compensate.conventions import MM, invert_pose, quat_wxyz_from_matrix
+from olp_compensate.identify import IdentificationOptions, identify
+from olp_compensate.io.calibration_file import write_calibration
+from olp_compensate.program_compensation import compensate_program
+from olp_compensate.programs import load, resolve
+from olp_compensate.robot import load_robot
+from olp_compensate.simulate import make_virtual_robot, random_joints
+
+TOOL = "[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],[2.5,[0,0,80],[1,0,0,0],0,0,0]]"
+WOBJ = "[FALSE,TRUE,\"\",[[700,-300,300],[1,0,0,0]],[[0,0,0],[1,0,0,0]]]"
+
+
+def generate_module(n: int, seed: int = 1) -> str:
+    """A RAPID module with n robtargets (half in a work object) and a MoveL to each."""
+    robot = load_robot("abb_irb2400")
+    comp = Compensator(nominal_calibration(robot))
+    rng = np.random.default_rng(seed)
+    q = robot.joints_from_controller(random_joints(robot, 3 * n, rng, margin=0.3))
+    # a program's targets are away from singularities: wrist (axis 5 near zero) and
+    # elbow (stretched arm); the smallest singular value of the Jacobian above 2 cm/rad
+    q = q[np.abs(np.sin(q[:, 4])) > 0.2]
+    _, jac = comp.real_flange_and_jacobian(q)
+    q = q[np.linalg.svd(jac, compute_uv=False)[:, -1] > 0.02]
+    while len(q) < n:
+        q = np.concatenate([q, q])
+    q = q[:n]
+    tool = np.eye(4)
+    tool[:3, :3] = np.array([[0.70710678, 0, 0.70710678], [0, 1, 0], [-0.70710678, 0, 0.70710678]])
+    tool[:3, 3] = np.array([120.5, 0, 210]) * MM
+    wobj = np.eye(4)
+    wobj[:3, 3] = np.array([700, -300, 300]) * MM
+    tcp = comp.nominal_flange(q) @ tool
+    in_wobj = np.arange(n) % 2 == 1
+    tcp[in_wobj] = invert_pose(wobj) @ tcp[in_wobj]
+    pos = tcp[:, :3, 3] / MM
+    quat = quat_wxyz_from_matrix(tcp[:, :3, :3])
+    conf = comp.confdata(q)
+    lines = ["MODULE Big", f"  PERS tooldata tGun:={TOOL};", f"  PERS wobjdata wTable:={WOBJ};"]
+    for k in range(n):
+        p, o, c = pos[k], quat[k], conf[k]
+        lines.append(f"  CONST robtarget p{k}:=[[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],"
+                     f"[{o[0]:.6f},{o[1]:.6f},{o[2]:.6f},{o[3]:.6f}],"
+                     f"[{c[0]},{c[1]},{c[2]},{c[3]}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    lines.append("  PROC main()")
+    for k in range(n):
+        wobj_arg = "\\WObj:=wTable" if in_wobj[k] else ""
+        lines.append(f"    MoveL p{k},v500,z10,tGun{wobj_arg};")
+    lines += ["  ENDPROC", "ENDMODULE", ""]
+    return "\r\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--targets", type=int, default=100_000)
+    args = parser.parse_args()
+    robot = load_robot("abb_irb2400")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        t0 = time.perf_counter()
+        module = folder / "big.mod"
+        module.write_bytes(generate_module(args.targets).encode("latin-1"))
+        virtual = make_virtual_robot(robot, seed=2, n_points=3)
+        rng = np.random.default_rng(2)
+        meas = virtual.measure(random_joints(robot, 60, rng), 0.02e-3, rng)
+        cal = identify(robot, meas, IdentificationOptions(folds=0)).calibration
+        model = folder / "calib.json"
+        write_calibration(model, cal)
+        print(f"generated {args.targets} targets and a calibration in "
+              f"{time.perf_counter() - t0:.1f} s")
+
+        command = [sys.executable, "-m", "olp_compensate.cli.fix", str(module), "--model",
+                   str(model), "--report", str(folder / "report.csv"), "-q"]
+        t0 = time.perf_counter()
+        done = subprocess.run(command, capture_output=True, text=True)
+        whole = time.perf_counter() - t0
+        if done.returncode not in (0, 2):
+            print(done.stderr)
+            return 1
+        statuses = [ln.split(",")[4] for ln in (folder / "report.csv").read_text().splitlines()[1:]]
+        ok = sum(s in ("ok", "singular") for s in statuses)
+        print(f"olp-fix, whole command (new process): {whole:.2f} s, "
+              f"{args.targets / whole:,.0f} targets/s (target >= 20,000/s); "
+              f"{ok}/{len(statuses)} compensated")
+
+        # where the time goes, in-process
+        stages = {}
+        t0 = time.perf_counter()
+        program = load(module)
+        stages["parse"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        resolve(program)
+        stages["resolve"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        comp = Compensator(cal)
+        stages["fit closed form"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        compensate_program(program, None, comp)
+        stages["resolve + IK + emit"] = time.perf_counter() - t0
+        for name, seconds in stages.items():
+            print(f"  {name:<22} {seconds:6.2f} s  ({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
