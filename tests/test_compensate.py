@@ -277,3 +277,21 @@ def test_euler_reader_is_the_one_vplus_uses():
     R = matrix_from_euler_zyz(*np.radians([30.0, 100.0, -45.0]))
     text = vplus_file(["a"], [np.concatenate([[1, 2, 3], [30.0, 100.0, -45.0]])])
     assert rotation_angle_between(loads(text, "vplus").targets[0].rotation(), R) < 1e-12
+
+
+UNNORMALIZED = ("MODULE Q\n  CONST robtarget p1:=[[950,0,1100],[0,0,2,0],[0,0,0,0],"
+                "[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()\n    MoveJ p1,v100,fine,tool0;\n"
+                "  ENDPROC\nENDMODULE\n")
+
+
+def test_unnormalized_quaternion_survives_nominal_and_is_rewritten_whole(rapid_world):
+    nominal = nominal_calibration(load_robot("abb_irb2400"))
+    out, report = compensate_program(UNNORMALIZED, "rapid", nominal)
+    assert out == UNNORMALIZED and report.exit_code == 0
+    if rapid_world.robot.name != "abb_irb2400":
+        return
+    out, report = compensate_program(UNNORMALIZED, "rapid", rapid_world.calibration)
+    assert report.exit_code == 0
+    quat = loads(out, "rapid").targets[0].orientation_values()
+    assert abs(np.linalg.norm(quat) - 1.0) < 1e-5     # no mix of old scale and new values
+    assert report.rows[0].correction_deg > 0.001

@@ -128,9 +128,9 @@ def test_vplus_tool_and_frame():
     assert "gripper" not in names and "table" not in names
     (insp,) = _by_name(res, "inspect")
     tool = pose_from_rotation_translation(np.eye(3), [0, 0, 0.145])
-    table = pose_from_rotation_translation(np.eye(3), [0.35, 0, -0.25])
+    table = pose_from_rotation_translation(np.eye(3), [0.35, 0, 0.30])
     rot = matrix_from_euler_zyz(*np.deg2rad([90.0, 180.0, 0.0]))
-    target = pose_from_rotation_translation(rot, [0.1, 0.05, 0.2])
+    target = pose_from_rotation_translation(rot, [0.1, 0.05, 0.25])
     np.testing.assert_allclose(insp.base_T_flange, table @ target @ invert_pose(tool),
                                atol=1e-12)
     (ready,) = _by_name(res, "#ready")  # a precision point: one entry, no pose
