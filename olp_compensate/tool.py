@@ -321,6 +321,40 @@ def calibrate_tool(request: ToolRequest, flange_pose: FlangePose) -> ToolCalibra
     raise DataError(f"method: expected 'known_marks' or 'fixed_point', got {request.method!r}")
 
 
+# -- report -----------------------------------------------------------------------------------
+
+def tool_report(result: ToolCalibration, flag_above_m: float | None = None) -> list[str]:
+    """The result as printed lines (mm): TCP and its std, conditioning, residual per touch
+    (flagged above ``flag_above_m``, m), the fixed point or ``world_T_base`` when solved."""
+    from .conventions import rotvec_from_rotation
+
+    def fmt(values_m):
+        return "(" + ", ".join(f"{v / MM:.3f}" for v in values_m) + ")"
+
+    lines = [f"Tool {result.name} ({result.method.replace('_', ' ')}, "
+             f"{len(result.residuals_m)} touches), TCP in the flange frame:"]
+    for axis, value, std in zip("xyz", result.xyz_m, result.xyz_std_m):
+        lines.append(f"  {axis} = {value / MM:10.3f} mm  +/- {std / MM:.3f} mm")
+    lines.append(f"  condition number {result.condition_number:.2f} (refused above "
+                 f"{COND_LIMIT:g}), estimated touch noise {result.sigma_m / MM:.3f} mm")
+    lines.append("  residual per touch:")
+    for label, r in zip(result.mark_names, result.residuals_m):
+        flag = ("   <-- larger than expected"
+                if flag_above_m is not None and r > flag_above_m else "")
+        lines.append(f"    {label:>6} {r / MM:8.3f} mm{flag}")
+    lines.append(f"  RMS residual {result.rms_m / MM:.3f} mm")
+    if result.point_m is not None:
+        lines.append(f"  fixed point in the base frame: {fmt(result.point_m)} mm")
+    if result.world_T_base is not None:
+        rotvec = np.degrees(rotvec_from_rotation(result.world_T_base[:3, :3]))
+        lines.append(f"  world_T_base: translation {fmt(result.world_T_base[:3, 3])} mm, "
+                     f"rotation vector ({', '.join(f'{v:.4f}' for v in rotvec)}) deg")
+    if result.quat_wxyz is None:
+        lines.append("  Orientation: touching points cannot measure it; keep the tool's "
+                     "orientation from its drawing.")
+    return lines
+
+
 # -- RAPID ------------------------------------------------------------------------------------
 
 def _num(value: float, decimals: int) -> str:
@@ -394,13 +428,17 @@ def format_marks_csv(request: ToolRequest) -> str:
 
 
 
-def read_marks_csv(path, n_joints: int) -> ToolRequest:
+def read_marks_csv(path, n_joints: int, frame: str | None = None) -> ToolRequest:
     """Read a marks CSV: ``mark, q1_deg..qN_deg, x_mm, y_mm, z_mm[, frame]``.
 
     Lines starting with ``#`` are metadata (``# tool: NAME`` names the tool, else the file
     stem). Empty coordinates on every row select the fixed-point method; on every row filled,
-    known marks. ``frame`` is 'base' (default) or 'world' for all rows.
+    known marks. ``frame`` is 'base' (default) or 'world' for all rows; the argument
+    ``frame`` sets it for rows whose ``frame`` cell is empty or absent, and a row saying
+    otherwise is an error.
     """
+    if frame not in (None, "base", "world"):
+        raise DataError(f"frame: expected 'base' or 'world', got {frame!r}")
     source = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -438,11 +476,14 @@ def read_marks_csv(path, n_joints: int) -> ToolRequest:
         filled.append((line, sum(bool(v) for v in xyz)))
         if all(xyz):
             marks.append([parse_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
-        frame = (cell.get("frame") or "base").lower()
-        if frame not in ("base", "world"):
+        row_frame = (cell.get("frame") or frame or "base").lower()
+        if row_frame not in ("base", "world"):
             raise DataError(f"{source}:{line}: column 'frame': expected 'base' or 'world', "
                             f"got '{cell.get('frame')}'")
-        frames.append(frame)
+        if frame is not None and row_frame != frame:
+            raise DataError(f"{source}:{line}: column 'frame' says '{row_frame}' but the "
+                            f"{frame} frame was asked for")
+        frames.append(row_frame)
     if not joints:
         raise DataError(f"{source}: no data rows after the header")
     expected = 3 if filled[0][1] == 3 else 0

@@ -10,18 +10,20 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
-from .conventions import MM, rotvec_from_rotation
+from .conventions import MM
 from .errors import DataError
 from .io.atomic import write_text_atomic
 from .io.rtde_source import Ask, JointSource, Say, TypedJointSource
-from .tool import (COND_LIMIT, MIN_MARKS, FlangePose, PoorlyDeterminedTool, ToolCalibration,
-                   ToolRequest, calibrate_tool, format_marks_csv, rapid_tooldata,
+from .tool import (MIN_MARKS, FlangePose, PoorlyDeterminedTool, ToolCalibration, ToolRequest,
+                   calibrate_tool, format_marks_csv, rapid_tooldata, tool_report,
                    write_tool_json)
 
 MAX_ATTEMPTS = 10
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,31}")
 BAD_POINT_MM = 1.0
 """A touch whose residual exceeds this (or 3x the expected noise) is flagged at once."""
 
@@ -85,7 +87,7 @@ class _Wizard:
     def ask_name(self) -> str:
         for _ in range(MAX_ATTEMPTS):
             name = self.d.ask("Tool name as in the robot program (e.g. tGun1): ")
-            if re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", name):
+            if _NAME.fullmatch(name):
                 return name
             self.d.say("  A name starts with a letter and holds up to 32 letters, digits or _.")
         raise DataError(f"no valid tool name after {MAX_ATTEMPTS} attempts")
@@ -170,35 +172,19 @@ class _Wizard:
                     self.d.say(f"  Touch the point again for {label}.")
 
     def report(self, result: ToolCalibration, mass_kg, cog_mm) -> None:
-        say = self.d.say
-        say(f"Tool {result.name} ({result.method.replace('_', ' ')}, "
-            f"{len(result.residuals_m)} touches), TCP in the flange frame:")
-        for axis, value, std in zip("xyz", result.xyz_m, result.xyz_std_m):
-            say(f"  {axis} = {value / MM:10.3f} mm  +/- {std / MM:.3f} mm")
-        say(f"  condition number {result.condition_number:.2f} (refused above {COND_LIMIT:g}), "
-            f"estimated touch noise {result.sigma_m / MM:.3f} mm")
-        say("  residual per touch:")
-        for label, r in zip(result.mark_names, result.residuals_m):
-            flag = "   <-- larger than expected" if r > self.limit_m else ""
-            say(f"    {label:>6} {r / MM:8.3f} mm{flag}")
-        say(f"  RMS residual {result.rms_m / MM:.3f} mm")
-        if result.point_m is not None:
-            say(f"  fixed point in the base frame: {_fmt(result.point_m)} mm")
-        if result.world_T_base is not None:
-            rotvec = np.degrees(rotvec_from_rotation(result.world_T_base[:3, :3]))
-            say(f"  world_T_base: translation {_fmt(result.world_T_base[:3, 3])} mm, rotation "
-                f"vector ({', '.join(f'{v:.4f}' for v in rotvec)}) deg")
-        say("  Orientation: touching points cannot measure it; keep the tool's orientation "
-            "from its drawing.")
+        for line in tool_report(result, self.limit_m):
+            self.d.say(line)
         if mass_kg is not None:
-            say(f"  RAPID: PERS tooldata {result.name} := "
-                f"{rapid_tooldata(result, mass_kg=mass_kg, cog_mm=cog_mm)};")
+            self.d.say(f"  RAPID: PERS tooldata {result.name} := "
+                       f"{rapid_tooldata(result, mass_kg=mass_kg, cog_mm=cog_mm)};")
 
 
 def run_wizard(flange_pose: FlangePose, ask: Ask, say: Say, *,
                joint_source: JointSource | None = None, n_joints: int = 6,
                out_path=None, expected_noise_mm: float = 0.1, mass_kg: float | None = None,
-               cog_mm=(0.0, 0.0, 0.0), max_marks: int = 50) -> ToolCalibration | None:
+               cog_mm=(0.0, 0.0, 0.0), max_marks: int = 50, name: str | None = None,
+               save: Callable[[ToolCalibration, ToolRequest], list[str]] | None = None,
+               save_to: Callable[[str], str] | None = None) -> ToolCalibration | None:
     """Guide a tool recalibration at the robot; return the result, or None if cancelled.
 
     ``flange_pose``: joints (m, n) rad -> base_T_flange (m, 4, 4) m. ``joint_source``: live
@@ -207,7 +193,13 @@ def run_wizard(flange_pose: FlangePose, ask: Ask, say: Say, *,
     for calib.json) on confirmation, with the touches beside it as ``<stem>_marks.csv``.
     ``expected_noise_mm``: touch noise; a touch off by more than 3x that (or 1 mm) is
     flagged at once. ``mass_kg``: when given, the RAPID tooldata is shown too.
+    ``name``: the tool's name (asked for when None). ``save(result, request)``: writes the
+    result on confirmation and returns the paths written (used instead of ``out_path``);
+    ``save_to(name)`` says where, for the confirmation question.
     """
+    if name is not None and not _NAME.fullmatch(name):
+        raise DataError(f"tool name {name!r}: a name starts with a letter and holds up to 32 "
+                        f"letters, digits or _")
     dialog = _Dialog(ask, say)
     source = joint_source or TypedJointSource(n_joints)
     n_joints = source.n_joints
@@ -215,7 +207,10 @@ def run_wizard(flange_pose: FlangePose, ask: Ask, say: Say, *,
     try:
         say(f"Tool recalibration (joints {source.description}). Type q at any prompt to "
             f"cancel.")
-        name = wizard.ask_name()
+        if name is None:
+            name = wizard.ask_name()
+        else:
+            say(f"Tool: {name}")
         method = dialog.choose(
             "Method: [1] known marks (touch marks with known coordinates), [2] fixed point "
             "(touch one point from 4 or more orientations) [1]: ",
@@ -246,7 +241,15 @@ def run_wizard(flange_pose: FlangePose, ask: Ask, say: Say, *,
             if not more or len(wizard.joints) >= max_marks:
                 raise _Cancelled
         wizard.report(result, mass_kg, cog_mm)
-        if out_path is not None:
+        if save is not None:
+            where = f" to {save_to(name)}" if save_to is not None else ""
+            if dialog.choose(f"Write tool {name}{where}? [y/N]: ",
+                             {"y": True, "yes": True, "n": False, "no": False}, "n"):
+                written = save(result, wizard.request(name, method, frame))
+                say(f"Written {', '.join(map(str, written))}.")
+            else:
+                say("Not written.")
+        elif out_path is not None:
             out_path = Path(out_path)
             marks_path = out_path.with_name(out_path.stem + "_marks.csv")
             write = dialog.choose(f"Write tool {name} to {out_path} (touches to "

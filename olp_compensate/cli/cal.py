@@ -9,6 +9,7 @@ import argparse
 
 from .. import __version__
 from . import cal_export_urdf, cal_identify, cal_nominal, cal_predict, cal_simulate
+from . import cal_merge, cal_record, cal_tool
 from .common import run_guarded
 
 COMMANDS = {
@@ -17,6 +18,9 @@ COMMANDS = {
     "predict": cal_predict,
     "nominal": cal_nominal,
     "export-urdf": cal_export_urdf,
+    "tool": cal_tool,
+    "record": cal_record,
+    "merge": cal_merge,
 }
 
 

@@ -4,15 +4,40 @@ from __future__ import annotations
 
 from ..identify import IdentificationOptions, identify
 from ..io.calibration_file import write_calibration
-from ..io.measurements import read_measurements
+from ..io.measurements import read_measurements_any
 from ..robot import load_robot
 from .common import mm
 
-HELP = "identify the robot's geometry from a measurement CSV and write calib.json"
+HELP = ("identify the robot's geometry from a measurement CSV (or an MCAP session with the "
+        "device's points) and write calib.json")
+
+
+def add_measurement_source_arguments(p) -> None:
+    """The positional measurements argument (CSV, or MCAP session) and its merge options;
+    read them with :func:`read_measurement_source`."""
+    p.add_argument("measurements", help="measurement CSV (version 1), or an MCAP session from "
+                                        "olp-cal record with --points")
+    p.add_argument("--points", metavar="CSV",
+                   help="with an MCAP session: the measuring device's points (x_mm, y_mm, "
+                        "z_mm [, time_s, point, pose]), joined on the fly")
+    p.add_argument("--by", choices=("order", "time"), default="order",
+                   help="with --points: join by order (or the 'pose' column) or by time")
+    p.add_argument("--tolerance-s", type=float, default=0.5,
+                   help="with --points --by time: largest gap between a point and its pose, s")
+    p.add_argument("--time-offset-s", type=float, default=0.0,
+                   help="with --points --by time: added to the device's time_s to get Unix "
+                        "time, s")
+
+
+def read_measurement_source(args, joint_units: list[str]):
+    """The measurements named by :func:`add_measurement_source_arguments` options."""
+    return read_measurements_any(args.measurements, joint_units, points=args.points,
+                                 by=args.by, tolerance_s=args.tolerance_s,
+                                 time_offset_s=args.time_offset_s)
 
 
 def add_arguments(p) -> None:
-    p.add_argument("measurements", help="measurement CSV (version 1)")
+    add_measurement_source_arguments(p)
     p.add_argument("--robot", required=True, help="bundled robot name or path to a URDF")
     p.add_argument("-o", "--output", help="calib.json to write")
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds (0: none)")
@@ -72,7 +97,7 @@ def report(result) -> str:
 
 def run(args) -> int:
     robot = load_robot(args.robot)
-    meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
+    meas = read_measurement_source(args, [j.unit for j in robot.joints])
     options = IdentificationOptions(convention=args.convention, solver=args.solver,
                                     robust=args.robust, folds=args.folds,
                                     freeze=tuple(args.freeze))

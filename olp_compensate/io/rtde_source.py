@@ -21,6 +21,7 @@ import multiprocessing
 import os
 import re
 import socket
+import sys
 import time
 from dataclasses import dataclass
 from typing import Callable, Protocol
@@ -59,6 +60,28 @@ class JointSource(Protocol):
                 commands: tuple[str, ...] = ()) -> JointReading | str: ...
 
     def close(self) -> None: ...
+
+
+def console_ask(prompt: str) -> str:
+    """Ask on the terminal: ``prompt`` on stdout, one line from stdin. End of input counts
+    as ``q`` (quit). When stdin is not a terminal (a script, a pipe) the answer is echoed,
+    so the transcript reads like the session."""
+    sys.stdout.write(prompt)
+    sys.stdout.flush()
+    line = sys.stdin.readline()
+    if not line:
+        sys.stdout.write("q (end of input)\n")
+        return "q"
+    answer = line.rstrip("\r\n")
+    isatty = getattr(sys.stdin, "isatty", None)
+    if not (isatty and isatty()):
+        sys.stdout.write(answer + "\n")
+    return answer
+
+
+def console_say(text: str) -> None:
+    """Show a line on stdout at once."""
+    print(text, flush=True)
 
 
 def parse_joints_deg(text: str, n_joints: int) -> np.ndarray:

@@ -23,6 +23,7 @@ import math
 import os
 import tempfile
 import time
+from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -33,6 +34,7 @@ from .measurements import Measurements, write_measurements
 from .rtde_source import Ask, JointSource, Say
 
 FORMAT = "olp-compensate session v1"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 JOINTS_TOPIC = "/robot/joints"
 INFO_TOPIC = "/session/info"
 
@@ -233,20 +235,17 @@ def _read_device_csv(path: Path):
     return rows
 
 
-def merge_session(session_path, device_csv, out_csv, by: str = "order",
-                  tolerance_s: float = 0.5, time_offset_s: float = 0.0) -> int:
-    """Join device points with recorded joints into a measurement CSV (version 1).
+def merged_measurements(session_path, device_csv, by: str = "order",
+                        tolerance_s: float = 0.5, time_offset_s: float = 0.0):
+    """Join device points with recorded joints: ``(Measurements, metadata lines)``.
 
     ``by='order'``: the k-th device row goes with the k-th pose (or by the device's ``pose``
     column, 1-based). ``by='time'``: each device row goes with the pose read nearest in time
-    (device ``time_s`` + ``time_offset_s`` in Unix s), within ``tolerance_s``. Output columns:
-    ``pose, point, q1_deg..qN_deg, x_mm, y_mm, z_mm, time_s`` (time_s in s since the first
-    pose). Returns the number of rows written.
+    (device ``time_s`` + ``time_offset_s`` in Unix s), within ``tolerance_s``. Joints in rad,
+    points in m (device frame), ``time_s`` in s since the first pose; ``rows`` are the
+    device file's line numbers (messages name that file).
     """
-    session_path, device_csv, out_csv = Path(session_path), Path(device_csv), Path(out_csv)
-    for source in (session_path, device_csv):
-        if source.exists() and out_csv.exists() and out_csv.resolve() == source.resolve():
-            raise DataError(f"{out_csv}: is an input of the merge; choose another output file")
+    session_path, device_csv = Path(session_path), Path(device_csv)
     if by not in ("order", "time"):
         raise DataError(f"by: expected 'order' or 'time', got {by!r}")
     joints_deg, times, info = read_session(session_path)
@@ -284,15 +283,42 @@ def merge_session(session_path, device_csv, out_csv, by: str = "order",
     match = np.array(match)
     rel_times = np.array([(r["time_s"] + time_offset_s if r["time_s"] is not None
                            else times[k]) - times[0] for r, k in zip(device, match)])
-    n = joints_deg.shape[1]
     meas = Measurements(
         joints=np.radians(joints_deg[match]),
         points=np.array([r["xyz"] for r in device]) * 1e-3,
         pose_ids=np.array([str(poses[k]) for k in match], dtype=object),
         point_names=np.array([r["point"] for r in device], dtype=object),
-        time_s=rel_times, source=str(out_csv))
+        time_s=rel_times, rows=np.array([r["line"] for r in device]),
+        source=str(device_csv))
     metadata = [f"# robot: {info['robot']}", f"# session: {session_path.name}",
                 f"# device: {device_csv.name}", f"# merged: by {by}",
                 f"# time_zero_unix_s: {times[0]:.3f}"]
-    write_measurements(out_csv, meas, ["deg"] * n, metadata)
-    return len(device)
+    return meas, metadata
+
+
+def merge_session(session_path, device_csv, out_csv, by: str = "order",
+                  tolerance_s: float = 0.5, time_offset_s: float = 0.0) -> int:
+    """Join device points with recorded joints into a measurement CSV (version 1).
+
+    Matching as in :func:`merged_measurements`. Output columns:
+    ``pose, point, q1_deg..qN_deg, x_mm, y_mm, z_mm, time_s`` (time_s in s since the first
+    pose). Returns the number of rows written.
+    """
+    session_path, device_csv, out_csv = Path(session_path), Path(device_csv), Path(out_csv)
+    for source in (session_path, device_csv):
+        if source.exists() and out_csv.exists() and out_csv.resolve() == source.resolve():
+            raise DataError(f"{out_csv}: is an input of the merge; choose another output file")
+    meas, metadata = merged_measurements(session_path, device_csv, by, tolerance_s,
+                                         time_offset_s)
+    meas = replace(meas, source=str(out_csv))
+    write_measurements(out_csv, meas, ["deg"] * meas.joints.shape[1], metadata)
+    return meas.n_rows
+
+
+def is_mcap(path) -> bool:
+    """Whether ``path`` starts with the MCAP magic bytes (False when unreadable)."""
+    try:
+        with open(path, "rb") as stream:
+            return stream.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+    except OSError:
+        return False
