@@ -295,3 +295,47 @@ def test_unnormalized_quaternion_survives_nominal_and_is_rewritten_whole(rapid_w
     quat = loads(out, "rapid").targets[0].orientation_values()
     assert abs(np.linalg.norm(quat) - 1.0) < 1e-5     # no mix of old scale and new values
     assert report.rows[0].correction_deg > 0.001
+
+
+TWO_TOOLS = ("MODULE T\n  PERS tooldata tA:=[TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,50],[1,0,0,0],0,0,0]];\n"
+             "  CONST robtarget p1:=[[950,0,900],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+             "  PROC main()\n    MoveJ p1,v100,fine,tool0;\n    MoveL p1,v100,fine,tA;\n"
+             "  ENDPROC\nENDMODULE\n")
+
+
+def test_target_used_with_two_tools_is_left_as_written_and_reported(rapid_world):
+    if rapid_world.robot.name != "abb_irb2400":
+        pytest.skip("one robot is enough")
+    out, report = compensate_program(TWO_TOOLS, "rapid", rapid_world.calibration)
+    assert out == TWO_TOOLS and report.exit_code == 2
+    assert [r.status for r in report.rows] == ["ambiguous", "ambiguous"]
+    assert {r.tool for r in report.rows} == {"tool0", "tA"}
+    assert any("p1 is used with 2 tool/work-object pairs" in w for w in report.warnings)
+
+
+STATIONARY = ("MODULE S\n"
+              "  PERS tooldata tFix:=[FALSE,[[1200,300,800],[0,0,1,0]],[1,[0,0,0],[1,0,0,0],0,0,0]];\n"
+              "  PERS wobjdata wHeld:=[TRUE,TRUE,\"\",[[0,0,120],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n"
+              "  CONST robtarget p1:=[[20,-10,5],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+              "  PROC main()\n    MoveL p1,v100,fine,tFix\\WObj:=wHeld;\n  ENDPROC\nENDMODULE\n")
+
+
+def test_stationary_tool_target_reaches_the_fixed_tool(rapid_world):
+    """Robot-held work object at a stationary tool: the real flange must put the work
+    object's target point on the fixed TCP."""
+    world = rapid_world
+    if world.robot.name != "abb_irb2400":
+        pytest.skip("one robot is enough")
+    out, report = compensate_program(STATIONARY, "rapid", world.calibration)
+    assert report.exit_code == 0, report.rows
+    program = loads(out, "rapid")
+    (rt,) = [r for r in __import__("olp_compensate.programs", fromlist=["resolve"]).resolve(
+        program).targets if r.target.name == "p1"]
+    # controller: base_T_flange = base_T_tool inv(wobj_T_target) inv(flange_T_wobj)
+    q_ctrl = world.controller(rt.base_T_flange[None], np.array(rt.target.config_values())[None])
+    original = loads(STATIONARY, "rapid").targets[0].pose()
+    fixed_tcp = world.desired_in_device(rt.flange_T_tool)          # the fixed tool, device frame
+    flange_T_point = world.real_tool(np.eye(3)) @ invert_pose(pose_from_rotation_translation(
+        np.eye(3), world.calibration.tools["tcp"].xyz_m)) @ rt.base_T_wobj @ original
+    reached = world.real_tcp_in_device(q_ctrl, flange_T_point)[0]
+    assert np.linalg.norm(reached[:3, 3] - fixed_tcp[:3, 3]) < TOLERANCE_M
