@@ -1,17 +1,29 @@
 """Time per target of ik.solve() against roboticstoolbox-python's C++ ``ik_LM``.
 
 Both solve the same 10,000 targets (seeded) of an ABB IRB 2400 whose DH parameters are off
-by ~1 mm / ~0.1 deg from nominal, to 1 micrometre and 1 microradian:
+by ~1 mm / ~0.1 deg from nominal (the "calibrated model", class DH below):
 
 - ``solve()``: nominal OPW closed form on the requested ABB configuration, then Newton on
-  the perturbed model (analytic Jacobian below), all targets batched.
+  the perturbed model (its forward kinematics and analytic Jacobian in numpy, batched),
+  all targets batched. Timed: the whole call (closed form, branch selection, every model
+  evaluation, the configuration / limit / singularity checks). Run twice: with
+  ``position_tol = rotation_tol = 1e-6 / sqrt(2)`` (then |e| <= 1e-6 in m and rad
+  together, the peer's criterion below: the comparison line) and with 1e-9 (the library's
+  default, a thousand times stricter than the peer is asked for).
 - ``ik_LM`` from the same start (our nominal closed-form branch, so it is asked for the
   same configuration), one C++ call per target, ``tol`` = 5e-13 (its residual is
-  E = 0.5 e^T e, so E <= 5e-13 means |e| <= 1e-6 in m and rad together).
+  E = 0.5 e^T e, so E <= 5e-13 means |e| <= 1e-6). Timed: the ik_LM calls only (its own
+  forward kinematics and Jacobian in C++, and the Python call per target); the start, our
+  closed form, is computed outside the timing.
 - ``ik_LM`` from its own random starts (its default use), on the first 1,000 targets.
 
+Each timing is the best of ``--repeat`` runs (default 5), for both sides alike: the
+machine's noise only ever adds time. "reached": within 1 um and 1 urad, checked here on
+the model; "on requested branch": reached, with the requested ABB cfx.
+
 Run: ``python benchmarks/ik_peer.py`` (roboticstoolbox-python is optional: without it only
-solve() is timed). Exit code 0.
+solve() is timed; with it installed in another environment, run that environment's python
+with ``PYTHONPATH`` set to the repository). Exit code 0.
 """
 
 from __future__ import annotations
@@ -38,36 +50,56 @@ LIMITS = np.deg2rad([[-180, 180], [-100, 110], [-60, 65], [-200, 200], [-120, 12
 
 
 class DH:
-    """The perturbed robot: forward kinematics and geometric Jacobian (base frame)."""
+    """The perturbed robot: forward kinematics and geometric Jacobian (base frame).
+
+    Written for batches, as a calibrated model would be: each frame's axes and origin are
+    updated as (3, m) arrays, link by link, and the Jacobian columns are z_i x (p_6 - p_i)
+    and z_i."""
 
     def __init__(self, a, alpha, d, offset):
         self.a, self.alpha, self.d, self.offset = a, alpha, d, offset
+        self.ca, self.sa = np.cos(alpha), np.sin(alpha)
 
-    def frames(self, q):
-        T = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
-        out = [T]
+    def _frames(self, q):
+        """Axes z_0..z_5 (6, 3, m), origins p_0..p_6 (7, 3, m) and the last x, y (3, m)."""
+        q = np.atleast_2d(q)
+        m = len(q)
+        theta = (q + self.offset).T
+        cos, sin = np.cos(theta), np.sin(theta)
+        x, y, z = np.zeros((3, 3, m))
+        x[0], y[1], z[2] = 1.0, 1.0, 1.0
+        p = np.zeros((3, m))
+        axes, origins = np.empty((6, 3, m)), np.empty((7, 3, m))
+        origins[0] = p
         for i in range(6):
-            c, s = np.cos(q[:, i] + self.offset[i]), np.sin(q[:, i] + self.offset[i])
-            ca, sa = np.cos(self.alpha[i]), np.sin(self.alpha[i])
-            L = np.zeros((len(q), 4, 4))
-            L[:, 0] = np.stack([c, -s * ca, s * sa, self.a[i] * c], 1)
-            L[:, 1] = np.stack([s, c * ca, -c * sa, self.a[i] * s], 1)
-            L[:, 2, 1], L[:, 2, 2], L[:, 2, 3], L[:, 3, 3] = sa, ca, self.d[i], 1.0
-            T = T @ L
-            out.append(T)
-        return out
+            axes[i] = z
+            c, s = cos[i], sin[i]
+            x, y0 = c * x + s * y, c * y - s * x           # Rz(theta)
+            y, z = self.ca[i] * y0 + self.sa[i] * z, self.ca[i] * z - self.sa[i] * y0   # Rx
+            p = p + self.d[i] * axes[i] + self.a[i] * x     # Tz(d) Tx(a)
+            origins[i + 1] = p
+        return axes, origins, x, y, z
+
+    @staticmethod
+    def _pose(x, y, z, p):
+        pose = np.zeros((x.shape[1], 4, 4))
+        pose[:, :3, 0], pose[:, :3, 1], pose[:, :3, 2], pose[:, :3, 3] = x.T, y.T, z.T, p.T
+        pose[:, 3, 3] = 1.0
+        return pose
 
     def fk(self, q):
-        return self.frames(np.atleast_2d(q))[-1]
+        axes, origins, x, y, z = self._frames(q)
+        return self._pose(x, y, z, origins[6])
 
     def fk_jacobian(self, q):
-        F = self.frames(q)
-        J = np.empty((len(q), 6, 6))
-        for i in range(6):
-            z = F[i][:, :3, 2]
-            J[:, :3, i] = np.cross(z, F[-1][:, :3, 3] - F[i][:, :3, 3])
-            J[:, 3:, i] = z
-        return F[-1], J
+        axes, origins, x, y, z = self._frames(q)
+        r = origins[6] - origins[:6]                       # (6, 3, m)
+        J = np.empty((len(x[0]), 6, 6))
+        J[:, 0] = (axes[:, 1] * r[:, 2] - axes[:, 2] * r[:, 1]).T
+        J[:, 1] = (axes[:, 2] * r[:, 0] - axes[:, 0] * r[:, 2]).T
+        J[:, 2] = (axes[:, 0] * r[:, 1] - axes[:, 1] * r[:, 0]).T
+        J[:, 3:] = axes.transpose(2, 1, 0)
+        return self._pose(x, y, z, origins[6]), J
 
 
 def errors(robot, q, target):
@@ -95,9 +127,20 @@ def rtb_ets(robot):
     return ets
 
 
+def best_of(repeat, run):
+    """Best wall time (s) of ``repeat`` calls of ``run()``, and the last result."""
+    best, result = np.inf, None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = run()
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-n", type=int, default=10_000, help="number of targets")
+    parser.add_argument("--repeat", type=int, default=5, help="timed runs; the best counts")
     args = parser.parse_args(argv)
 
     rng = np.random.default_rng(0)
@@ -106,19 +149,34 @@ def main(argv=None) -> int:
     q_true = rng.uniform(LIMITS[:, 0] * 0.95, LIMITS[:, 1] * 0.95, (args.n, 6))
     target = robot.fk(q_true)
     conf = abb_confdata(NOMINAL, q_true)
-    print(f"{args.n} targets, IRB 2400 with ~1 mm / ~0.1 deg DH errors, goal 1 um / 1 urad")
+    print(f"{args.n} targets, IRB 2400 with ~1 mm / ~0.1 deg DH errors, goal 1 um / 1 urad, "
+          f"best of {args.repeat} runs")
 
-    solve(NOMINAL, robot.fk_jacobian, target[:100], conf[:100], LIMITS)      # warm-up
-    start = time.perf_counter()
-    result = solve(NOMINAL, robot.fk_jacobian, target, conf, LIMITS)
-    ours = time.perf_counter() - start
-    position, rotation = errors(robot, result.q, target)
-    ok = result.success & (position <= 1e-6) & (rotation <= 1e-6)
-    same = ok & (abb_confdata(NOMINAL, result.q)[:, 3] == conf[:, 3])
-    report("olp_compensate.ik.solve (batched)", ours, args.n, ok, same)
-    worst = max(position[result.success].max(), rotation[result.success].max())
-    reasons = {str(k): int(v) for k, v in zip(*np.unique(result.reason, return_counts=True))}
-    print(f"    worst error {worst:.1e} (m or rad), reasons {reasons}")
+    model_time = [0.0]
+
+    def timed_model(q):
+        start = time.perf_counter()
+        out = robot.fk_jacobian(q)
+        model_time[0] += time.perf_counter() - start
+        return out
+
+    ours = {}
+    for label, tol in (("1e-6/sqrt2", 1e-6 / np.sqrt(2)), ("1e-9", 1e-9)):
+        def run(tol=tol):
+            model_time[0] = 0.0
+            return solve(NOMINAL, timed_model, target, conf, LIMITS, position_tol=tol,
+                         rotation_tol=tol)
+        run()                                                               # warm-up
+        seconds, result = best_of(args.repeat, run)
+        position, rotation = errors(robot, result.q, target)
+        ok = result.success & (position <= 1e-6) & (rotation <= 1e-6)
+        same = ok & (abb_confdata(NOMINAL, result.q)[:, 3] == conf[:, 3])
+        report(f"ik.solve, tol {label}", seconds, args.n, ok, same)
+        worst = max(position[result.success].max(), rotation[result.success].max())
+        reasons = {str(k): int(v) for k, v in zip(*np.unique(result.reason, return_counts=True))}
+        print(f"    worst error {worst:.1e} (m or rad), reasons {reasons}, of the time "
+              f"~{model_time[0] / args.n * 1e6:.1f} us/target in the model (last run)")
+        ours[label] = seconds
 
     try:
         ets = rtb_ets(robot)
@@ -129,28 +187,35 @@ def main(argv=None) -> int:
 
     q0, _ = select_branch(opw_inverse(NOMINAL, target), conf, LIMITS)
     q0 = np.where(np.isfinite(q0), q0, 0.0)
-    q_rtb = np.empty_like(q0)
-    start = time.perf_counter()
-    for i in range(args.n):
-        q_rtb[i] = ets.ik_LM(target[i], q0=q0[i], ilimit=100, slimit=1, tol=5e-13,
+
+    def same_start():
+        q = np.empty_like(q0)
+        for i in range(args.n):
+            q[i] = ets.ik_LM(target[i], q0=q0[i], ilimit=100, slimit=1, tol=5e-13,
                              joint_limits=False)[0]
-    theirs = time.perf_counter() - start
+        return q
+
+    theirs, q_rtb = best_of(args.repeat, same_start)
     position, rotation = errors(robot, q_rtb, target)
     ok_rtb = (position <= 1e-6) & (rotation <= 1e-6)
     same_rtb = ok_rtb & (abb_confdata(NOMINAL, q_rtb)[:, 3] == conf[:, 3])
     report("rtb ik_LM, same start (C++)", theirs, args.n, ok_rtb, same_rtb)
 
     k = min(1000, args.n)
-    q_free = np.empty((k, 6))
-    start = time.perf_counter()
-    for i in range(k):
-        q_free[i] = ets.ik_LM(target[i], tol=5e-13, joint_limits=False)[0]
-    free = time.perf_counter() - start
+
+    def random_starts():
+        q = np.empty((k, 6))
+        for i in range(k):
+            q[i] = ets.ik_LM(target[i], tol=5e-13, joint_limits=False)[0]
+        return q
+
+    free, q_free = best_of(args.repeat, random_starts)
     position, rotation = errors(robot, q_free, target[:k])
     ok_free = (position <= 1e-6) & (rotation <= 1e-6)
     same_free = ok_free & (abb_confdata(NOMINAL, q_free)[:, 3] == conf[:k, 3])
     report("rtb ik_LM, random starts (C++)", free, k, ok_free, same_free)
-    print(f"ratio rtb(same start) / solve per target: {theirs / ours:.2f}")
+    for label, seconds in ours.items():
+        print(f"ratio rtb(same start) / solve(tol {label}) per target: {theirs / seconds:.2f}")
     return 0
 
 

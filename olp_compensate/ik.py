@@ -14,7 +14,9 @@ in radians, the user's joint convention (signs and zero positions of the control
 - :func:`fit_family`: which family a forward-kinematics callable belongs to, and its
   parameters, verified to 1e-9 m / 1e-9 rad.
 - :func:`refine`: damped Newton on any model given as ``fk_jacobian``; :func:`solve`: closed
-  form on the nominal family, then :func:`refine` on the (calibrated) model.
+  form on the nominal family, then Newton on the (calibrated) model in the closed form's
+  coordinates (two steps for most targets), :func:`refine`'s Newton from several starts
+  for the rest.
 
 Branch numbering. The 8 solutions of both closed forms are ordered so that the index *is*
 the configuration number: ``index = 4 * behind + 2 * elbow + wrist``, with the three bits of
@@ -284,27 +286,32 @@ def _opw_branch(params, root_T_tip, branch, clip):
     side = np.where(elbow, -1.0, 1.0)          # +1: wrist centre in front of the lower arm
     theta2 = phi - side * g2
     theta3 = side * g3 - psi3
-    theta4, theta5, theta6 = _spherical_wrist(rot_z(theta1) @ rot_y(theta2 + theta3), rotation,
-                                              -params.offsets[3], params.signs[4], negative)
+    # rows of r = (Rz(theta1) Ry(theta2 + theta3))^T rotation, without 3 x 3 products
+    s1, c1_ = np.sin(theta1)[:, None], np.cos(theta1)[:, None]
+    s23, c23 = np.sin(theta2 + theta3)[:, None], np.cos(theta2 + theta3)[:, None]
+    along = c1_ * rotation[:, 0] + s1 * rotation[:, 1]
+    across = c1_ * rotation[:, 1] - s1 * rotation[:, 0]
+    theta4, theta5, theta6 = _spherical_wrist(
+        c23 * along - s23 * rotation[:, 2], across, s23 * along + c23 * rotation[:, 2],
+        -params.offsets[3], params.signs[4], negative)
     theta = np.stack([theta1, theta2, theta3, theta4, theta5, theta6], 1)
     theta[np.any(np.isnan(theta), axis=1)] = np.nan
     return theta
 
 
-def _spherical_wrist(rotation_0c, rotation, free4, sign5, negative):
-    """Wrist angles (theta4, theta5, theta6), each ``(k,)``, of
-    ``rotation = rotation_0c Rz(t4) Ry(t5) Rz(t6)``: with ``sign5 * sin(t5) >= 0`` (positive
+def _spherical_wrist(r0, r1, r2, free4, sign5, negative):
+    """Wrist angles (theta4, theta5, theta6), each ``(k,)``, of ``r = Rz(t4) Ry(t5) Rz(t6)``
+    given by its rows ``r0, r1, r2 (k, 3)``: with ``sign5 * sin(t5) >= 0`` (positive
     wrist), or the flipped wrist where ``negative``. At a singular wrist t4 = ``free4``."""
-    r = np.swapaxes(rotation_0c, -1, -2) @ rotation
-    horizontal = np.hypot(r[:, 0, 2], r[:, 1, 2])
-    t5 = np.arctan2(horizontal, r[:, 2, 2])
-    t4 = np.arctan2(r[:, 1, 2], r[:, 0, 2])
-    t6 = np.arctan2(r[:, 2, 1], -r[:, 2, 0])
+    horizontal = np.hypot(r0[:, 2], r1[:, 2])
+    t5 = np.arctan2(horizontal, r2[:, 2])
+    t4 = np.arctan2(r1[:, 2], r0[:, 2])
+    t6 = np.arctan2(r2[:, 1], -r2[:, 0])
     singular = horizontal < _WRIST_EPS
     if np.any(singular):
-        upright = r[:, 2, 2] > 0
-        t6_up = np.arctan2(r[:, 1, 0], r[:, 0, 0]) - free4
-        t6_down = free4 - np.arctan2(-r[:, 1, 0], -r[:, 0, 0])
+        upright = r2[:, 2] > 0
+        t6_up = np.arctan2(r1[:, 0], r0[:, 0]) - free4
+        t6_down = free4 - np.arctan2(-r1[:, 0], -r0[:, 0])
         t4 = np.where(singular, free4, t4)
         t6 = np.where(singular, np.where(upright, t6_up, t6_down), t6)
     flip = negative if sign5 > 0 else ~negative
@@ -500,25 +507,47 @@ def _shift_into(q, limits, lower, upper):
 
 def _select(solutions, confdata, limits, quadrant_tolerance):
     """Requested branches with 2 pi shifts; status 0 found, 1 no branch, 2 limits, 3 quadrant."""
-    m = len(solutions)
-    cfx = confdata[:, 3]
-    q = solutions[np.arange(m), cfx].copy()
+    return _select_q(solutions[np.arange(len(solutions)), confdata[:, 3]], confdata, limits,
+                     quadrant_tolerance)
+
+
+def _select_q(q, confdata, limits, quadrant_tolerance):
+    """:func:`_select` of joints ``q (m, 6)`` already on the requested branch: each axis as
+    :func:`_shift_into` does it, all at once (axes first, so that rows are contiguous)."""
+    m = len(q)
+    q = q.copy()
     exists = np.all(np.isfinite(q), axis=1)
-    quadrant_ok = np.ones(m, bool)
-    within = np.ones(m, bool)
-    for j in range(6):
-        lim = None if limits is None else limits[j]
-        if j in _QUADRANT_AXES:
-            lower = confdata[:, {0: 0, 3: 1, 5: 2}[j]] * (np.pi / 2)
-            value, dist = _shift_into(q[:, j], lim, lower, lower + np.pi / 2)
-            quadrant_ok &= ~(dist > quadrant_tolerance)
+    axes = list(_QUADRANT_AXES) + ([1, 2, 4] if limits is not None else [])
+    value = np.ascontiguousarray(q[:, axes].T)                           # (axes, m)
+    lower = np.empty_like(value)
+    lower[:3] = confdata[:, :3].T * (np.pi / 2)
+    upper = lower + np.pi / 2
+    if limits is not None:
+        lower[3:], upper[3:] = limits[[1, 2, 4], 0, None], limits[[1, 2, 4], 1, None]
+        lim = limits[axes]
+    centre = 0.5 * (lower + upper)
+    turns = np.round((centre - value) / _TWO_PI)
+    best = best_distance = best_score = None
+    for shift in (-1.0, 0.0, 1.0):
+        candidate = value + _TWO_PI * (turns + shift)
+        distance = np.maximum(np.maximum(lower - candidate, 0.0), candidate - upper)
+        # inside the limits first, then nearest the interval, then nearest its centre
+        score = distance + 1e-9 * np.abs(candidate - centre)
+        if limits is not None:
+            score += 1e6 * np.maximum(np.maximum(lim[:, 0, None] - candidate, 0.0),
+                                      candidate - lim[:, 1, None])
+        if best is None:
+            best, best_distance, best_score = candidate, distance, score
         else:
-            value = q[:, j]
-            if lim is not None:
-                value, _ = _shift_into(value, lim, np.full(m, lim[0]), np.full(m, lim[1]))
-        q[:, j] = value
-        if lim is not None:
-            within &= (q[:, j] >= lim[0]) & (q[:, j] <= lim[1])
+            better = score < best_score
+            best = np.where(better, candidate, best)
+            best_distance = np.where(better, distance, best_distance)
+            best_score = np.where(better, score, best_score)
+    q[:, axes] = best.T
+    quadrant_ok = ~np.any(best_distance[:3] > quadrant_tolerance, axis=0)
+    within = np.ones(m, bool)
+    if limits is not None:
+        within = np.all((q >= limits[:, 0]) & (q <= limits[:, 1]), axis=1)
     status = np.where(~exists, 1, np.where(~within, 2, np.where(~quadrant_ok, 3, 0)))
     return q, status
 
@@ -823,9 +852,28 @@ def _fit_ur(directions, points, M):
 def _pose_error(target, poses):
     """Errors ``(m, 6)``: position (m) and rotation vector (rad), both in the base frame,
     taking ``poses`` to ``target``."""
-    dp = target[:, :3, 3] - poses[:, :3, 3]
-    dr = rotvec_from_rotation(target[:, :3, :3] @ np.swapaxes(poses[:, :3, :3], -1, -2))
-    return np.concatenate([dp, dr], 1)
+    err = np.empty((len(poses), 6))
+    np.subtract(target[:, :3, 3], poses[:, :3, 3], out=err[:, :3])
+    # R = Rt Rp^T = sum_k t_k p_k^T over the columns k: sin(angle) * axis = (R - R^T)^v / 2
+    # = sum_k p_k x t_k / 2 and cos(angle) = (trace(R) - 1) / 2 = (sum Rt * Rp - 1) / 2.
+    # Exact, and cheaper than via a quaternion, up to 90 deg (beyond: the quaternion).
+    t = np.ascontiguousarray(np.moveaxis(target[:, :3, :3], 0, -1))      # (3, 3, m)
+    p = np.ascontiguousarray(np.moveaxis(poses[:, :3, :3], 0, -1))
+    dr = np.empty((3, len(poses)))
+    np.sum(p[1] * t[2] - p[2] * t[1], axis=0, out=dr[0])
+    np.sum(p[2] * t[0] - p[0] * t[2], axis=0, out=dr[1])
+    np.sum(p[0] * t[1] - p[1] * t[0], axis=0, out=dr[2])
+    dr *= 0.5
+    cos = 0.5 * (np.sum(t * p, axis=(0, 1)) - 1.0)
+    sin = np.sqrt(np.sum(dr * dr, axis=0))
+    tiny = sin < 1e-12
+    dr *= np.where(tiny, 1.0, np.arctan2(sin, cos) / np.where(tiny, 1.0, sin))
+    err[:, 3:] = dr.T
+    wide = np.flatnonzero(cos < 0.0)
+    if len(wide):
+        err[wide, 3:] = rotvec_from_rotation(
+            target[wide, :3, :3] @ np.swapaxes(poses[wide, :3, :3], -1, -2))
+    return err
 
 
 def fit_family(flange_pose: Callable[[np.ndarray], np.ndarray], n_joints: int = 6,
@@ -888,7 +936,8 @@ class IKSolution:
 
 def _evaluate(fk_jacobian, q, target, n):
     poses, jac = fk_jacobian(q)
-    poses, jac = np.asarray(poses, dtype=float), np.asarray(jac, dtype=float)
+    # the Jacobian is kept across calls: a copy, in case the model reuses its buffers
+    poses, jac = np.asarray(poses, dtype=float), np.array(jac, dtype=float)
     if poses.shape != (len(q), 4, 4) or jac.shape != (len(q), 6, n):
         raise ModelError(f"fk_jacobian must return poses ({len(q)}, 4, 4) and a Jacobian "
                          f"({len(q)}, 6, {n}); got {poses.shape} and {jac.shape}")
@@ -896,19 +945,134 @@ def _evaluate(fk_jacobian, q, target, n):
     return jac, err
 
 
+def _norms(err):
+    """Position and rotation error norms ``(m,)`` of errors ``(m, 6)``."""
+    return (np.sqrt(np.einsum("ij,ij->i", err[:, :3], err[:, :3])),
+            np.sqrt(np.einsum("ij,ij->i", err[:, 3:], err[:, 3:])))
+
+
+def _normal_matrices(jac, rhs=None):
+    """``J^T J`` of ``jac (k, r, n)`` as ``(n, n [+ 1], k)`` (the batch last, so that the
+    elimination below works on contiguous rows), with ``J^T rhs`` appended as column n."""
+    k, _, n = jac.shape
+    jt = np.ascontiguousarray(np.moveaxis(jac, 0, -1))                     # (r, n, k)
+    A = np.empty((n, n + (rhs is not None), k))
+    A[:, :n] = np.einsum("aik,ajk->ijk", jt, jt)
+    if rhs is not None:
+        A[:, n] = np.einsum("aik,ak->ik", jt, np.ascontiguousarray(rhs.T))
+    return A
+
+
+def _eliminate(A, n):
+    """Gaussian elimination without pivoting, in place, of ``A (n, n + c, k)`` whose
+    leading ``(n, n)`` blocks are symmetric positive (semi)definite (where it is stable)."""
+    for c in range(n - 1):
+        factor = A[c + 1:, c] / A[c, c]
+        A[c + 1:, c + 1:] -= factor[:, None] * A[c, None, c + 1:]
+
+
+def _gauss_newton_steps(jac, err, damping):
+    """Steps ``(k, n)`` solving ``(J^T J + mu I) dq = J^T err``, ``mu = damping *
+    trace(J^T J) / n``, for a batch ``jac (k, 6, n)``. Batched by hand: LAPACK's solve pays
+    a call per 6 x 6 system. Rows without a finite solution get a zero step."""
+    n = jac.shape[2]
+    A = _normal_matrices(jac, err)
+    diagonal = np.arange(n)
+    A[diagonal, diagonal] += damping * np.einsum("iik->k", A[:, :n]) / n
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        _eliminate(A, n)
+        step = np.empty((n, A.shape[2]))
+        for c in range(n - 1, -1, -1):
+            step[c] = (A[c, n] - np.einsum("ik,ik->k", A[c, c + 1:n], step[c + 1:])) / A[c, c]
+    step = step.T
+    step[~np.all(np.isfinite(step), axis=1)] = 0.0
+    return step
+
+
 def _singular(jac, tolerance):
     """Rows ``(k,)`` of ``jac (k, 6, n)`` whose smallest singular value is below
     ``tolerance`` times the largest. For square ones, |det J| / |J|_F^6 <= s_min / s_max
-    clears most rows without an SVD."""
+    clears most rows without an SVD (det(J)^2 = det(J^T J), the product of the pivots of
+    its elimination)."""
     candidates = np.ones(len(jac), bool)
-    if jac.shape[2] == 6:
-        frobenius = np.linalg.norm(jac, axis=(1, 2))
-        candidates = np.abs(np.linalg.det(jac)) < tolerance * frobenius ** 6
+    if jac.shape[2] == 6 and len(jac):
+        A = _normal_matrices(jac)
+        frobenius_2 = np.einsum("iik->k", A)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            _eliminate(A, 6)
+            det_2 = np.prod(A[np.arange(6), np.arange(6)], axis=0)
+            candidates = ~(det_2 >= tolerance ** 2 * frobenius_2 ** 6)
     singular = np.zeros(len(jac), bool)
     if np.any(candidates):
         sv = np.linalg.svd(jac[candidates], compute_uv=False)
         singular[candidates] = sv[:, -1] < tolerance * sv[:, 0]
     return singular
+
+
+def _newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_iterations, max_step,
+            accept=None, groups=None):
+    """The iteration of :func:`refine` on rows of finite ``q0``. Only unfinished rows are
+    evaluated; each row leaves the batch when it converges, stalls or runs out of steps.
+    Multi-start: ``accept(rows, q, jac) -> (k,) bool`` judges rows as they converge; once
+    one row of a group (``groups (m,)`` int >= 0) is accepted, the others of the group
+    leave too. Returns q, jac, err, iterations, converged, stalled."""
+    m, n = q0.shape
+    q = q0.copy()
+    jac = np.full((m, 6, n), np.nan)
+    err = np.full((m, 6), np.nan)
+    iterations = np.zeros(m, int)
+    converged = np.zeros(m, bool)
+    stalled = np.zeros(m, bool)
+    act = np.flatnonzero(np.all(np.isfinite(q0), axis=1))
+    if len(act) == 0:
+        return q, jac, err, iterations, converged, stalled
+    q_a, target_a = q[act], target[act]
+    J, e = _evaluate(fk_jacobian, q_a, target_a, n)
+    cost = np.einsum("ij,ij->i", e, e)
+    fraction = np.ones(len(act))         # backtracking: share of the Newton step tried
+    stale = np.zeros(len(act), int)      # steps in a row without real progress
+    stuck = np.zeros(len(act), bool)
+    resolved = None if accept is None else np.zeros(int(np.max(groups, initial=0)) + 1, bool)
+    for iteration in range(max_iterations + 1):
+        position, rotation = _norms(e)
+        done = (position <= position_tol) & (rotation <= rotation_tol)
+        leave = done | stuck if iteration < max_iterations else np.ones(len(act), bool)
+        if accept is not None:
+            finished = np.flatnonzero(done)
+            if len(finished):
+                good = finished[accept(act[finished], q_a[finished], J[finished])]
+                resolved[groups[act[good]]] = True
+            leave |= resolved[groups[act]]
+        if np.any(leave):
+            rows = act[leave]
+            q[rows], jac[rows], err[rows] = q_a[leave], J[leave], e[leave]
+            iterations[rows] = iteration
+            converged[rows] = done[leave]
+            stalled[rows] = stuck[leave] & ~done[leave]
+            keep = ~leave
+            if not np.any(keep):
+                break
+            act, q_a, target_a, J, e = act[keep], q_a[keep], target_a[keep], J[keep], e[keep]
+            cost, fraction, stale = cost[keep], fraction[keep], stale[keep]
+        step = _gauss_newton_steps(J, e, _DAMPING)
+        biggest = np.max(np.abs(step), axis=1)
+        step *= (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300)) * fraction)[:, None]
+        trial = q_a + step
+        J_t, e_t = _evaluate(fk_jacobian, trial, target_a, n)
+        cost_t = np.einsum("ij,ij->i", e_t, e_t)
+        better = cost_t < cost
+        if np.all(better):
+            q_a, J, e = trial, J_t, e_t
+        else:
+            q_a = np.where(better[:, None], trial, q_a)
+            J = np.where(better[:, None, None], J_t, J)
+            e = np.where(better[:, None], e_t, e)
+        fraction = np.where(better, np.minimum(1.0, 2.0 * fraction), 0.25 * fraction)
+        # stalled: _STALL_STEPS steps in a row without lowering the error by a millionth
+        stale = np.where(cost_t < (1.0 - 1e-6) * cost, 0, stale + 1)
+        cost = np.where(better, cost_t, cost)
+        stuck = (stale >= _STALL_STEPS) | (fraction < 1e-9)
+    return q, jac, err, iterations, converged, stalled
 
 
 def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q0, target,
@@ -919,7 +1083,8 @@ def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q
 
     ``fk_jacobian(q (k, n)) -> (base_T_flange (k, 4, 4), jacobian (k, 6, n))``, the
     geometric Jacobian in the base frame (rows: flange-origin linear velocity, then angular
-    velocity). All targets iterate together; converged ones are frozen. The Gauss-Newton
+    velocity). All targets iterate together; converged ones leave the batch (the model is
+    evaluated only on unfinished rows). The Gauss-Newton
     step (with a 1e-10 relative Tikhonov term) is scaled so no joint moves more than
     ``max_step`` rad and is taken only if it lowers the squared error, else a quarter of it
     is tried next (backtracking; the share doubles again after a success). A target whose
@@ -943,50 +1108,10 @@ def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q
     if int(max_iterations) < 0:
         raise DataError(f"max_iterations must be >= 0, got {max_iterations!r}")
 
-    q = q0.copy()
+    q, jac, err, iterations, converged, stalled = _newton(
+        fk_jacobian, q0, target, position_tol, rotation_tol, int(max_iterations), max_step)
     reason = np.full(m, "not_converged", dtype="<U14")
-    iterations = np.zeros(m, int)
-    err = np.full((m, 6), np.nan)
-    jac = np.full((m, 6, n), np.nan)
-    valid = np.all(np.isfinite(q0), axis=1)
-    reason[~valid] = "unreachable"
-    rows = np.flatnonzero(valid)
-    if len(rows):
-        jac[rows], err[rows] = _evaluate(fk_jacobian, q[rows], target[rows], n)
-    fraction = np.ones(m)                # backtracking: share of the Newton step tried
-    stale = np.zeros(m, int)             # steps in a row without real progress
-    converged = np.zeros(m, bool)
-    stalled = np.zeros(m, bool)
-    eye = np.eye(n)
-    for _ in range(int(max_iterations) + 1):
-        pos_err = np.linalg.norm(err[:, :3], axis=1)
-        rot_err = np.linalg.norm(err[:, 3:], axis=1)
-        converged |= valid & (pos_err <= position_tol) & (rot_err <= rotation_tol)
-        rows = np.flatnonzero(valid & ~converged & ~stalled & (iterations < max_iterations))
-        if len(rows) == 0:
-            break
-        J, e = jac[rows], err[rows]
-        JtJ = np.swapaxes(J, 1, 2) @ J
-        mu = _DAMPING * np.trace(JtJ, axis1=1, axis2=2) / n
-        step = np.linalg.solve(JtJ + mu[:, None, None] * eye,
-                               np.einsum("kji,kj->ki", J, e)[..., None])[..., 0]
-        biggest = np.max(np.abs(step), axis=1)
-        step *= (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300)) * fraction[rows])[:, None]
-        trial = q[rows] + step
-        jac_t, err_t = _evaluate(fk_jacobian, trial, target[rows], n)
-        iterations[rows] += 1
-        cost, cost_t = np.sum(e ** 2, 1), np.sum(err_t ** 2, 1)
-        better = cost_t < cost
-        good = rows[better]
-        q[good], jac[good], err[good] = trial[better], jac_t[better], err_t[better]
-        fraction[good] = np.minimum(1.0, 2.0 * fraction[good])
-        bad = rows[~better]
-        fraction[bad] *= 0.25
-        # stalled: _STALL_STEPS steps in a row without lowering the error by a millionth
-        progress = cost_t < (1.0 - 1e-6) * cost
-        stale[rows] = np.where(progress, 0, stale[rows] + 1)
-        stalled[rows] |= (stale[rows] >= _STALL_STEPS) | (fraction[rows] < 1e-9)
-    reason[valid & stalled & ~converged] = "unreachable"
+    reason[~np.all(np.isfinite(q0), axis=1) | stalled] = "unreachable"
     reason[converged] = "ok"
 
     done = np.flatnonzero(converged)
@@ -1001,9 +1126,9 @@ def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q
             changed = np.any((before >= 0) & (after >= 0) & (before != after), axis=1)
             reason[done[changed]] = "branch_changed"
     success = np.isin(reason, ("ok", "singular"))
+    position, rotation = _norms(err)
     return IKSolution(q=q, success=success, reason=reason, iterations=iterations,
-                      position_error_m=np.linalg.norm(err[:, :3], axis=1),
-                      rotation_error_rad=np.linalg.norm(err[:, 3:], axis=1))
+                      position_error_m=position, rotation_error_rad=rotation)
 
 
 def _closed_form(params, T, clip):
@@ -1024,8 +1149,161 @@ def _default_confdata(solutions, limits):
     return np.concatenate([quadrant.astype(int), cfx[:, None]], 1)
 
 
+_CLOSED_FORM_STEPS = 8    # steps of _closed_form_newton before the multi-start Newton
+_WILD = 1.0               # _closed_form_newton: fixed-point step where |twist - e| > this |e|
+_BLOCK = 2048             # targets per batch of _closed_form_newton
+_FIRST_STEPS = 2          # its steps in blocks, before the rows that need more go on together
+_MULTI_START_STEPS = 12   # Newton steps of the multi-start retry
 _FIXED_POINT_STEPS = 20
 _FIXED_POINT_TOL = 1e-6    # rad: the closed-form iteration hands over to Newton below this
+
+
+def _opw_jacobian(params, theta):
+    """Geometric Jacobian ``(m, 6, 6)`` (root frame, at the flange origin, per model angle)
+    and flange positions ``(m, 3)`` of the OPW arm."""
+    t1, t2, t3, t4, t5, t6 = theta.T
+    c1, s1 = np.cos(t1), np.sin(t1)
+    zero = np.zeros_like(t1)
+    x_arm = np.stack([c1, s1, zero])                                  # (3, m)
+    y_arm = np.stack([-s1, c1, zero])
+    z = np.zeros((3, len(t1)))
+    z[2] = 1.0
+    psi3 = np.arctan2(params.a2, params.c3)
+    k = np.hypot(params.a2, params.c3)
+    s2, c2 = np.sin(t2), np.cos(t2)
+    t23 = t2 + t3
+    s23, c23 = np.sin(t23), np.cos(t23)
+    sk = s23 * np.cos(psi3) + c23 * np.sin(psi3)                      # sin(t23 + psi3)
+    ck = c23 * np.cos(psi3) - s23 * np.sin(psi3)
+    axis2 = params.a1 * x_arm + params.c1 * z
+    axis3 = axis2 + params.c2 * (s2 * x_arm + c2 * z)
+    centre = ((params.c2 * s2 + k * sk + params.a1) * x_arm + params.b * y_arm
+              + (params.c2 * c2 + k * ck + params.c1) * z)
+    col0 = c23 * x_arm - s23 * z                                      # R0c = Rz(t1) Ry(t23)
+    col2 = s23 * x_arm + c23 * z
+    s4, c4, s5, c5 = np.sin(t4), np.cos(t4), np.sin(t5), np.cos(t5)
+    x4 = c4 * col0 + s4 * y_arm                                       # R04 = R0c Rz(t4)
+    y4 = c4 * y_arm - s4 * col0
+    z6 = s5 * x4 + c5 * col2                                          # R05 z = R06 z
+    flange = centre + params.c4 * z6
+    tip = params._tip()
+    if tip is not None:
+        s6, c6 = np.sin(t6), np.cos(t6)
+        x5 = c5 * x4 - s5 * col2
+        x6, y6 = c6 * x5 + s6 * y4, c6 * y4 - s6 * x5
+        flange = flange + x6 * tip[0, 3] + y6 * tip[1, 3] + z6 * tip[2, 3]
+    axes = np.stack([z, y_arm, y_arm, col2, y4, z6])                  # (6, 3, m)
+    points = np.stack([np.zeros_like(z), axis2, axis3, centre, centre, centre])
+    return _screw_jacobian(axes, flange - points), flange.T
+
+
+def _screw_jacobian(axes, r):
+    """``(m, 6, n)`` Jacobian with columns ``(w x r, w)`` for axes and lever arms ``(n, 3, m)``."""
+    jac = np.empty((axes.shape[2], 6, axes.shape[0]))
+    jac[:, 0] = (axes[:, 1] * r[:, 2] - axes[:, 2] * r[:, 1]).T
+    jac[:, 1] = (axes[:, 2] * r[:, 0] - axes[:, 0] * r[:, 2]).T
+    jac[:, 2] = (axes[:, 0] * r[:, 1] - axes[:, 1] * r[:, 0]).T
+    jac[:, 3:] = axes.transpose(2, 1, 0)
+    return jac
+
+
+def _ur_jacobian(params, theta):
+    """As :func:`_opw_jacobian`, for the UR arm (from its DH frames)."""
+    frames = _ur_frames(params, theta)
+    tip, last = params._tip(), frames[-1]
+    flange = last[:, :3, 3] if tip is None else last[:, :3, :3] @ tip[:3, 3] + last[:, :3, 3]
+    axes = np.concatenate([np.broadcast_to([0.0, 0.0, 1.0], (1, len(theta), 3)),
+                           frames[:5, :, :3, 2]])                     # (6, m, 3)
+    points = np.concatenate([np.zeros((1, len(theta), 3)), frames[:5, :, :3, 3]])
+    return (_screw_jacobian(np.swapaxes(axes, 1, 2), np.swapaxes(flange - points, 1, 2)),
+            flange)
+
+
+def _nominal_jacobian(params, q):
+    """Geometric Jacobian ``(m, 6, 6)`` of the nominal family in the base frame, at the
+    flange origin, per controller joint (as ``fk_jacobian`` returns it)."""
+    theta = params.model_angles(q)
+    jac, _ = (_opw_jacobian if isinstance(params, OPWParameters) else _ur_jacobian)(params,
+                                                                                  theta)
+    jac *= np.asarray(params.signs, dtype=float)
+    base = params._base()
+    if base is not None:
+        jac[:, :3] = base[:3, :3] @ jac[:, :3]
+        jac[:, 3:] = base[:3, :3] @ jac[:, 3:]
+    return jac
+
+
+def _rotation_from_rotvec(rotvec):
+    """Rotation matrices ``(m, 3, 3)`` from rotation vectors ``(m, 3)`` (Rodrigues)."""
+    angle = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
+    small = angle < 1e-8
+    safe = np.where(small, 1.0, angle)
+    a = np.where(small, 1.0 - angle ** 2 / 6.0, np.sin(angle) / safe)
+    b = np.where(small, 0.5 - angle ** 2 / 24.0, (1.0 - np.cos(angle)) / safe ** 2)
+    x, y, z = rotvec.T
+    R = np.empty((len(rotvec), 3, 3))
+    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+    R[:, 0, 0], R[:, 1, 1], R[:, 2, 2] = 1 - b * (yy + zz), 1 - b * (xx + zz), 1 - b * (xx + yy)
+    R[:, 0, 1], R[:, 1, 0] = b * xy - a * z, b * xy + a * z
+    R[:, 0, 2], R[:, 2, 0] = b * xz + a * y, b * xz - a * y
+    R[:, 1, 2], R[:, 2, 1] = b * yz - a * x, b * yz + a * x
+    return R
+
+
+def _closed_form_newton(params, fk_jacobian, T, cfx, q0, position_tol, rotation_tol,
+                        max_steps, X0=None):
+    """Newton on the model in the coordinates of the nominal closed form.
+
+    The joints are ``q = IK_nominal(X)`` on branch ``cfx`` of a corrected target X (at first
+    the target T). The model's error ``e`` at q asks for joint steps ``dq = J_model^-1 e``;
+    they become a step of X along ``J_nominal dq``, and q is solved again in closed form.
+    Near the shoulder and wrist singularities the joints are far from linear in the pose,
+    while X is nearly linear in it (model and nominal differ by millimetres): this converges
+    in two steps where Newton in q needs many, and it stays on the nominal branch. Without
+    ``J_nominal`` (taking ``J_nominal = J_model``) it is the fixed point of
+    :func:`_closed_form_on_model`. ``X0``: the corrected targets to continue from (with
+    ``q0`` their solutions). Returns q, jac, err (at q), steps, converged and X, per row;
+    rows of ``q0`` with NaN are skipped."""
+    m, n = q0.shape
+    q, X = q0.copy(), (T if X0 is None else X0).copy()
+    jac = np.full((m, 6, n), np.nan)
+    err = np.full((m, 6), np.nan)
+    steps = np.zeros(m, int)
+    converged = np.zeros(m, bool)
+    act = np.flatnonzero(np.all(np.isfinite(q0), axis=1))
+    q_a, X_a, T_a, cfx_a = q[act], X[act], T[act], cfx[act]
+    for step in range(max_steps + 1):
+        if len(act) == 0:
+            break
+        J, e = _evaluate(fk_jacobian, q_a, T_a, n)
+        position, rotation = _norms(e)
+        done = (position <= position_tol) & (rotation <= rotation_tol)
+        leave = done | (step == max_steps)
+        if np.any(leave):
+            rows = act[leave]
+            q[rows], jac[rows], err[rows], steps[rows] = q_a[leave], J[leave], e[leave], step
+            X[rows], converged[rows] = X_a[leave], done[leave]
+            keep = ~leave
+            act, q_a, X_a, T_a, cfx_a = act[keep], q_a[keep], X_a[keep], T_a[keep], cfx_a[keep]
+            J, e = J[keep], e[keep]
+            if len(act) == 0:
+                break
+        twist = np.einsum("kij,kj->ki", _nominal_jacobian(params, q_a),
+                          _gauss_newton_steps(J, e, _DAMPING))
+        # J_nominal J_model^-1 is the identity but for millimetres over the distance to a
+        # singularity; where it is far from it, the fixed-point step (twist = e) is safer
+        wild = (np.einsum("ij,ij->i", twist - e, twist - e)
+                > _WILD ** 2 * np.einsum("ij,ij->i", e, e))
+        twist[wild] = e[wild]
+        X_new = X_a.copy()
+        X_new[:, :3, 3] += twist[:, :3]
+        X_new[:, :3, :3] = _rotation_from_rotvec(twist[:, 3:]) @ X_a[:, :3, :3]
+        new = _one_branch(params, X_new, cfx_a, clip=True)
+        new += _TWO_PI * np.round((q_a - new) / _TWO_PI)
+        ok = np.all(np.isfinite(new), axis=1)
+        q_a = np.where(ok[:, None], new, q_a)
+        X_a = np.where(ok[:, None, None], X_new, X_a)
+    return q, jac, err, steps, converged, X
 
 
 def _closed_form_on_model(params, fk_jacobian, T, cfx, q):
@@ -1083,39 +1361,69 @@ def solve(family_params: OPWParameters | URParameters,
        (cf1, cf4, cf6, cfx) (see :func:`select_branch`; None: the reachable branch nearest
        q = 0, and any configuration is accepted). Targets slightly outside the nominal
        workspace start from the stretched arm; no start at all is 'unreachable'.
-    2. A closed-form iteration onto the model (``fk_jacobian``, e.g. the calibrated robot):
-       the nominal inverse of the target corrected by the model's flange error, on the same
-       branch, until joints move less than 1e-6 rad; then :func:`refine` to
-       ``position_tol`` (m) / ``rotation_tol`` (rad).
+    2. Newton onto the model (``fk_jacobian``, e.g. the calibrated robot) in the
+       coordinates of the closed form: the model's error corrects the target given to the
+       nominal closed form on the same branch (exactly, via the nominal and model
+       Jacobians), to ``position_tol`` (m) / ``rotation_tol`` (rad); usually two steps.
     3. The result is shifted by multiples of 2 pi as :func:`select_branch` does and
        checked: outside ``limits (6, 2)`` rad is 'joint_limit'; configuration bits
        (:func:`configuration_bits` of the nominal family, bits within
        ``boundary_tolerance`` of their boundary ignored) other than requested, or axis 1, 4
        or 6 more than ``quadrant_tolerance`` rad from its quadrant, is 'branch_changed'.
-    4. Failed targets are retried from other starts (flipped wrist, axis 4 in its
-       quadrant, the neighbouring nominal branches): near singularities the model can have
-       several solutions per nominal configuration.
+    4. Failed targets (near singularities, where the model can have several solutions per
+       nominal configuration) are retried by :func:`refine`'s Newton from several starts at
+       once, the first accepted by the checks of 3 winning: the nominal start, the flipped
+       wrist (OPW), axis 4 placed in its quadrant (theta4 + theta6 kept), the nominal
+       solutions of the neighbouring branches.
+    5. Still failed targets: the closed-form fixed point onto the model (the nominal
+       inverse of the target corrected by the model's flange error, until joints move less
+       than 1e-6 rad), :func:`refine`, and the starts of 4 one after the other. The reasons
+       of targets that fail in the end are those of this last step.
+    ``max_iterations`` bounds the Newton steps of each of these stages.
     """
     _check_family(family_params)
     T = _as_poses(target, "target")
     m = len(T)
     limits = _as_limits(limits, 6)
-    solutions = _closed_form(family_params, T, clip=False)
+    max_iterations = int(max_iterations)
     check_configuration = confdata is not None
+    solutions = np.full((m, 8, 6), np.nan)        # all nominal branches, where needed
+    have_solutions = np.zeros(m, bool)
     if confdata is None:
+        solutions[:] = _closed_form(family_params, T, clip=False)
+        have_solutions[:] = True
         confdata = _default_confdata(solutions, limits)
     else:
         confdata = _as_confdata(confdata, m)
-    start, status = _select(solutions, confdata, limits, np.inf)
-    missing = np.flatnonzero(status == 1)
-    if len(missing):
-        clipped = _closed_form(family_params, T[missing], clip=True)
-        start[missing], status[missing] = _select(clipped, confdata[missing], limits, np.inf)
-    start[status == 1] = np.nan
+    start = np.full((m, 6), np.nan)               # the nominal closed form's joints
+    status = np.ones(m, int)                      # of _select: 1 = no start at all
     requested = np.stack([confdata[:, 3] // 4, (confdata[:, 3] // 2) % 2, confdata[:, 3] % 2], 1)
 
-    def bits(q):
-        return _bits(family_params, q, boundary_tolerance)
+    def branches(rows):
+        need = rows[~have_solutions[rows]]
+        if len(need):
+            solutions[need] = _closed_form(family_params, T[need], clip=False)
+            have_solutions[need] = True
+        return solutions[rows]
+
+    def verdict(q, rows):
+        """Reached joints shifted to the requested turns, and 'ok', 'branch_changed' or
+        'joint_limit': the checks refine was not asked to make."""
+        q, check = _select_q(q, confdata[rows], limits, quadrant_tolerance)
+        got = _bits(family_params, q, boundary_tolerance)
+        wrong = np.any((got >= 0) & (got != requested[rows]), axis=1) & check_configuration
+        reason = np.full(len(rows), "ok", dtype="<U14")
+        reason[~wrong & (check == 2)] = "joint_limit"
+        reason[((check == 3) & check_configuration) | wrong] = "branch_changed"
+        return q, reason
+
+    def check(result, rows):
+        reached = np.flatnonzero(np.isin(result.reason, ("ok", "singular")))
+        q, reason = verdict(result.q[reached], rows[reached])
+        result.q[reached] = q
+        result.reason[reached] = np.where(reason == "ok", result.reason[reached], reason)
+        result.success = np.isin(result.reason, ("ok", "singular"))
+        return result
 
     def run(q_start, rows, first=False):
         steps = np.zeros(len(rows), int)
@@ -1125,44 +1433,112 @@ def solve(family_params: OPWParameters | URParameters,
         result = refine(fk_jacobian, q_start, T[rows], None, position_tol, rotation_tol,
                         max_iterations, singular_tol=singular_tol)
         result.iterations += steps
-        # back to the requested turns, then the checks refine was not asked to make
-        q, check = _select(np.repeat(result.q[:, None], 8, axis=1), confdata[rows], limits,
-                           quadrant_tolerance)
-        reached = np.isin(result.reason, ("ok", "singular"))
-        result.q = np.where(reached[:, None], q, result.q)
-        got = bits(result.q)
-        wrong = np.any((got >= 0) & (got != requested[rows]), axis=1) & check_configuration
-        result.reason[reached & (check == 3) & check_configuration] = "branch_changed"
-        result.reason[reached & wrong] = "branch_changed"
-        result.reason[reached & ~wrong & (check == 2)] = "joint_limit"
-        result.success = np.isin(result.reason, ("ok", "singular"))
-        return result
+        return check(result, rows)
 
-    result = run(start, np.arange(m), first=True)
-    # Within millimetres of a singularity the model has several solutions per requested
-    # configuration (its wrist is not exactly spherical, its shoulder not exactly offset as
-    # nominal); the one in the requested quadrants and limits is searched from the flipped
-    # wrist (OPW), from axis 4 placed in its quadrant (theta4 + theta6 kept), then from the
-    # nominal solutions of the neighbouring branches.
-    restarts = []
-    if isinstance(family_params, OPWParameters):
-        restarts.append(lambda rows: _flip_wrist(family_params, result.q[rows]))
-    restarts += [lambda rows, f=f: _wrist_in_quadrant(family_params, result.q[rows],
-                                                      confdata[rows, 1], f)
-                 for f in (0.5, 0.25, 0.75)]
-    for flip in (4, 2, 1, 6, 5, 3, 7):
-        restarts.append(lambda rows, flip=flip: _select(
-            solutions[rows], np.concatenate([confdata[rows, :3], (confdata[rows, 3:] ^ flip)],
-                                            1), limits, np.inf)[0])
-    for restart in restarts:
-        retry = np.flatnonzero(~result.success & (status != 1))
-        if len(retry) == 0:
-            break
-        again = run(restart(retry), retry)
-        rows = retry[again.success]
+    def store(result, rows, q, jac, err, converged, iterations, only_success=False):
+        reason = np.where(converged, "ok", "not_converged").astype("<U14")
+        done = np.flatnonzero(converged)
+        reason[done[_singular(jac[done], singular_tol)]] = "singular"
+        position, rotation = _norms(err)
+        part = check(IKSolution(q=q, success=converged, reason=reason, iterations=iterations,
+                                position_error_m=position, rotation_error_rad=rotation), rows)
+        keep = part.success if only_success else np.ones(len(rows), bool)
         for name in ("q", "success", "reason", "position_error_m", "rotation_error_rad"):
-            getattr(result, name)[rows] = getattr(again, name)[again.success]
-        result.iterations[retry] += again.iterations
+            getattr(result, name)[rows[keep]] = getattr(part, name)[keep]
+        result.iterations[rows] += iterations
+
+    result = IKSolution(q=np.full((m, 6), np.nan), success=np.zeros(m, bool),
+                        reason=np.full(m, "unreachable", dtype="<U14"),
+                        iterations=np.zeros(m, int), position_error_m=np.full(m, np.nan),
+                        rotation_error_rad=np.full(m, np.nan))
+    # 2. Newton in the closed form's coordinates, all targets with a start
+    # (in blocks: arrays of a few thousand rows stay in the processor's cache)
+    # 1. and two steps of 2. in blocks (arrays of a few thousand rows stay in the processor's
+    # cache), then the few rows that need more, together.
+    q_end, X_end = np.full((m, 6), np.nan), T.copy()
+    unfinished = np.zeros(m, bool)
+    for block in np.array_split(np.arange(m), -(-m // _BLOCK)) if m else ():
+        if have_solutions[block[0]]:
+            first = solutions[block, confdata[block, 3]]
+        else:
+            first = _one_branch(family_params, T[block], confdata[block, 3], clip=False)
+        first, found = _select_q(first, confdata[block], limits, np.inf)
+        missing = np.flatnonzero(found == 1)
+        if len(missing):
+            clipped = _one_branch(family_params, T[block[missing]], confdata[block[missing], 3],
+                                  clip=True)
+            first[missing], found[missing] = _select_q(clipped, confdata[block[missing]], limits,
+                                                       np.inf)
+        first[found == 1] = np.nan
+        start[block], status[block] = first, found
+        rows = block[found != 1]
+        if len(rows) == 0:
+            continue
+        q, jac, err, steps, converged, X = _closed_form_newton(
+            family_params, fk_jacobian, T[rows], confdata[rows, 3], start[rows],
+            position_tol, rotation_tol, min(_FIRST_STEPS, max_iterations))
+        store(result, rows, q, jac, err, converged, steps)
+        q_end[rows], X_end[rows], unfinished[rows] = q, X, ~converged
+    rows = np.flatnonzero(unfinished)
+    if len(rows) and max_iterations > _FIRST_STEPS:
+        q, jac, err, steps, converged, _ = _closed_form_newton(
+            family_params, fk_jacobian, T[rows], confdata[rows, 3], q_end[rows], position_tol,
+            rotation_tol, min(_CLOSED_FORM_STEPS, max_iterations) - _FIRST_STEPS, X_end[rows])
+        result.iterations[rows] -= 1            # the first evaluation is the last one's again
+        store(result, rows, q, jac, err, converged, steps)
+
+    def multi_start(rows, first_starts, base, steps):
+        """Newton from several starts per row at once; the first start accepted by the
+        checks wins (its results are stored). ``base``: the joints the wrist restarts
+        are derived from."""
+        starts = [] if first_starts is None else [first_starts]
+        if isinstance(family_params, OPWParameters):
+            starts.append(_flip_wrist(family_params, base))
+        starts += [_wrist_in_quadrant(family_params, base, confdata[rows, 1], f)
+                   for f in (0.5, 0.25, 0.75)]
+        # near the shoulder singularity axis 1 is as free as axes 4 and 6 near the wrist's
+        for f in (0.5, 0.25, 0.75):
+            turned = _wrist_in_quadrant(family_params, base, confdata[rows, 1], f)
+            turned[:, 0] = (confdata[rows, 0] + f) * (np.pi / 2)
+            starts.append(turned)
+        nearby = branches(rows)
+        for flip in (4, 2, 1, 6, 5, 3, 7):
+            starts.append(_select(nearby, np.concatenate(
+                [confdata[rows, :3], confdata[rows, 3:] ^ flip], 1), limits, np.inf)[0])
+        k = len(rows)
+        owner = np.tile(rows, len(starts))
+        accepted = np.zeros(len(owner), bool)
+
+        def accept(candidates, q, jac):
+            _, reason = verdict(q, owner[candidates])
+            accepted[candidates] = reason == "ok"
+            return reason == "ok"
+
+        q, jac, err, iterations, converged, _ = _newton(
+            fk_jacobian, np.concatenate(starts), T[owner], position_tol, rotation_tol, steps,
+            0.5, accept=accept, groups=np.tile(np.arange(k), len(starts)))
+        won = accepted.reshape(len(starts), k)
+        chosen = (np.argmax(won, axis=0) * k + np.arange(k))[np.any(won, axis=0)]
+        store(result, owner[chosen], q[chosen], jac[chosen], err[chosen], converged[chosen],
+              np.zeros(len(chosen), int), only_success=True)
+        result.iterations[rows] += np.max(iterations.reshape(len(starts), k), axis=0)
+
+    # 4. the failures: Newton from several starts at once
+    rows = np.flatnonzero(~result.success & (status != 1))
+    if len(rows):
+        multi_start(rows, start[rows], result.q[rows], min(_MULTI_START_STEPS, max_iterations))
+
+    # 5. still failed: the closed-form fixed point and refine, then the restarts of 4 from
+    # its result with the full iteration budget
+    rows = np.flatnonzero(~result.success & (status != 1))
+    if len(rows):
+        again = run(start[rows], rows, first=True)
+        for name in ("q", "success", "reason", "position_error_m", "rotation_error_rad"):
+            getattr(result, name)[rows] = getattr(again, name)
+        result.iterations[rows] += again.iterations
+        rows = rows[~again.success]
+        if len(rows):
+            multi_start(rows, None, result.q[rows], max_iterations)
     result.reason[status == 1] = "unreachable"
     result.success[status == 1] = False
     return result
