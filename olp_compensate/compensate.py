@@ -17,14 +17,14 @@ All poses are 4x4 in metres; joints are controller axes in rad (m for prismatic 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
 from .calibration import Calibration
 from .conventions import invert_pose, rotation_angle_between
 from .errors import DataError, ModelError
-from .ik import IKSolution, OPWParameters, URParameters, branch_of, closed_form_inverse, fit_family, solve
+from .ik import (IKSolution, OPWParameters, URParameters, branch_of, closed_form_branch,
+                 closed_form_inverse, fit_family, select_branch, solve)
 from .model import forward
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
@@ -128,23 +128,26 @@ class Compensator:
     def solve_nominal(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> np.ndarray:
         """Joints (m, n) (URDF axes) the nominal controller takes for ``base_T_flange``:
         the closed form on the requested branch (NaN where unreachable)."""
-        from .ik import select_branch
-
-        solutions = closed_form_inverse(self.family, base_T_flange)
-        if confdata is None:
-            # each branch turned by 2 pi towards zero, then the one inside the limits
-            # nearest zero
-            turned = solutions - 2 * np.pi * np.round(solutions / (2 * np.pi))
-            lower, upper = self.limits[:, 0], self.limits[:, 1]
-            turned = np.where(turned < lower, turned + 2 * np.pi, turned)
-            turned = np.where(turned > upper, turned - 2 * np.pi, turned)
-            inside = np.all((turned >= lower) & (turned <= upper), axis=2)
-            norm = np.where(inside, np.sum(turned ** 2, axis=2), np.inf)
-            pick = np.argmin(norm, axis=1)
-            q = turned[np.arange(len(turned)), pick]
-            q[~np.isfinite(norm[np.arange(len(norm)), pick])] = np.nan
+        if confdata is not None:
+            confdata = np.asarray(confdata, dtype=int).reshape(-1, 4)
+            m = len(confdata)
+            solutions = np.full((m, 8, 6), np.nan)
+            solutions[np.arange(m), confdata[:, 3]] = closed_form_branch(
+                self.family, base_T_flange, confdata[:, 3])
+            q, _ = select_branch(solutions, confdata, self.limits)
             return q
-        q, found = select_branch(solutions, confdata, self.limits)
+        solutions = closed_form_inverse(self.family, base_T_flange)
+        # each branch turned by 2 pi towards zero, then the one inside the limits
+        # nearest zero
+        turned = solutions - 2 * np.pi * np.round(solutions / (2 * np.pi))
+        lower, upper = self.limits[:, 0], self.limits[:, 1]
+        turned = np.where(turned < lower, turned + 2 * np.pi, turned)
+        turned = np.where(turned > upper, turned - 2 * np.pi, turned)
+        inside = np.all((turned >= lower) & (turned <= upper), axis=2)
+        norm = np.where(inside, np.sum(turned ** 2, axis=2), np.inf)
+        pick = np.argmin(norm, axis=1)
+        q = turned[np.arange(len(turned)), pick]
+        q[~np.isfinite(norm[np.arange(len(norm)), pick])] = np.nan
         return q
 
     def confdata(self, q_urdf: np.ndarray) -> np.ndarray:
@@ -172,10 +175,6 @@ class Compensator:
         if requested_flange is not None:
             nominal = self.solve_nominal(requested_flange, confdata)
         return q, flange, solution, nominal
-
-    @cached_property
-    def identity(self) -> np.ndarray:
-        return np.eye(4)
 
 
 def _stack(pose, m: int, name: str) -> np.ndarray:

@@ -39,7 +39,7 @@ from .errors import DataError, ModelError
 __all__ = [
     "OPWParameters", "URParameters", "IKSolution", "REASONS",
     "opw_forward", "opw_inverse", "ur_forward", "ur_inverse",
-    "closed_form_forward", "closed_form_inverse", "configuration_bits", "branch_of",
+    "closed_form_forward", "closed_form_inverse", "closed_form_branch", "configuration_bits", "branch_of",
     "select_branch", "fit_family", "refine", "solve",
 ]
 
@@ -332,6 +332,16 @@ def _one_branch(params, base_T_flange, branch, clip):
     solve_branch = _opw_branch if isinstance(params, OPWParameters) else _ur_branch
     theta = solve_branch(params, params._to_root(base_T_flange), branch, clip)
     return _wrap(params.joint_angles(theta))
+
+
+def closed_form_branch(params: OPWParameters | URParameters, base_T_flange, branch) -> np.ndarray:
+    """The solution ``(m, 6)`` rad on ``branch (m,)`` (= ABB cfx) for flange poses
+    ``(m, 4, 4)``, NaN where that branch cannot reach: one eighth of
+    :func:`closed_form_inverse`'s work."""
+    _check_family(params)
+    T = _as_poses(base_T_flange, "base_T_flange")
+    return _one_branch(params, T, np.broadcast_to(np.asarray(branch, dtype=int), (len(T),)),
+                       clip=False)
 
 
 def opw_inverse(params: OPWParameters, base_T_flange) -> np.ndarray:

@@ -34,6 +34,7 @@ from .conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rota
 from .errors import DataError
 from .ik import OPWParameters
 from .programs import Program, loads, resolve
+from .programs.grammar import no_gc
 from .programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
                             target_edits)
 from .programs.targets import JointTarget
@@ -139,10 +140,9 @@ class _Job:
     controller for, and how to turn a flange back into the written target."""
 
     entries: list = field(default_factory=list)       # ResolvedTarget
-    desired: list = field(default_factory=list)       # (4, 4) real flange
-    requested: list = field(default_factory=list)     # (4, 4) nominal flange
     confdata: list = field(default_factory=list)      # (4,) or None
     real_tool_note: list = field(default_factory=list)
+    base: dict = field(default_factory=dict)          # ResolvedTarget -> report fields
 
 
 def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
@@ -192,6 +192,11 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
     :class:`CompensationReport`. Raises :class:`~olp_compensate.errors.ParseError` for a
     malformed program and DataError for bad arguments.
     """
+    with no_gc():   # hundreds of thousands of small records: no collector passes
+        return _compensate_program(program, dialect, calibration, emit, file, unused)
+
+
+def _compensate_program(program, dialect, calibration, emit, file, unused):
     if emit not in EMIT_MODES:
         raise DataError(f"emit: expected one of {', '.join(EMIT_MODES)}, got {emit!r}")
     if unused not in ("skip", "tool0"):
@@ -226,24 +231,33 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
         if rt.base_T_flange is None:
             rows[k] = TargetReport(**base, status="unresolved", note="; ".join(rt.notes))
             continue
-        if rt.stationary_tool:
-            desired, note = rt.base_T_flange, "stationary tool"
-        else:
-            real_tool, note = _real_tool(cal, rt.tool_name, rt.flange_T_tool)
-            desired = rt.base_T_wobj @ rt.wobj_T_target @ invert_pose(real_tool)
         index_of[k] = len(job.entries)
         job.entries.append(rt)
-        job.desired.append(desired)
-        job.requested.append(rt.base_T_flange)
         job.confdata.append(config if config else None)
-        job.real_tool_note.append(note)
+        job.base[rt] = base
 
     n = len(job.entries)
     if n:
         with_conf = [i for i, c in enumerate(job.confdata) if c is not None]
         without = [i for i, c in enumerate(job.confdata) if c is None]
-        desired = np.array(job.desired)
-        requested = np.array(job.requested)
+        requested = np.array([rt.base_T_flange for rt in job.entries])
+        desired = requested.copy()
+        # the real TCP: a calibrated tool of the tooldata's name (one pose per tool name)
+        real_tools: dict = {}
+        for i, rt in enumerate(job.entries):
+            if rt.stationary_tool:
+                job.real_tool_note.append("stationary tool")
+                continue
+            key = (rt.tool_name, id(rt.flange_T_tool))
+            if key not in real_tools:
+                real_tools[key] = (_real_tool(cal, rt.tool_name, rt.flange_T_tool), [])
+            (tool, note), members = real_tools[key]
+            members.append(i)
+            job.real_tool_note.append(note)
+        for ((tool, note), members) in real_tools.values():
+            if note:  # a calibrated tool differs from the program's: re-aim the flange
+                tcp = requested[members] @ job.entries[members[0]].flange_T_tool
+                desired[members] = tcp @ invert_pose(tool)
         q = np.full((n, robot.n_joints), np.nan)
         flange = np.full((n, 4, 4), np.nan)
         nominal = np.full((n, robot.n_joints), np.nan)
@@ -323,10 +337,7 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
     for k, i in index_of.items():
         rt = job.entries[i]
         t = rt.target
-        where = t.location
-        base = dict(target=t.display_name, file=where.file, line=where.line,
-                    column=where.column, tool=rt.tool_name, wobj=rt.wobj_name,
-                    config_before=_config_text(job.confdata[i] or ()))
+        base = job.base[rt]
         notes = [x for x in rt.notes if x != "unused"] + [job.real_tool_note[i]]
         if "unused" in rt.notes:
             notes.append("not moved to in this file: tool0/wobj0 assumed")
@@ -420,7 +431,7 @@ def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus, wa
     edits += edits_for_targets(program, positions, orientation, None, targets)
     if not vplus:
         for t, i in zip(targets, rows):
-            if tuple(conf[i]) != t.config_values():
+            if tuple(conf[i]) != tuple(job.confdata[i]):
                 edits += target_edits(t, config=conf[i])
     edits.sort(key=lambda e: e.start)
     return edits
