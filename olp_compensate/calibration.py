@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
+                      geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
+                      length_scale, needs_torque)
 from .errors import DataError
 from .model import KinematicModel, build_model, forward
 from .robot import Robot
@@ -40,7 +44,8 @@ class Calibration:
 
     ``values`` and ``std`` are (P,) in SI (std is NaN for frozen parameters, whose reasons
     are in ``frozen``); ``device_T_base`` places the robot base in the measuring device's
-    frame (4, 4), m; ``tools`` maps point names to :class:`ToolPoint`.
+    frame (4, 4), m; ``tools`` maps point names to :class:`ToolPoint`; ``effects`` are the
+    fitted non-geometric terms (:mod:`olp_compensate.effects`).
     """
 
     robot: Robot
@@ -50,23 +55,67 @@ class Calibration:
     device_T_base: np.ndarray = field(default_factory=lambda: np.eye(4))
     frozen: dict[str, str] = field(default_factory=dict)
     tools: dict[str, ToolPoint] = field(default_factory=dict)
-    effects: tuple = ()
+    effects: tuple[Effect, ...] = ()
     validation: Validation | None = None
 
-    def actual_joints(self, q_urdf: np.ndarray, jacobian: bool = False):
+    def actual_joints(self, q_urdf: np.ndarray, jacobian: bool = False,
+                      conditions: Conditions | None = None):
         """The joint values (m, n) the arm really takes when commanded ``q_urdf`` (m, n),
         URDF axes, rad/m, after the joint-space effects in ``effects``; with ``jacobian``
         also d(actual)/d(commanded) (m, n, n), or None when there are no such effects.
 
         This is the single hook through which non-geometric joint effects (compliance,
-        gear error, backlash, scale) reach prediction and compensation."""
+        gear error, backlash, scale) reach prediction and compensation. The effects act on
+        the controller axes (:mod:`olp_compensate.effects`); ``conditions`` default to no
+        payload and gravity-closed backlash (what is known when compensating a program)."""
         q_urdf = np.asarray(q_urdf, dtype=float)
-        return (q_urdf, None) if jacobian else q_urdf
+        effects = joint_effects(self.effects)
+        if not effects:
+            return (q_urdf, None) if jacobian else q_urdf
+        q = np.atleast_2d(q_urdf)
+        derivatives = jacobian and any(isinstance(e, JointCompliance) for e in effects)
+        inputs = effect_inputs(self.robot, self.robot.controller_from_joints(q), conditions,
+                               torque=needs_torque(effects), derivatives=derivatives)
+        coupling = self.robot.urdf_from_controller
+        dq = joint_deflection(effects, inputs)
+        actual = q + (dq if coupling is None else dq @ coupling.T)
+        actual = actual.reshape(q_urdf.shape)
+        if not jacobian:
+            return actual
+        d = joint_deflection_dq(effects, inputs)
+        if coupling is not None:
+            d = coupling @ d @ np.linalg.inv(coupling)
+        jac = d + np.eye(q.shape[1])
+        return actual, (jac if q_urdf.ndim == 2 else jac[0])
 
-    def flange_poses(self, q: np.ndarray) -> np.ndarray:
-        """Flange poses (m, 4, 4) in the base frame for controller axis values (m, n), rad/m."""
-        q_actual = self.actual_joints(self.robot.joints_from_controller(q))
-        return forward(self.model, self.values, q_actual).flange
+    def length_scale(self, m: int, conditions: Conditions | None = None) -> np.ndarray:
+        """Factor (m,) on the arm's link translations (thermal expansion; 1 at the reference
+        temperature or without the effect)."""
+        effects = geometry_effects(self.effects)
+        if not effects or conditions is None or conditions.temperature_c is None:
+            return np.ones(m)
+        temperature = np.broadcast_to(np.asarray(conditions.temperature_c, float), (m,))
+        return length_scale(effects, EffectInputs(q=np.zeros((m, self.robot.n_joints)),
+                                                  temperature_c=temperature))
+
+    def _conditions_for(self, names, conditions: Conditions | None) -> Conditions | None:
+        """Put an unplaced payload at the tool point 'tcp' (else the row's own point)."""
+        if conditions is None or conditions.payload_kg is None:
+            return conditions
+        if conditions.payload_point_m is not None or names is None or not self.tools:
+            return conditions
+        names = list(names)
+        where = ["tcp"] * len(names) if "tcp" in self.tools else names
+        return dataclasses.replace(conditions, payload_point_m=self.tool_points(where))
+
+    def flange_poses(self, q: np.ndarray, conditions: Conditions | None = None) -> np.ndarray:
+        """Flange poses (m, 4, 4) in the base frame for controller axis values (m, n), rad/m;
+        ``conditions`` (payload, temperature...) default to none (see :meth:`actual_joints`)."""
+        q_actual = self.actual_joints(self.robot.joints_from_controller(q), conditions=conditions)
+        flange = forward(self.model, self.values, q_actual).flange
+        if geometry_effects(self.effects):
+            flange[:, :3, 3] *= self.length_scale(len(flange), conditions)[:, None]
+        return flange
 
     def tool_points(self, names) -> np.ndarray:
         """Tool points (m, 3) in the flange frame for an array of point names."""
@@ -76,11 +125,14 @@ class Calibration:
             raise DataError(f"no calibrated tool point named {', '.join(missing)} (known: {known})")
         return np.array([self.tools[name].xyz_m for name in names]).reshape(-1, 3)
 
-    def predict_points(self, q: np.ndarray, names) -> np.ndarray:
+    def predict_points(self, q: np.ndarray, names, conditions: Conditions | None = None) -> np.ndarray:
         """Positions (m, 3) of the named tool points in the device frame, metres, for
-        controller axis values (m, n)."""
-        q_actual = self.actual_joints(self.robot.joints_from_controller(q))
-        base = forward(self.model, self.values, q_actual, self.tool_points(names)).points
+        controller axis values (m, n); ``conditions`` as in :meth:`flange_poses` (a payload
+        without a point sits at the tool point 'tcp')."""
+        conditions = self._conditions_for(names, conditions)
+        flange = self.flange_poses(q, conditions)
+        local = self.tool_points(names)
+        base = flange[:, :3, 3] + np.einsum("mij,mj->mi", flange[:, :3, :3], local)
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
 
 

@@ -4,21 +4,70 @@ A virtual robot is the nominal URDF with a random rigid error on every joint ori
 1 mm and 0.1 degree per link), a zero offset on every joint, a measuring device placed
 anywhere, and measured points on the tool. Its truth is evaluated with pinocchio on the
 perturbed URDF model, a code path independent of :mod:`olp_compensate.model`.
+
+It may also hide non-geometric effects (:class:`HiddenEffect`), evaluated here on their own
+terms and independently of :mod:`olp_compensate.effects`: gravity torques come from
+``pinocchio.computeGeneralizedGravity`` on the *true* (perturbed) model at the *true*
+joints, with the payload added through the flange frame's Jacobian; compliance is solved as
+a fixed point (the arm sags until the spring balances gravity); thermal expansion scales
+every joint placement of the pinocchio model. Joint effects act on the controller axes.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rotation_from_rotvec
-from .errors import ModelError
+from .errors import DataError, ModelError
 from .io.measurements import Measurements
 from .robot import Robot
 
 TRUTH_FORMAT = "olp-compensate virtual robot"
+HIDDEN_KINDS = ("joint_compliance", "gear_harmonic", "backlash", "thermal_expansion", "joint_scale")
+HIDDEN_UNITS = {"joint_compliance": "rad/N.m", "gear_harmonic": "rad", "backlash": "rad",
+                "thermal_expansion": "1/K", "joint_scale": "rad/rad"}
+
+
+@dataclass(frozen=True)
+class HiddenEffect:
+    """A non-geometric effect of a virtual robot (truth; SI units).
+
+    ``kind`` one of :data:`HIDDEN_KINDS`; ``joint`` 0-based controller axis (None for
+    thermal expansion); ``value``: compliance c (rad/N.m, dq = c * load torque), harmonic
+    amplitude A (rad, dq = A sin(k q + phase)), backlash gap w (rad, dq = w/2 * sign of the
+    load torque, or -w/2 * approach direction), expansion coefficient alpha (1/K, lengths
+    times 1 + alpha (T - T0)), or scale s (dq = s q).
+    """
+
+    kind: str
+    joint: int | None
+    value: float
+    order: int = 1
+    phase_rad: float = 0.0
+    reference_temperature_c: float = 20.0
+
+    @property
+    def label(self) -> str:
+        if self.joint is None:
+            return self.kind
+        order = f" k={self.order}" if self.kind == "gear_harmonic" else ""
+        return f"{self.kind}{order} j{self.joint + 1}"
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "joint": None if self.joint is None else self.joint + 1,
+                "value": self.value, "unit": HIDDEN_UNITS[self.kind], "order": self.order,
+                "phase_rad": self.phase_rad,
+                "reference_temperature_c": self.reference_temperature_c}
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> "HiddenEffect":
+        return cls(kind=doc["kind"], joint=None if doc["joint"] is None else int(doc["joint"]) - 1,
+                   value=float(doc["value"]), order=int(doc.get("order", 1)),
+                   phase_rad=float(doc.get("phase_rad", 0.0)),
+                   reference_temperature_c=float(doc.get("reference_temperature_c", 20.0)))
 
 
 @dataclass(frozen=True)
@@ -27,7 +76,9 @@ class VirtualRobot:
 
     ``origin_errors``: (n, 6) per joint, translation (m) then rotation vector (rad), applied
     on the right of each joint origin; ``joint_offsets``: (n,) rad or m, true joint =
-    reading + offset; ``device_T_base``: (4, 4); ``tools``: name -> (3,) flange frame, m.
+    reading + offset; ``device_T_base``: (4, 4); ``tools``: name -> (3,) flange frame, m;
+    ``effects``: hidden non-geometric effects. A payload sits at the tool point 'tcp' (else
+    the first tool point).
     """
 
     robot: Robot
@@ -37,6 +88,7 @@ class VirtualRobot:
     tools: dict[str, np.ndarray]
     seed: int | None = None
     notes: dict = field(default_factory=dict)
+    effects: tuple[HiddenEffect, ...] = ()
 
     def _pinocchio(self):
         import pinocchio as pin
@@ -47,48 +99,131 @@ class VirtualRobot:
                 rotation_from_rotvec(err[3:]), err[:3].copy())
         return pin, model
 
-    def flange_poses(self, joints: np.ndarray) -> np.ndarray:
-        """True flange poses (m, 4, 4), base frame, for controller readings (m, n), rad/m."""
+    @staticmethod
+    def _configuration(pin, model, ids, urdf_joints):
+        qp = pin.neutral(model)
+        for jid, value in zip(ids, urdf_joints):
+            j = model.joints[jid]
+            if j.nq == 2:  # continuous joint: (cos, sin)
+                qp[j.idx_q:j.idx_q + 2] = np.cos(value), np.sin(value)
+            else:
+                qp[j.idx_q] = value
+        return qp
+
+    def _payload_point(self) -> np.ndarray:
+        if not self.tools:
+            return np.zeros(3)
+        return np.asarray(self.tools["tcp"] if "tcp" in self.tools else self.tools[sorted(self.tools)[0]])
+
+    def flange_poses(self, joints: np.ndarray, payload_kg=None, temperature_c=None,
+                     directions=None) -> np.ndarray:
+        """True flange poses (m, 4, 4), base frame, for controller readings (m, n), rad/m;
+        optional per-row ``payload_kg`` (m,), ``temperature_c`` (m,), approach
+        ``directions`` (m, n) (+1/-1/0) feed the hidden effects."""
         pin, model = self._pinocchio()
         data = model.createData()
         frame = model.getFrameId(self.robot.flange_link)
         ids = self.robot.pinocchio_joint_ids()
-        out = np.empty((len(joints), 4, 4))
-        urdf_joints = self.robot.joints_from_controller(np.atleast_2d(joints)) + self.joint_offsets
-        for k, reading in enumerate(urdf_joints):
-            qp = pin.neutral(model)
-            for jid, value in zip(ids, reading):
-                j = model.joints[jid]
-                if j.nq == 2:  # continuous joint: (cos, sin)
-                    qp[j.idx_q:j.idx_q + 2] = np.cos(value), np.sin(value)
-                else:
-                    qp[j.idx_q] = value
+        idx_v = [model.joints[i].idx_v for i in ids]
+        joints = np.atleast_2d(np.asarray(joints, dtype=float))
+        m = len(joints)
+        coupling = (np.eye(self.robot.n_joints) if self.robot.urdf_from_controller is None
+                    else self.robot.urdf_from_controller)
+        placements = [model.jointPlacements[k].copy() for k in range(model.njoints)]
+        frame_placement = model.frames[frame].placement.copy()
+        thermal = [e for e in self.effects if e.kind == "thermal_expansion"]
+        joint_effects = [e for e in self.effects if e.kind != "thermal_expansion"]
+        uses_gravity = any(e.kind in ("joint_compliance", "backlash") for e in joint_effects)
+        payload_point = self._payload_point()
+        gravity = model.gravity.linear.copy()
+        out = np.empty((m, 4, 4))
+        for k in range(m):
+            scale = 1.0
+            if thermal:
+                if temperature_c is None:
+                    raise DataError("the virtual robot expands with temperature: give temperatures")
+                scale += sum(e.value * (temperature_c[k] - e.reference_temperature_c) for e in thermal)
+                for jid in range(1, model.njoints):
+                    model.jointPlacements[jid] = pin.SE3(placements[jid].rotation,
+                                                         scale * placements[jid].translation)
+                model.frames[frame].placement = pin.SE3(frame_placement.rotation,
+                                                        scale * frame_placement.translation)
+            reading = joints[k]
+            actual = reading.copy()
+            for _ in range(4 if uses_gravity else 1):  # compliance: fixed point of the sag
+                urdf = coupling @ actual + self.joint_offsets
+                qp = self._configuration(pin, model, ids, urdf)
+                load = np.zeros(self.robot.n_joints)
+                if uses_gravity:
+                    load_urdf = -pin.computeGeneralizedGravity(model, data, qp)[idx_v]
+                    mass = 0.0 if payload_kg is None else float(payload_kg[k])
+                    if mass:
+                        jac = pin.computeFrameJacobian(model, data, qp, frame,
+                                                       pin.LOCAL_WORLD_ALIGNED)
+                        lever = data.oMf[frame].rotation @ payload_point
+                        point_jac = jac[:3] - np.cross(lever[:, None], jac[3:], axis=0)
+                        load_urdf = load_urdf + (point_jac.T @ (mass * gravity))[idx_v]
+                    load = coupling.T @ load_urdf  # virtual work: controller-axis torques
+                dq = np.zeros(self.robot.n_joints)
+                for e in joint_effects:
+                    j = e.joint
+                    if e.kind == "joint_compliance":
+                        dq[j] += e.value * load[j]
+                    elif e.kind == "gear_harmonic":
+                        dq[j] += e.value * np.sin(e.order * reading[j] + e.phase_rad)
+                    elif e.kind == "joint_scale":
+                        dq[j] += e.value * reading[j]
+                    elif e.kind == "backlash":
+                        d = 0.0 if directions is None else directions[k][j]
+                        if d != 0:
+                            side = -np.sign(d)
+                        else:
+                            side = np.sign(load[j]) if abs(load[j]) > 1e-6 else 0.0
+                        dq[j] += 0.5 * e.value * side
+                actual = reading + dq
+            urdf = coupling @ actual + self.joint_offsets
+            qp = self._configuration(pin, model, ids, urdf)
             pin.framesForwardKinematics(model, data, qp)
             out[k] = data.oMf[frame].homogeneous
         return out
 
-    def true_points(self, joints: np.ndarray, names) -> np.ndarray:
+    def true_points(self, joints: np.ndarray, names, payload_kg=None, temperature_c=None,
+                    directions=None) -> np.ndarray:
         """Noise-free positions (m, 3) of the named tool points in the device frame, m."""
-        flange = self.flange_poses(joints)
+        flange = self.flange_poses(joints, payload_kg, temperature_c, directions)
         local = np.array([self.tools[n] for n in names]).reshape(-1, 3)
         base = flange[:, :3, 3] + np.einsum("mij,mj->mi", flange[:, :3, :3], local)
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
 
     def measure(self, joints: np.ndarray, noise_m: float, rng: np.random.Generator,
-                points_per_pose: list[str] | None = None) -> Measurements:
+                points_per_pose: list[str] | None = None, payload_kg=None, temperature_c=None,
+                time_s=None, directions=None, pose_ids=None) -> Measurements:
         """Measure every tool point (or the given names) at each joint vector, with Gaussian
-        noise of ``noise_m`` per axis."""
+        noise of ``noise_m`` per axis. Per pose (P,): ``payload_kg``, ``temperature_c``,
+        ``time_s``; ``directions`` (P, n) approach directions, +1/-1 (0: unknown);
+        ``pose_ids`` (default '1', '2', ...; repeat one to measure a pose again)."""
         names = points_per_pose or sorted(self.tools)
         joints = np.atleast_2d(joints)
-        q = np.repeat(joints, len(names), axis=0)
+        per = len(names)
+
+        def rows(a):
+            return None if a is None else np.repeat(np.asarray(a, dtype=float), per, axis=0)
+
+        q = np.repeat(joints, per, axis=0)
         point_names = np.array(names * len(joints), dtype=object)
-        pose_ids = np.array([str(k + 1) for k in range(len(joints)) for _ in names], dtype=object)
-        points = self.true_points(q, point_names) + rng.normal(0.0, noise_m, (len(q), 3))
+        ids = [str(k + 1) for k in range(len(joints))] if pose_ids is None else list(pose_ids)
+        pose_ids = np.array([ids[k] for k in range(len(joints)) for _ in names], dtype=object)
+        payload, temperature, when, direction = (rows(payload_kg), rows(temperature_c),
+                                                 rows(time_s), rows(directions))
+        points = (self.true_points(q, point_names, payload, temperature, direction)
+                  + rng.normal(0.0, noise_m, (len(q), 3)))
         return Measurements(joints=q, points=points, pose_ids=pose_ids, point_names=point_names,
-                            rows=np.arange(len(q)) + 1, source="<virtual robot>")
+                            payload_kg=payload, temperature_c=temperature, time_s=when,
+                            directions=direction, rows=np.arange(len(q)) + 1,
+                            source="<virtual robot>")
 
     def to_json(self) -> str:
-        """The truth file (mm and degrees)."""
+        """The truth file (mm and degrees; hidden effects in SI with their units)."""
         doc = {
             "format": TRUTH_FORMAT, "version": 1, "robot": self.robot.name,
             "fingerprint": self.robot.fingerprint, "seed": self.seed,
@@ -100,6 +235,7 @@ class VirtualRobot:
             "device_T_base": {"xyz_mm": (self.device_T_base[:3, 3] * 1e3).tolist(),
                               "quat_wxyz": quat_wxyz_from_matrix(self.device_T_base[:3, :3]).tolist()},
             "tools": {n: {"xyz_mm": (v * 1e3).tolist()} for n, v in self.tools.items()},
+            "hidden_effects": [e.to_dict() for e in self.effects],
             **self.notes,
         }
         return json.dumps(doc, indent=2) + "\n"
@@ -121,7 +257,8 @@ class VirtualRobot:
                    joint_offsets=robot.to_radians_or_metres(np.array(doc["joint_offsets"])[None])[0],
                    device_T_base=pose,
                    tools={n: np.array(t["xyz_mm"]) * 1e-3 for n, t in doc["tools"].items()},
-                   seed=doc.get("seed"))
+                   seed=doc.get("seed"),
+                   effects=tuple(HiddenEffect.from_dict(e) for e in doc.get("hidden_effects", [])))
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -165,3 +302,88 @@ def random_joints(robot: Robot, n: int, rng: np.random.Generator, margin: float 
     span = upper - lower
     urdf_joints = rng.uniform(lower + margin * span / 2, upper - margin * span / 2, (n, robot.n_joints))
     return robot.controller_from_joints(urdf_joints)
+
+
+UNIT_VALUES = {"joint_compliance": 1e-6, "gear_harmonic": 1e-4, "backlash": 1e-4,
+               "thermal_expansion": 1e-5, "joint_scale": 1e-4}
+"""A small value of each hidden kind, the starting point for scaling to a wanted size."""
+
+
+def load_torque_rms(robot: Robot, joints: np.ndarray) -> np.ndarray:
+    """RMS over the poses (m, n) of the gravity load torque about each controller axis
+    (n,), N.m, on the nominal robot without payload (pinocchio)."""
+    virtual = VirtualRobot(robot=robot, origin_errors=np.zeros((robot.n_joints, 6)),
+                           joint_offsets=np.zeros(robot.n_joints), device_T_base=np.eye(4),
+                           tools={})
+    import pinocchio as pin
+
+    model = robot.pinocchio_model
+    data = model.createData()
+    ids = robot.pinocchio_joint_ids()
+    idx_v = [model.joints[i].idx_v for i in ids]
+    coupling = np.eye(robot.n_joints) if robot.urdf_from_controller is None else robot.urdf_from_controller
+    torques = []
+    for reading in np.atleast_2d(joints):
+        qp = virtual._configuration(pin, model, ids, coupling @ reading)
+        tau = -pin.computeGeneralizedGravity(model, data, qp)[idx_v]
+        torques.append(coupling.T @ tau)
+    return np.sqrt(np.mean(np.square(torques), axis=0))
+
+
+def effect_rms(virtual: VirtualRobot, effect: HiddenEffect, joints: np.ndarray,
+               payload_kg=None, temperature_c=None, directions=None) -> float:
+    """RMS over the poses (m, n) of how far ``effect`` alone moves the measured points
+    (every tool point), m: the size the hidden-effect tests are stated in."""
+    names = sorted(virtual.tools)
+    q = np.repeat(np.atleast_2d(joints), len(names), axis=0)
+    point_names = names * len(np.atleast_2d(joints))
+
+    def rows(a):
+        return None if a is None else np.repeat(np.asarray(a, float), len(names), axis=0)
+
+    others = tuple(e for e in virtual.effects if e != effect)
+    base = replace(virtual, effects=others).true_points(q, point_names, rows(payload_kg),
+                                                        rows(temperature_c), rows(directions))
+    moved = replace(virtual, effects=others + (effect,)).true_points(
+        q, point_names, rows(payload_kg), rows(temperature_c), rows(directions))
+    return float(np.sqrt(np.mean(np.sum((moved - base) ** 2, axis=1))))
+
+
+def scaled_effect(virtual: VirtualRobot, effect: HiddenEffect, joints: np.ndarray,
+                  target_rms_m: float, **conditions) -> HiddenEffect:
+    """``effect`` with its value scaled so that it moves the measured points by
+    ``target_rms_m`` RMS over ``joints`` (see :func:`effect_rms`); keeps the sign."""
+    value = effect.value if effect.value != 0 else UNIT_VALUES[effect.kind]
+    for _ in range(2):  # compliance is slightly nonlinear (the sag changes the torque)
+        trial = replace(effect, value=value)
+        size = effect_rms(virtual, trial, joints, **conditions)
+        if size == 0:
+            raise DataError(f"{effect.label} does not move the measured points at these poses")
+        value *= target_rms_m / size
+    return replace(effect, value=value)
+
+
+def random_hidden_effect(robot: Robot, rng: np.random.Generator, joints: np.ndarray,
+                         kind: str | None = None, joint: int | None = None,
+                         kinds=HIDDEN_KINDS) -> HiddenEffect:
+    """A hidden effect drawn from ``rng`` (value = the kind's unit value; scale it with
+    :func:`scaled_effect`). Compliance and backlash go on axes whose RMS gravity torque over
+    ``joints`` is at least 5 % of the largest; harmonics (order 1-3, random phase) and
+    scale on any revolute axis; thermal expansion only when in ``kinds``."""
+    kind = kind or str(rng.choice(list(kinds)))
+    if kind not in HIDDEN_KINDS:
+        raise DataError(f"unknown effect kind '{kind}' (known: {', '.join(HIDDEN_KINDS)})")
+    if kind == "thermal_expansion":
+        return HiddenEffect(kind, None, UNIT_VALUES[kind] * rng.uniform(1.0, 2.5))
+    revolute = [j for j, spec in enumerate(robot.joints) if spec.kind == "revolute"]
+    if kind in ("joint_compliance", "backlash"):
+        rms = load_torque_rms(robot, joints)
+        allowed = [j for j in revolute if rms[j] >= 0.05 * rms.max()]
+    else:
+        allowed = revolute
+    if joint is None:
+        joint = int(rng.choice(allowed))
+    sign = 1.0 if kind in ("joint_compliance", "backlash") else float(rng.choice([-1.0, 1.0]))
+    return HiddenEffect(kind, joint, sign * UNIT_VALUES[kind],
+                        order=int(rng.integers(1, 4)) if kind == "gear_harmonic" else 1,
+                        phase_rad=float(rng.uniform(-np.pi, np.pi)) if kind == "gear_harmonic" else 0.0)

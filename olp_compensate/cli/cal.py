@@ -10,11 +10,13 @@ import argparse
 from .. import __version__
 from . import cal_export_urdf, cal_identify, cal_nominal, cal_predict, cal_simulate
 from . import cal_merge, cal_record, cal_tool
+from . import cal_diagnose
 from .common import run_guarded
 
 COMMANDS = {
     "simulate": cal_simulate,
     "identify": cal_identify,
+    "diagnose": cal_diagnose,
     "predict": cal_predict,
     "nominal": cal_nominal,
     "export-urdf": cal_export_urdf,

@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.measurements import write_measurements
 from ..robot import load_robot
-from ..simulate import make_virtual_robot, random_joints
+from ..simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
+                        random_joints, scaled_effect)
 
 HELP = "write measurements of a virtual robot (random geometric errors) and its truth file"
+DEFAULT_EFFECT_SIZE = 5.0
+"""An --effect without VALUE moves the measured points by this many times the noise (RMS)."""
 
 
 def add_arguments(p) -> None:
@@ -21,27 +27,142 @@ def add_arguments(p) -> None:
     p.add_argument("--length-error-mm", type=float, default=1.0, help="link error size, mm")
     p.add_argument("--angle-error-deg", type=float, default=0.1, help="axis/zero error size, deg")
     p.add_argument("--device-distance-m", type=float, default=2.0, help="device distance, m")
+    p.add_argument("--effect", action="append", default=[], metavar="KIND[:JOINT[:VALUE[:ORDER]]]",
+                   help="hide a non-geometric effect (repeatable): KIND one of "
+                        f"{', '.join(HIDDEN_KINDS)}; JOINT 1-based (empty: random; none for "
+                        "thermal_expansion); VALUE in SI (c rad/N.m, harmonic amplitude rad, "
+                        "backlash gap rad, alpha 1/K, scale rad/rad; empty: sized to move the "
+                        f"measured point by {DEFAULT_EFFECT_SIZE:g}x the noise RMS); ORDER 1-3 "
+                        "for gear_harmonic (default random)")
+    p.add_argument("--payloads", metavar="KG[,KG...]",
+                   help="payload per pose, drawn from the list (column payload_kg)")
+    p.add_argument("--temperatures", metavar="C[,C...]|LO:HI",
+                   help="temperature per pose, drawn from the list, or a ramp LO:HI over the "
+                        "session (columns temperature_c and time_s, one pose a minute)")
+    p.add_argument("--repeats", type=int, default=0,
+                   help="measure the first K poses once more (same pose id: a noise floor)")
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
-    p.add_argument("--truth", help="truth JSON to write (true errors, device pose, tools)")
+    p.add_argument("--truth", help="truth JSON to write (true errors, device pose, tools, effects)")
+
+
+def _numbers(text: str, option: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise DataError(f"{option}: expected comma-separated numbers, got '{text}'") from None
+    if not values or not all(np.isfinite(values)):
+        raise DataError(f"{option}: expected comma-separated numbers, got '{text}'")
+    return values
+
+
+def per_pose_temperatures(text: str, poses: int, rng: np.random.Generator) -> np.ndarray:
+    """Temperatures (poses,), deg C, from ``C,C,...`` (random choice) or ``LO:HI`` (ramp)."""
+    if ":" in text:
+        ends = _numbers(text.replace(":", ","), "--temperatures")
+        if text.count(":") != 1 or len(ends) != 2:
+            raise DataError(f"--temperatures: expected LO:HI, got '{text}'")
+        return np.linspace(ends[0], ends[1], poses)
+    return rng.choice(_numbers(text, "--temperatures"), poses)
+
+
+def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | None, int | None]:
+    """(kind, joint 0-based or None, value or None, order or None) of an --effect spec."""
+    parts = spec.split(":")
+    if len(parts) > 4:
+        raise DataError(f"--effect {spec}: expected KIND[:JOINT[:VALUE[:ORDER]]]")
+    kind = parts[0].strip()
+    if kind not in HIDDEN_KINDS:
+        raise DataError(f"--effect {spec}: unknown effect kind '{kind}' (known: "
+                        f"{', '.join(HIDDEN_KINDS)})")
+    joint_text = parts[1].strip() if len(parts) > 1 else ""
+    joint = None
+    if kind == "thermal_expansion":
+        if joint_text not in ("", "none", "-"):
+            raise DataError(f"--effect {spec}: thermal_expansion acts on the whole arm, give "
+                            f"no joint (thermal_expansion::VALUE)")
+    elif joint_text:
+        try:
+            joint = int(joint_text) - 1
+        except ValueError:
+            raise DataError(f"--effect {spec}: joint '{joint_text}' is not a number") from None
+        if not 0 <= joint < n_joints:
+            raise DataError(f"--effect {spec}: joint {joint + 1} is out of range (the robot "
+                            f"has joints 1..{n_joints})")
+    value = None
+    if len(parts) > 2 and parts[2].strip():
+        try:
+            value = float(parts[2])
+        except ValueError:
+            raise DataError(f"--effect {spec}: value '{parts[2]}' is not a number") from None
+    order = None
+    if len(parts) > 3 and parts[3].strip():
+        if kind != "gear_harmonic" or parts[3].strip() not in ("1", "2", "3"):
+            raise DataError(f"--effect {spec}: ORDER is 1, 2 or 3 and only for gear_harmonic")
+        order = int(parts[3])
+    return kind, joint, value, order
 
 
 def run(args) -> int:
-    from ..errors import DataError
-
-    if args.poses < 1 or args.noise_mm < 0 or args.points < 1:
-        raise DataError("--poses and --points must be positive and --noise-mm not negative")
+    if args.poses < 1 or args.noise_mm < 0 or args.points < 1 or args.repeats < 0:
+        raise DataError("--poses and --points must be positive, --noise-mm and --repeats "
+                        "not negative")
     robot = load_robot(args.robot)
+    specs = [parse_effect(s, robot.n_joints) for s in args.effect]
     virtual = make_virtual_robot(robot, args.seed, args.length_error_mm * 1e-3,
                                  np.radians(args.angle_error_deg), args.points,
                                  args.device_distance_m)
     rng = np.random.default_rng(args.seed + 1_000_003)
-    meas = virtual.measure(random_joints(robot, args.poses, rng), args.noise_mm * 1e-3, rng)
+    joints = random_joints(robot, args.poses, rng)
+    effect_rng = np.random.default_rng(args.seed + 2_000_003)
+    payload = temperature = time_s = None
+    if args.payloads:
+        payload = effect_rng.choice(_numbers(args.payloads, "--payloads"), args.poses)
+        if np.any(payload < 0):
+            raise DataError("--payloads: a payload cannot be negative")
+    if args.temperatures:
+        temperature = per_pose_temperatures(args.temperatures, args.poses, effect_rng)
+        time_s = 60.0 * np.arange(args.poses)
+    conditions = {"payload_kg": payload, "temperature_c": temperature}
+    hidden = []
+    for (kind, joint, value, order), spec in zip(specs, args.effect):
+        if kind == "thermal_expansion" and temperature is None:
+            raise DataError(f"--effect {spec}: thermal_expansion needs --temperatures")
+        effect = random_hidden_effect(robot, effect_rng, joints, kind=kind, joint=joint)
+        if order is not None:
+            effect = replace(effect, order=order)
+        if kind == "thermal_expansion":
+            effect = replace(effect, reference_temperature_c=20.0)
+        if value is not None:
+            effect = replace(effect, value=value)
+        else:
+            size = DEFAULT_EFFECT_SIZE * max(args.noise_mm, 0.05) * 1e-3
+            effect = scaled_effect(virtual, effect, joints, size, **conditions)
+        hidden.append(effect)
+    virtual = replace(virtual, effects=tuple(hidden))
+    pose_ids = None
+    if args.repeats:
+        k = min(args.repeats, args.poses)
+        order_ = np.concatenate([np.arange(args.poses), np.arange(k)])
+        joints = joints[order_]
+        pose_ids = [str(i + 1) for i in order_]
+
+        def again(a):
+            return None if a is None else a[order_]
+        payload, temperature = again(payload), again(temperature)
+        time_s = None if time_s is None else 60.0 * np.arange(len(order_))
+    meas = virtual.measure(joints, args.noise_mm * 1e-3, rng, payload_kg=payload,
+                           temperature_c=temperature, time_s=time_s, pose_ids=pose_ids)
     units = [j.unit for j in robot.joints]
-    write_measurements(args.output, meas, units,
-                       [f"# robot: {robot.name}", f"# virtual robot seed {args.seed}, "
-                        f"noise {args.noise_mm} mm per axis"])
+    notes = [f"# robot: {robot.name}", f"# virtual robot seed {args.seed}, "
+             f"noise {args.noise_mm} mm per axis"]
+    if hidden:
+        notes.append("# hidden effects: " + ", ".join(e.label for e in hidden)
+                     + " (see the truth file)")
+    write_measurements(args.output, meas, units, notes)
     if args.truth:
         write_text_atomic(args.truth, virtual.to_json())
-    print(f"wrote {meas.n_rows} measured points ({args.poses} poses, {args.points} per pose) "
-          f"to {args.output}" + (f", truth to {args.truth}" if args.truth else ""))
+    effects = "".join(f"; hidden {e.label} = {e.value:.4g}" for e in hidden)
+    print(f"wrote {meas.n_rows} measured points ({args.poses} poses, {args.points} per pose"
+          f"{f', {args.repeats} repeated' if args.repeats else ''}) to {args.output}"
+          + (f", truth to {args.truth}" if args.truth else "") + effects)
     return 0

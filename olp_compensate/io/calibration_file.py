@@ -1,7 +1,11 @@
 """calib.json, version 1: read, validate against the published schema, write atomically.
 
 The file embeds the robot's URDF and its kinematic fingerprint, so a calibration is
-self-contained and is never applied to another robot model.
+self-contained and is never applied to another robot model. Non-geometric effects are a
+list of ``{"kind", "joint" (1-based controller axis, null for arm-wide), "parameters",
+"std", "unit"}`` (SI; see :mod:`olp_compensate.effects`), plus ``"order"`` for a gear
+harmonic and ``"reference_temperature_c"`` for thermal expansion; files whose list is empty
+(every file written before effects existed) read as before.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import numpy as np
 
 from ..calibration import Calibration, ToolPoint, Validation
 from ..conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
+from ..effects import effect_from_dict
 from ..errors import ModelError
 from ..model import build_model
 from ..robot import Robot, robot_from_urdf_text
@@ -67,7 +72,7 @@ def calibration_to_dict(cal: Calibration) -> dict:
         "device_T_base": {"xyz_mm": (cal.device_T_base[:3, 3] * 1e3).tolist(),
                           "quat_wxyz": quat_wxyz_from_matrix(cal.device_T_base[:3, :3]).tolist()},
         "tools": tools,
-        "effects": list(cal.effects),
+        "effects": [effect.to_dict() for effect in cal.effects],
         "validation": validation,
     }
 
@@ -135,7 +140,9 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
         residual_max_mm=v["residual_max_mm"], heldout_rms_mm=v["heldout_rms_mm"],
         heldout_max_mm=v["heldout_max_mm"], condition_number=v["condition_number"])
     return Calibration(robot=embedded, model=model, values=values, std=std, device_T_base=pose,
-                       frozen=frozen, tools=tools, effects=tuple(doc["effects"]),
+                       frozen=frozen, tools=tools,
+                       effects=tuple(effect_from_dict(e, embedded.n_joints, source)
+                                     for e in doc["effects"]),
                        validation=validation)
 
 

@@ -234,6 +234,9 @@ def format_measurements(meas: Measurements, joint_units: list[str],
     optional = [("payload_kg", meas.payload_kg), ("temperature_c", meas.temperature_c),
                 ("time_s", meas.time_s)]
     header += [name for name, values in optional if values is not None]
+    direction_joints = ([] if meas.directions is None
+                        else [j for j in range(meas.directions.shape[1]) if np.any(meas.directions[:, j])])
+    header += [f"direction_{j + 1}" for j in direction_joints]
     if meas.orientation is not None:
         header += ["qw", "qx", "qy", "qz"]
     writer = csv.writer(out, lineterminator="\n")
@@ -244,6 +247,7 @@ def format_measurements(meas: Measurements, joint_units: list[str],
         row += [f"{v:.6f}" for v in meas.joints[k] * scale]
         row += [f"{v:.6f}" for v in meas.points[k] * 1e3]
         row += [f"{values[k]:.6g}" for _, values in optional if values is not None]
+        row += [f"{meas.directions[k, j]:.0f}" for j in direction_joints]
         if meas.orientation is not None:
             row += [f"{v:.9f}" for v in meas.orientation[k]]
         writer.writerow(row)

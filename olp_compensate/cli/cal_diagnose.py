@@ -1,0 +1,74 @@
+"""``olp-cal diagnose``: what the geometric model gets wrong, its cause, the extended model
+and the gain on held-out data (see :mod:`olp_compensate.diagnose`)."""
+
+from __future__ import annotations
+
+import json
+
+from ..diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict, summary
+from ..effects import EFFECT_KINDS
+from ..errors import DataError
+from ..io.atomic import write_text_atomic
+from ..io.calibration_file import write_calibration
+from ..io.measurements import read_measurements
+from ..robot import load_robot
+
+HELP = ("name the non-geometric effects (compliance, gear error, backlash, heat, scale) in "
+        "the measurements, fit them and measure the gain on held-out poses")
+
+
+def add_arguments(p) -> None:
+    p.add_argument("measurements", help="measurement CSV (version 1)")
+    p.add_argument("--robot", required=True, help="bundled robot name or path to a URDF")
+    p.add_argument("--noise-mm", type=float,
+                   help="measurement noise per axis, mm (default: from repeated poses, else "
+                        "from the residual)")
+    p.add_argument("-o", "--output", help="calib.json to write (the extended model)")
+    p.add_argument("--json", help="diagnosis JSON to write")
+    p.add_argument("--html", help="self-contained HTML report with figures to write")
+    p.add_argument("--png-dir", help="folder to write the figures into as PNG files")
+    p.add_argument("--folds", type=int, default=5, help="cross-validation folds (>= 2)")
+    p.add_argument("--alpha", type=float, default=0.01,
+                   help="false-alarm rate per round of the test (default 0.01)")
+    p.add_argument("--kinds", help="comma-separated effect kinds to try (default all: "
+                                   + ", ".join(EFFECT_KINDS) + ")")
+
+
+def _kinds(text: str | None) -> tuple[str, ...] | None:
+    if text is None:
+        return None
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    unknown = [k for k in kinds if k not in EFFECT_KINDS]
+    if unknown or not kinds:
+        raise DataError(f"--kinds: unknown effect kind '{(unknown or [text])[0]}' (known: "
+                        f"{', '.join(EFFECT_KINDS)})")
+    return kinds
+
+
+def run(args) -> int:
+    if args.noise_mm is not None and not args.noise_mm > 0:
+        raise DataError(f"--noise-mm must be positive, got {args.noise_mm}")
+    if args.folds < 2:
+        raise DataError(f"--folds must be at least 2 (held-out data decide), got {args.folds}")
+    options = DiagnoseOptions(noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
+                              alpha=args.alpha, folds=args.folds, kinds=_kinds(args.kinds))
+    robot = load_robot(args.robot)
+    meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
+    result = diagnose(robot, meas, options)
+    print(summary(result))
+    if args.output:
+        write_calibration(args.output, result.extended.calibration)
+        print(f"wrote the {'extended' if result.found else 'geometric'} model to {args.output}")
+    if args.json:
+        write_text_atomic(args.json, json.dumps(diagnosis_to_dict(result), indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if args.html or args.png_dir:
+        from ..report_html import write_html, write_pngs
+
+        if args.html:
+            write_html(result, args.html)
+            print(f"wrote {args.html}")
+        if args.png_dir:
+            names = write_pngs(result, args.png_dir)
+            print(f"wrote {len(names)} figures to {args.png_dir}")
+    return 0

@@ -1,0 +1,535 @@
+"""Diagnosis: what the geometric model gets wrong, which effect explains it, and the gain.
+
+1. Fit the geometric model (:func:`olp_compensate.identify.identify`) with k-fold
+   cross-validation by pose.
+2. Noise floor: the spread of repeated measurements of one pose (rows sharing ``pose`` and
+   ``point``) when there are any, else ``noise_m`` (``--noise-mm``), else the residual of
+   the final model (an upper bound).
+3. Scan: every candidate of :func:`olp_compensate.effects.candidate_effects` that the data
+   can test (its term is not zero and not a combination of the geometry, see
+   :func:`olp_compensate.identify.effect_separation`) is added to the current model and
+   both models are cross-validated on the same folds. The fits are Gauss-Newton steps from
+   the current full-data solution (the problem is linear to far below the noise there), so
+   the whole scan costs a few least-squares solves per candidate.
+4. Test: G = held-out sum of squared errors of the current model minus that of the model
+   with the candidate (the held-out gain). Given the training folds, G is a sum of
+   ``2 e.D - |D|^2`` over the held-out rows (D the change of the prediction, e the current
+   model's held-out residual, whose covariance is sigma^2 (I + H), H the leverage of the
+   test rows), so ``z = G / (2 sigma sqrt(|D|^2 + D'HD))`` with sigma from the candidate's
+   in-sample residual. A candidate is significant when the one-sided p = P(N(0,1) > z) is
+   below alpha / K, K the number of candidates tested in the round (Bonferroni). Without the
+   effect G has a negative mean (the larger model fits noise), so the test is conservative:
+   the chance that a round keeps a spurious effect is at most about ``alpha`` (default 1 %).
+   On effect-free virtual robots z has mean -1 and sd 1.2, and none of 300 diagnoses named
+   an effect (benchmarks/diagnose.py measures it again).
+5. Choice: among significant candidates the lowest held-out error wins, except that a
+   candidate with fewer parameters is preferred when the winner is not significantly better
+   than it (the same z-test, 5 %); candidates the data cannot tell from the chosen one are
+   reported as alternatives. The chosen effect is added, the model refitted (non-linear,
+   geometry and effects together) and the scan repeated until no candidate is significant.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from .effects import (Effect, EffectInputs, GearHarmonic, JointCompliance, ThermalExpansion,
+                      candidate_effects)
+from .errors import DataError
+from .identify import (IdentificationOptions, IdentificationResult, effect_separation,
+                       identify, measurement_inputs, pose_folds, problem_at)
+from .io.measurements import Measurements
+from .robot import Robot
+
+TEST_DESCRIPTION = (
+    "one-sided z-test of the held-out gain (current model's held-out sum of squares minus "
+    "the extended model's, k-fold by pose), variance 4 sigma^2 (|D|^2 + D'HD) from the "
+    "noise and the change D of the held-out predictions; significant when p < alpha / K "
+    "(Bonferroni over the K candidates of a round)")
+
+
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    """Choices of a diagnosis. ``noise_m``: per-axis measurement noise, m, when known;
+    ``alpha``: false-alarm rate per round (family-wise); ``folds``: cross-validation folds;
+    ``max_effects``: stop after this many; ``kinds``: effect kinds to try (all by default);
+    ``prefer_simpler_alpha``: level of the test that lets a larger candidate beat a smaller."""
+
+    noise_m: float | None = None
+    alpha: float = 0.01
+    folds: int = 5
+    max_effects: int = 4
+    kinds: tuple[str, ...] | None = None
+    prefer_simpler_alpha: float = 0.05
+    convention: str = "auto"
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """Per-axis measurement noise ``sigma_m`` (m) and where it came from."""
+
+    sigma_m: float
+    source: str
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One candidate in one round: ``status`` 'tested', 'no effect' or 'inseparable' (with
+    ``reason``); for tested ones the held-out sum of squares (m^2) of the extended model,
+    the share of the current model's held-out sum of squares it removes (``gain``), the
+    test statistic ``t`` (z) and its one-sided p-value."""
+
+    effect: Effect
+    status: str
+    reason: str = ""
+    heldout_sse: float = float("nan")
+    gain: float = float("nan")
+    t: float = float("nan")
+    p_value: float = float("nan")
+    significant: bool = False
+
+
+@dataclass(frozen=True)
+class Round:
+    """One scan: the per-candidate results, the significance threshold alpha / K, the
+    chosen effect (None: nothing helps) and alternatives the data cannot tell from it."""
+
+    threshold: float
+    candidates: list[CandidateResult]
+    chosen: Effect | None
+    alternatives: list[str] = field(default_factory=list)
+    heldout_sse: float = float("nan")
+
+
+@dataclass(frozen=True)
+class KeptEffect:
+    """A named effect with its fitted values (``effect.values``, ``effect.std``), the p-value
+    of the round that kept it, how far it moves the measured points (RMS and max over the
+    rows, m) and the alternatives the data could not rule out."""
+
+    effect: Effect
+    p_value: float
+    point_rms_m: float
+    point_max_m: float
+    alternatives: list[str] = field(default_factory=list)
+    displacement: np.ndarray | None = None
+    """(m, 3) how the effect moves each measured point, device frame, m."""
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Outcome of :func:`diagnose`; lengths in metres, device frame.
+
+    ``geometric``/``extended``: the identifications before and after (the same when no
+    effect was found); ``residual_before``/``residual_after``: (m, 3) measured minus
+    predicted; ``predicted_change``: (m, 3) extended minus geometric prediction (the error
+    the extended model predicts the geometric one makes); ``dpoint_dq``: (m, 3, n) how each
+    measured point moves per radian of each controller axis; ``flange_device``: (m, 3) the
+    flange position (base frame origin, device axes), for thermal expansion; ``inputs``:
+    the effect inputs at the measured rows (controller axes, gravity torques...).
+    """
+
+    robot: Robot
+    measurements: Measurements
+    geometric: IdentificationResult
+    extended: IdentificationResult
+    effects: list[KeptEffect]
+    rounds: list[Round]
+    noise: NoiseFloor
+    untestable: dict[str, str]
+    drift: str | None
+    residual_before: np.ndarray
+    residual_after: np.ndarray
+    predicted_change: np.ndarray
+    dpoint_dq: np.ndarray
+    flange_device: np.ndarray
+    inputs: EffectInputs
+    alpha: float
+    candidates_tried: int
+    test: str = TEST_DESCRIPTION
+
+    @property
+    def found(self) -> bool:
+        return bool(self.effects)
+
+
+def noise_floor(meas: Measurements, noise_m: float | None, residual_sigma: float) -> NoiseFloor:
+    """Per-axis noise: repeated poses first, then ``noise_m``, then ``residual_sigma``."""
+    groups: dict[tuple, list[int]] = {}
+    for k, key in enumerate(zip(meas.pose_ids, meas.point_names)):
+        groups.setdefault(key, []).append(k)
+    repeated = [rows for rows in groups.values() if len(rows) > 1]
+    dof = 3 * sum(len(rows) - 1 for rows in repeated)
+    if dof >= 9:
+        sse = sum(float(np.sum((meas.points[rows] - meas.points[rows].mean(axis=0)) ** 2))
+                  for rows in repeated)
+        return NoiseFloor(float(np.sqrt(sse / dof)),
+                          f"repeated poses ({len(repeated)} repeated, {dof} degrees of freedom)")
+    if noise_m is not None:
+        return NoiseFloor(float(noise_m), "stated (--noise-mm)")
+    return NoiseFloor(float(residual_sigma), "residual of the final model (an upper bound: "
+                                             "measure some poses twice for a real one)")
+
+
+def _kept_columns(jac: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(jac, axis=0)
+    return norms > 1e-12 * norms.max()
+
+
+@dataclass(frozen=True)
+class _Heldout:
+    """Held-out residuals (m, 3) of one linearized model and its in-sample noise estimate
+    (per-axis variance, m^2)."""
+
+    residuals: np.ndarray
+    sigma2: float
+
+    @property
+    def sse(self) -> float:
+        return float(np.sum(self.residuals**2))
+
+
+class _Scan:
+    """Linearized k-fold cross-validation of candidates at one model.
+
+    State: the current model's residual r (3m,) and unit-scaled Jacobian J at its full-data
+    solution, and per fold the SVD of the training rows of J (for the leverage term of the
+    test's variance)."""
+
+    def __init__(self, result: IdentificationResult, meas: Measurements, inputs: EffectInputs,
+                 folds: list[np.ndarray]):
+        problem, x = problem_at(result.calibration, meas, inputs)
+        self.residual, jac = problem.residuals_and_jacobian(x)
+        kept = _kept_columns(jac)
+        self.jac = jac[:, kept]
+        self.names = [n for n, k in zip(problem.names(), kept) if k]
+        self.scaled = self.jac / np.linalg.norm(self.jac, axis=0)
+        self.meas, self.inputs, self.result, self.folds = meas, inputs, result, folds
+        self.training = []
+        for test in folds:
+            eq = np.repeat(test, 3)
+            _, s, vt = np.linalg.svd(self.scaled[~eq], full_matrices=False)
+            ok = s > 1e-10 * s[0]
+            self.training.append((eq, vt[ok], s[ok]))
+        self.base = self.heldout(self.scaled)
+
+    def heldout(self, jac: np.ndarray) -> _Heldout:
+        """Held-out residuals of r + jac dx refitted without each fold (jac scaled)."""
+        out = np.empty(len(self.residual))
+        for eq, _, _ in self.training:
+            dx, *_ = np.linalg.lstsq(jac[~eq], -self.residual[~eq], rcond=1e-10)
+            out[eq] = self.residual[eq] + jac[eq] @ dx
+        dx, *_ = np.linalg.lstsq(jac, -self.residual, rcond=1e-10)
+        rss = float(np.sum((self.residual + jac @ dx) ** 2))
+        return _Heldout(out.reshape(-1, 3), rss / max(len(self.residual) - jac.shape[1], 1))
+
+    def gain_test(self, reference: _Heldout, candidate: _Heldout) -> tuple[float, float, float]:
+        """(gain, z, p): the held-out gain G = SSE(reference) - SSE(candidate), m^2, and the
+        one-sided test of G > 0. Given the training folds, G = sum(2 e.D - |D|^2) over the
+        held-out rows, D the change of prediction and e the reference's held-out residual,
+        whose covariance is sigma^2 (I + H), H the test rows' leverage under the reference
+        fit; so var(G) = 4 sigma^2 (|D|^2 + D'HD), with sigma^2 from the candidate's
+        in-sample residual (a safe value under either hypothesis)."""
+        delta = (reference.residuals - candidate.residuals).ravel()
+        gain = reference.sse - candidate.sse
+        leverage = 0.0
+        for eq, vt, s in self.training:
+            leverage += float(np.sum(((vt @ (self.scaled[eq].T @ delta[eq])) / s) ** 2))
+        variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
+        if variance <= 0:
+            return gain, 0.0, 1.0
+        z = gain / np.sqrt(variance)
+        return float(gain), float(z), float(stats.norm.sf(z))
+
+    def columns(self, effect: Effect) -> np.ndarray:
+        """Jacobian columns (3m, p) of ``effect`` added at zero to the current model."""
+        problem, x = problem_at(self.result.calibration, self.meas, self.inputs, [effect])
+        _, jac = problem.residuals_and_jacobian(x)
+        return jac[:, problem.effect_slices[-1]]
+
+    def evaluate(self, effect: Effect) -> tuple[CandidateResult, _Heldout | None]:
+        """The candidate's result and its held-out residuals (None when not testable)."""
+        block = self.columns(effect)
+        reason = effect_separation(self.jac, block, self.names)
+        if reason is not None:
+            status = "no effect" if reason.startswith("has no effect") else "inseparable"
+            return CandidateResult(effect, status, reason), None
+        held = self.heldout(np.hstack([self.scaled, block / np.linalg.norm(block, axis=0)]))
+        gain, z, p = self.gain_test(self.base, held)
+        return CandidateResult(effect, "tested", heldout_sse=held.sse,
+                               gain=gain / self.base.sse, t=z, p_value=p), held
+
+
+def _choose(scan: _Scan, tested: list[tuple[CandidateResult, _Heldout]], threshold: float,
+            prefer_simpler_alpha: float):
+    """(chosen candidate or None, labels of the alternatives); see the module docstring."""
+    significant = [item for item in tested if item[0].p_value < threshold]
+    if not significant:
+        return None, []
+    best = min(significant, key=lambda item: item[1].sse)
+
+    def not_better(item, than) -> bool:
+        """``item`` is not significantly better than ``than`` on held-out data."""
+        return scan.gain_test(than[1], item[1])[2] >= prefer_simpler_alpha
+
+    simpler = [item for item in significant
+               if item[0].effect.n_parameters < best[0].effect.n_parameters
+               and not_better(best, item)]
+    chosen = (min(simpler, key=lambda it: (it[0].effect.n_parameters, it[1].sse))
+              if simpler else best)
+    alternatives = [c.effect.label for c, held in significant
+                    if c is not chosen[0] and not_better(chosen, (c, held))]
+    return chosen[0], alternatives
+
+
+def _drift(scan: _Scan, alpha: float) -> str | None:
+    """A warning when the residuals drift with ``time_s`` (the device or the base moved, or
+    the arm warmed up), tested like a candidate; None when they do not (or no time)."""
+    time = scan.meas.time_s
+    if time is None or np.ptp(time) == 0:
+        return None
+    block = np.zeros((scan.meas.n_rows, 3, 3))
+    for axis in range(3):
+        block[:, axis, axis] = time - time.mean()
+    block = block.reshape(-1, 3)
+    held = scan.heldout(np.hstack([scan.scaled, block / np.linalg.norm(block, axis=0)]))
+    _, _, p = scan.gain_test(scan.base, held)
+    if p >= alpha:
+        return None
+    return (f"the remaining residuals drift with time_s (p = {p:.1e}): the device or the "
+            f"robot base moved, or the arm warmed up; add a temperature_c column")
+
+
+def diagnose(robot: Robot, meas: Measurements,
+             options: DiagnoseOptions = DiagnoseOptions()) -> Diagnosis:
+    """Diagnose the measurements of ``robot`` (see the module docstring)."""
+    if not 0 < options.alpha < 1:
+        raise DataError(f"alpha must lie in (0, 1), got {options.alpha}")
+    if options.noise_m is not None and not options.noise_m > 0:
+        raise DataError(f"--noise-mm must be positive, got {options.noise_m * 1e3}")
+    folds_k = min(options.folds, meas.n_poses)
+    if folds_k < 2:
+        raise DataError(f"{meas.source}: the diagnosis needs at least 2 poses and 2 folds")
+    asked = options.kinds or ()
+    if "thermal_expansion" in asked and meas.temperature_c is None:
+        raise DataError(f"{meas.source}: thermal_expansion needs the 'temperature_c' column, "
+                        f"which the measurements do not have")
+    base_options = IdentificationOptions(convention=options.convention, folds=folds_k)
+    geometric = identify(robot, meas, base_options)
+    tools = {n: t.xyz_m for n, t in geometric.calibration.tools.items()}
+    inputs = measurement_inputs(robot, meas, tools, [JointCompliance(joint=0)])
+    folds = pose_folds(meas.pose_ids, folds_k)
+    candidates = [c for c in candidate_effects(robot, meas.temperature_c is not None)
+                  if options.kinds is None or c.kind in options.kinds]
+    candidates = [dataclasses.replace(c, reference_temperature_c=float(np.mean(meas.temperature_c)))
+                  if isinstance(c, ThermalExpansion) else c for c in candidates]
+
+    current = geometric
+    kept: list[tuple[Effect, float, list[str]]] = []
+    rounds: list[Round] = []
+    untestable: dict[str, str] = {}
+    scan = _Scan(current, meas, inputs, folds)
+    while len(kept) < options.max_effects:
+        keys = {e.key for e, _, _ in kept}
+        results, tested = [], []
+        for candidate in candidates:
+            if candidate.key in keys:
+                continue
+            result, held = scan.evaluate(candidate)
+            results.append(result)
+            if held is not None:
+                tested.append((result, held))
+            elif not rounds:
+                untestable[candidate.label] = result.reason
+        threshold = options.alpha / max(len(tested), 1)
+        marked = {id(r): dataclasses.replace(r, significant=r.p_value < threshold)
+                  for r, _ in tested}
+        results = [marked.get(id(r), r) for r in results]
+        tested = [(marked[id(r)], held) for r, held in tested]
+        chosen, alternatives = _choose(scan, tested, threshold, options.prefer_simpler_alpha)
+        rounds.append(Round(threshold=threshold, candidates=results,
+                            chosen=None if chosen is None else chosen.effect,
+                            alternatives=alternatives, heldout_sse=scan.base.sse))
+        if chosen is None:
+            break
+        effects = tuple(e for e, _, _ in kept) + (chosen.effect,)
+        refit = identify(robot, meas, dataclasses.replace(base_options, effects=effects))
+        if refit.dropped_effects:  # the non-linear fit disagrees with the scan: stop here
+            rounds[-1] = dataclasses.replace(rounds[-1], chosen=None)
+            break
+        kept.append((chosen.effect, chosen.p_value, alternatives))
+        current = refit
+        scan = _Scan(current, meas, inputs, folds)
+
+    drift = _drift(scan, options.alpha)
+    extended = current
+    before, x_before = problem_at(geometric.calibration, meas, inputs)
+    after, x_after = problem_at(extended.calibration, meas, inputs)
+    predicted_before = before.predict(x_before, jacobian=False)[-1]
+    *_, chain, predicted_after = after.predict(x_after, jacobian=True)
+    rotation = extended.calibration.device_T_base[:3, :3]
+    coupling = (np.eye(robot.n_joints) if robot.urdf_from_controller is None
+                else robot.urdf_from_controller)
+    dpoint_dq = np.einsum("ij,mjk,kl->mil", rotation, chain.dpoint_dq, coupling)
+    x_plain = x_after.copy()  # the extended model with its effects switched off
+    for sl in after.effect_slices:
+        x_plain[sl] = 0.0
+    plain = after.predict(x_plain, jacobian=False)[-1]
+
+    kept_effects = []
+    for index, (fitted, (_, p_value, alternatives)) in enumerate(
+            zip(extended.calibration.effects, kept)):
+        x_one = x_plain.copy()
+        x_one[after.effect_slices[index]] = x_after[after.effect_slices[index]]
+        displacement = after.predict(x_one, jacobian=False)[-1] - plain
+        moved = np.linalg.norm(displacement, axis=1)
+        kept_effects.append(KeptEffect(fitted, p_value, float(np.sqrt(np.mean(moved**2))),
+                                       float(moved.max()), alternatives, displacement))
+    residual_after = after.measured - predicted_after
+    dof = max(extended.n_equations - extended.n_unknowns, 1)
+    residual_sigma = float(np.sqrt(np.sum(residual_after**2) / dof))
+    flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
+    return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
+                     effects=kept_effects, rounds=rounds,
+                     noise=noise_floor(meas, options.noise_m, residual_sigma),
+                     untestable=untestable, drift=drift,
+                     residual_before=before.measured - predicted_before,
+                     residual_after=residual_after,
+                     predicted_change=predicted_after - predicted_before,
+                     dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
+                     alpha=options.alpha, candidates_tried=len(candidates))
+
+
+def _mm(value_m: float | None) -> float | None:
+    return None if value_m is None else value_m * 1e3
+
+
+def effect_entry(kept: KeptEffect) -> dict:
+    """The JSON entry of a kept effect (SI values; see :func:`diagnosis_to_dict`)."""
+    e = kept.effect
+    value, std, unit = e.headline()
+    entry = {"kind": e.kind, "joint": None if e.joint is None else e.joint + 1,
+             "value": value, "std": None if not np.isfinite(std) else std, "unit": unit,
+             "parameters": dict(zip(e.parameter_names, e.values)),
+             "parameter_std": {k: (None if not np.isfinite(v) else v)
+                               for k, v in zip(e.parameter_names, e.std)},
+             "units": dict(zip(e.parameter_names, e.units)),
+             "p_value": kept.p_value, "point_rms_mm": kept.point_rms_m * 1e3,
+             "point_max_mm": kept.point_max_m * 1e3, "alternatives": kept.alternatives}
+    if isinstance(e, GearHarmonic):
+        entry["order"] = e.order
+        entry["phase_rad"] = e.phase_rad
+    if isinstance(e, ThermalExpansion):
+        entry["reference_temperature_c"] = e.reference_temperature_c
+    return entry
+
+
+def _finite(value: float) -> float | None:
+    return None if not np.isfinite(value) else float(value)
+
+
+def _candidate_entry(c: CandidateResult) -> dict:
+    return {"effect": c.effect.label, "kind": c.effect.kind,
+            "joint": None if c.effect.joint is None else c.effect.joint + 1,
+            "status": c.status, "reason": c.reason or None, "heldout_gain": _finite(c.gain),
+            "z": _finite(c.t), "p_value": _finite(c.p_value), "significant": c.significant}
+
+
+def diagnosis_to_dict(d: Diagnosis) -> dict:
+    """The ``--json`` document. Effects: ``value`` is the effect's size in ``unit`` (c,
+    w, s, alpha; for a gear harmonic the amplitude sqrt(a^2 + b^2) in rad, with ``order``,
+    ``phase_rad`` (dq = A sin(k q + phase)) and the raw ``parameters`` a, b); ``joint`` is
+    the 1-based controller axis, null for thermal expansion. Lengths in mm."""
+    sigma3 = d.noise.sigma_m * np.sqrt(3)
+    return {
+        "format": "olp-compensate diagnosis", "version": 1,
+        "robot": d.robot.name, "measurements": d.measurements.source,
+        "poses": d.measurements.n_poses, "rows": d.measurements.n_rows,
+        "noise_mm": d.noise.sigma_m * 1e3, "noise_source": d.noise.source,
+        "noise_3d_rms_mm": sigma3 * 1e3,
+        "effects": [effect_entry(k) for k in d.effects],
+        "found": d.found,
+        "heldout_rms_mm": {"geometric": _mm(d.geometric.heldout_rms),
+                           "extended": _mm(d.extended.heldout_rms)},
+        "heldout_max_mm": {"geometric": _mm(d.geometric.heldout_max),
+                           "extended": _mm(d.extended.heldout_max)},
+        "heldout_method": d.extended.calibration.validation.method,
+        "test": {"description": d.test, "alpha": d.alpha,
+                 "rounds": [{"threshold": r.threshold,
+                             "chosen": None if r.chosen is None else r.chosen.label,
+                             "alternatives": r.alternatives,
+                             "candidates": [_candidate_entry(c) for c in r.candidates]}
+                            for r in d.rounds]},
+        "untestable": d.untestable,
+        "drift": d.drift,
+        "conclusion": summary(d).splitlines()[-1],
+    }
+
+
+def _value_text(effect: Effect) -> str:
+    value, std, unit = effect.headline()
+    name = "amplitude" if isinstance(effect, GearHarmonic) else effect.parameter_names[0]
+    text = f"{name} = {value:.3g} +- {std:.2g} {unit}"
+    if unit == "rad":
+        text += f" ({np.degrees(value) * 1e3:.3g} mdeg)"
+    if isinstance(effect, GearHarmonic):
+        text += f", phase {np.degrees(effect.phase_rad):.0f} deg"
+    if isinstance(effect, ThermalExpansion):
+        text += f", reference {effect.reference_temperature_c:.1f} C"
+    return text
+
+
+def summary(d: Diagnosis) -> str:
+    """The diagnosis in words, as printed by ``olp-cal diagnose``; the last line concludes."""
+    sigma3 = d.noise.sigma_m * np.sqrt(3)
+    g, x = d.geometric, d.extended
+    lines = [f"robot {d.robot.name}: {d.measurements.n_poses} poses, {d.measurements.n_rows} "
+             f"measured points",
+             f"noise floor: {d.noise.sigma_m * 1e3:.4f} mm per axis ({sigma3 * 1e3:.4f} mm 3-D "
+             f"RMS), from {d.noise.source}",
+             f"geometric model: held-out RMS {g.heldout_rms * 1e3:.4f} mm "
+             f"({g.heldout_rms / sigma3:.2f}x the noise), max {g.heldout_max * 1e3:.4f} mm "
+             f"({g.calibration.validation.method})"]
+    first = d.rounds[0]
+    tested = sorted((c for c in first.candidates if c.status == "tested"), key=lambda c: c.p_value)
+    lines.append(f"residual structure: {len(tested)} candidate terms tested, share of the "
+                 f"geometric model's held-out squared error each removes (best first):")
+    for c in tested[:5]:
+        mark = "significant" if c.significant else "not significant"
+        lines.append(f"  {c.effect.label:<24} {100 * c.gain:6.1f} %   z = {c.t:6.2f}, "
+                     f"p = {c.p_value:.1e} ({mark})")
+    if d.untestable:
+        lines.append("not testable with these data: " + "; ".join(
+            f"{label} ({why})" for label, why in d.untestable.items()))
+    lines.append(f"test: {d.test}; alpha = {d.alpha}")
+    for number, r in enumerate(d.rounds, start=1):
+        if r.chosen is not None:
+            chosen = next(c for c in r.candidates if c.effect is r.chosen)
+            alt = (f"; the data cannot tell it from {', '.join(r.alternatives)}"
+                   if r.alternatives else "")
+            lines.append(f"round {number}: kept {r.chosen.label} (p = {chosen.p_value:.1e} < "
+                         f"{r.threshold:.1e}){alt}")
+        else:
+            lines.append(f"round {number}: no further term is significant (threshold "
+                         f"{r.threshold:.1e})")
+    if d.drift:
+        lines.append(f"WARNING: {d.drift}")
+    if not d.found:
+        lines.append(f"no effect found: no candidate lowers the held-out error significantly; "
+                     f"the geometric model stands (held-out RMS {g.heldout_rms * 1e3:.4f} mm, "
+                     f"{g.heldout_rms / sigma3:.2f}x the noise)")
+        return "\n".join(lines)
+    lines.append(f"found {len(d.effects)} effect{'s' if len(d.effects) > 1 else ''}:")
+    for k in d.effects:
+        lines.append(f"  {k.effect.label}: {_value_text(k.effect)}; {k.effect.description}; "
+                     f"moves the measured point by {k.point_rms_m * 1e3:.3f} mm RMS, "
+                     f"{k.point_max_m * 1e3:.3f} mm max")
+    lines.append(f"held-out RMS {g.heldout_rms * 1e3:.4f} -> {x.heldout_rms * 1e3:.4f} mm "
+                 f"({g.heldout_rms / sigma3:.2f}x -> {x.heldout_rms / sigma3:.2f}x the noise), "
+                 f"max {g.heldout_max * 1e3:.4f} -> {x.heldout_max * 1e3:.4f} mm: found "
+                 + ", ".join(k.effect.label for k in d.effects))
+    return "\n".join(lines)
