@@ -339,3 +339,49 @@ def test_stationary_tool_target_reaches_the_fixed_tool(rapid_world):
         np.eye(3), world.calibration.tools["tcp"].xyz_m)) @ rt.base_T_wobj @ original
     reached = world.real_tcp_in_device(q_ctrl, flange_T_point)[0]
     assert np.linalg.norm(reached[:3, 3] - fixed_tcp[:3, 3]) < TOLERANCE_M
+
+
+def test_compliance_found_by_diagnose_is_compensated_too():
+    """A virtual IRB 2400 whose axis 2 bends under gravity: the extended calibration that
+    diagnose finds brings the program within tolerance, the geometric one does not."""
+    from dataclasses import replace
+
+    from olp_compensate.diagnose import DiagnoseOptions, diagnose
+    from olp_compensate.simulate import HiddenEffect
+
+    world = World.__new__(World)
+    world.robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(world.robot, seed=12, n_points=3)
+    world.virtual = replace(virtual, effects=(HiddenEffect("joint_compliance", 1, 2e-6),))
+    rng = np.random.default_rng(12)
+    meas = world.virtual.measure(random_joints(world.robot, 80, rng), NOISE_M, rng)
+    found = diagnose(world.robot, meas, DiagnoseOptions(noise_m=NOISE_M))
+    assert [(k.effect.kind, k.effect.joint) for k in found.effects][:1] == [("joint_compliance", 1)]
+    n = world.robot.n_joints
+    world.nominal = VirtualRobot(world.robot, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
+    world.family = fit_family(lambda q: world.nominal.flange_poses(
+        world.robot.controller_from_joints(q)))
+    world.limits = np.stack([world.robot.lower_limits, world.robot.upper_limits], 1)
+    program_tool, wobj, tool_rot, _ = _frames(world, 12)
+    q = World.program_joints(world, 10, seed=5)
+    errors = {}
+    for label, result in (("extended", found.extended), ("geometric", found.geometric)):
+        world.calibration = result.calibration
+        numbers = written_targets(world, q, program_tool, wobj)
+        text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
+                            wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
+        out, report = compensate_program(text, "rapid", world.calibration)
+        assert report.exit_code == 0
+        _, cart, _ = read_rapid_targets(out)
+        _, original, _ = read_rapid_targets(text)
+        worst = 0.0
+        for k in range(1, len(numbers) + 1):
+            frame = wobj if k % 2 else np.eye(4)
+            intended = world.desired_in_device(frame @ original[f"p{k}"][0])
+            pose, conf = cart[f"p{k}"]
+            qc = world.controller((frame @ pose @ invert_pose(program_tool))[None], conf[None])
+            reached = world.real_tcp_in_device(qc, world.real_tool(tool_rot))[0]
+            worst = max(worst, np.linalg.norm(reached[:3, 3] - intended[:3, 3]))
+        errors[label] = worst
+    assert errors["extended"] < TOLERANCE_M, errors
+    assert errors["geometric"] > 2 * TOLERANCE_M, errors

@@ -18,6 +18,10 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     except OSError as exc:
         raise OlpError(f"{path}: cannot write ({exc.strerror})") from None
     try:
+        # mkstemp creates 0600; give the file the mode a plain open() would (umask applies),
+        # or the mode of the file it replaces
+        mode = path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask()
+        os.chmod(tmp, mode)
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
             handle.flush()
@@ -26,6 +30,12 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         raise OlpError(f"{path}: cannot write ({exc.strerror})") from None
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> None:
