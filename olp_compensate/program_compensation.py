@@ -156,25 +156,35 @@ def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
     return program_tool, ""
 
 
+_CONFIG_TEXT: dict = {}
+
+
 def _config_text(values) -> str:
-    return "[" + ",".join(str(int(v)) for v in values) + "]" if len(values) else ""
+    """'[cf1,cf4,cf6,cfx]' of a confdata (memoized: programs repeat a few of them)."""
+    key = tuple(values)
+    text = _CONFIG_TEXT.get(key)
+    if text is None:
+        text = _CONFIG_TEXT[key] = "[" + ",".join(str(int(v)) for v in key) + "]" if key else ""
+    return text
 
 
-def _keep_config(original, computed, q_ctrl, nominal_ctrl) -> list[int]:
-    """The confdata to write: the original, unless compensation moved axis 1, 4 or 6 out of
-    the quadrant the nominal controller was in for the original target and more than
-    :data:`CONFIG_SLACK_RAD` out of the written one (cfx: the solver kept the requested
-    branch). So a written confdata is never rewritten just for being slightly off."""
-    out = list(original)
-    for k, axis in enumerate((0, 3, 5)):
-        lower = original[k] * (math.pi / 2)
-        outside = not (lower - CONFIG_SLACK_RAD <= q_ctrl[axis]
-                       <= lower + math.pi / 2 + CONFIG_SLACK_RAD)
-        before = math.floor(nominal_ctrl[axis] / (math.pi / 2) + 1e-12) \
-            if math.isfinite(nominal_ctrl[axis]) else None
-        if outside and before != int(computed[k]):
-            out[k] = int(computed[k])
-    return out
+def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
+                 nominal_ctrl: np.ndarray) -> np.ndarray:
+    """The confdata (k, 4) to write: the original, except a quadrant of axis 1, 4 or 6 that
+    compensation moved out of the one the nominal controller was in for the original
+    target and more than :data:`CONFIG_SLACK_RAD` out of the written one (cfx: the solver
+    kept the requested branch). So a written confdata is never rewritten just for being
+    slightly off."""
+    quarter = math.pi / 2
+    lower = original[:, :3] * quarter
+    axes = q_ctrl[:, [0, 3, 5]]
+    outside = (axes < lower - CONFIG_SLACK_RAD) | (axes > lower + quarter + CONFIG_SLACK_RAD)
+    with np.errstate(invalid="ignore"):
+        before = np.floor(nominal_ctrl[:, [0, 3, 5]] / quarter + 1e-12)
+    moved = outside & ~(before == computed[:, :3])
+    kept = original.copy()
+    kept[:, :3] = np.where(moved, computed[:, :3], original[:, :3])
+    return kept
 
 
 def compensate_program(program: Program | str | bytes, dialect: str | None,
@@ -296,6 +306,13 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         computed_conf = np.full((n, 4), -99, int)
         if np.any(ok):
             computed_conf[ok] = comp.confdata(q[ok])
+        if with_conf and not vplus:
+            rows_c = np.array([i for i in range(n) if job.confdata[i] is not None and ok[i]], int)
+            if len(rows_c):
+                written = np.array([job.confdata[i] for i in rows_c], int)
+                computed_conf[rows_c] = _keep_config(written, computed_conf[rows_c],
+                                                     q_ctrl[rows_c], nominal_ctrl[rows_c])
+        conf_list = computed_conf.tolist()
         shift_mm = ((new_targets[:, :3, 3] - original[:, :3, 3]) / MM).tolist()
         turn_deg = np.degrees(rotation_angle_between(new_targets[:, :3, :3],
                                                      original[:, :3, :3])).tolist()
@@ -303,7 +320,6 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         change = np.abs(robot.to_degrees_or_mm(q_ctrl - nominal_ctrl))
         change = np.where(np.all(np.isnan(change), axis=1), np.nan,
                           np.nanmax(np.where(np.isnan(change), -np.inf, change), axis=1)).tolist()
-        q_ctrl_list, nominal_list = q_ctrl.tolist(), nominal_ctrl.tolist()
         vplus_text = {}
         if vplus and isinstance(comp.family, OPWParameters) and np.any(ok):
             flags = vplus_configuration(comp.family, q[ok])
@@ -354,9 +370,7 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         if vplus:
             config_after = vplus_text.get(i, "")
         else:
-            kept = _keep_config(job.confdata[i], computed_conf[i], q_ctrl_list[i], nominal_list[i])
-            config_after = _config_text(kept)
-            computed_conf[i] = kept
+            config_after = _config_text(conf_list[i])
         rows[k] = TargetReport(
             **base, config_after=config_after, status=str(status[i]),
             correction_mm=tuple(shift_mm[i]), correction_deg=turn_deg[i],
