@@ -297,9 +297,11 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         tool = np.array([rt.flange_T_tool for rt in job.entries])
         original = np.array([rt.wobj_T_target for rt in job.entries])
         stationary = np.array([rt.stationary_tool for rt in job.entries], bool)
-        moved = np.where(stationary[:, None, None], invert_pose(np.nan_to_num(flange)), flange)
+        # robot-held tool: inv(wobj) F tool; stationary tool: inv(flange_T_wobj) inv(F) world_T_tool
+        moved = flange.copy()
+        if np.any(stationary):
+            moved[stationary] = invert_pose(flange[stationary])
         new_targets = invert_pose(wobj) @ moved @ tool
-        new_targets[stationary] = invert_pose(wobj[stationary]) @ moved[stationary] @ tool[stationary]
         new_targets[~ok] = np.nan
         q_ctrl = robot.controller_from_joints(q)
         nominal_ctrl = robot.controller_from_joints(nominal)

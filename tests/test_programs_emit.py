@@ -168,3 +168,18 @@ def test_batch_and_single_target_edits_agree(name):
     assert batch == dumps(program, single)
     with pytest.raises(DataError, match="shape"):
         edits_for_targets(program, pos[:-1])
+
+
+def test_unnormalized_quaternion_kept_when_unchanged_and_rewritten_whole_when_not():
+    text = ("MODULE Q\n  CONST robtarget p1:=[[1,2,3],[0,0,2,0],[0,0,0,0],"
+            "[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PERS tooldata t1:=[TRUE,[[0,0,100],[2,0,0,0]],"
+            "[1,[0,0,1],[1,0,0,0],0,0,0]];\nENDMODULE\n")
+    program = loads(text, "rapid")
+    (target,), (tool,) = program.targets, program.tools
+    assert target_edits(target, orientation=[0, 0, -1, 0]) == []   # same rotation, other sign
+    assert tool_edits(tool, quat_wxyz=[1, 0, 0, 0]) == []
+    turned = [0, 0.1, 0.99498744, 0]
+    new = loads(dumps(program, target_edits(target, orientation=turned)
+                      + tool_edits(tool, quat_wxyz=turned)), "rapid")
+    for numbers in (new.targets[0].orientation, new.tools[0].orientation):
+        np.testing.assert_allclose([n.value for n in numbers], turned, atol=1e-6)

@@ -158,6 +158,26 @@ def _check(name: str, values, count: int) -> list[float]:
     return vals
 
 
+def _quaternion_edits(texts, starts, lo: int, quat_wxyz, out: list) -> None:
+    """Edits for the four quaternion numbers ``texts[lo:lo + 4]``: none when ``quat_wxyz``
+    is the written rotation (compared with the written quaternion normalized, so an
+    unnormalized one survives), else the unit quaternion, sign-aligned; a written
+    quaternion that is not unit length is then rewritten whole, never mixed with its old
+    scale."""
+    written = [float(t) for t in texts[lo:lo + 4]]
+    norm = math.sqrt(sum(c * c for c in written)) or 1.0
+    q = aligned_quaternion(quat_wxyz, written)
+    tol = 0.5 * 10.0 ** -QUAT_DECIMALS
+    changed = [abs(v - w / norm) >= tol for v, w in zip(q, written)]
+    if not any(changed):
+        return
+    whole = abs(norm - 1.0) > 1e-6
+    for k, (v, hit) in enumerate(zip(q, changed)):
+        if hit or whole:
+            t, start = texts[lo + k], starts[lo + k]
+            out.append(_edit((start, start + len(t), format_like(t, v, QUAT_DECIMALS))))
+
+
 def aligned_quaternion(quat_wxyz, reference_wxyz) -> list[float]:
     """Unit quaternion ``quat_wxyz`` with the sign (q or -q) nearest ``reference_wxyz``."""
     q = _check("orientation", quat_wxyz, 4)
@@ -212,8 +232,7 @@ def target_edits(target: CartesianTarget, position_mm=None, orientation=None, co
         _span_edits(texts, starts, 0, _check("position_mm", position_mm, 3), MM_DECIMALS, out)
     if orientation is not None:
         if target.orientation_kind == QUAT_WXYZ:
-            q = aligned_quaternion(orientation, texts[3:7])
-            _span_edits(texts, starts, 3, q, QUAT_DECIMALS, out)
+            _quaternion_edits(texts, starts, 3, orientation, out)
         else:
             _span_edits(texts, starts, 3, _check("orientation", orientation, 3),
                         DEG_DECIMALS, out)
@@ -339,8 +358,9 @@ def tool_edits(tool: ToolData, position_mm=None, quat_wxyz=None) -> list[Edit]:
     if position_mm is not None:
         _number_edits(tool.position, _check("position_mm", position_mm, 3), MM_DECIMALS, out)
     if quat_wxyz is not None:
-        q = aligned_quaternion(quat_wxyz, [n.text for n in tool.orientation])
-        _number_edits(tool.orientation, q, QUAT_DECIMALS, out)
+        numbers = tool.orientation
+        _quaternion_edits([n.text for n in numbers], [n.start for n in numbers], 0,
+                          quat_wxyz, out)
     return out
 
 
