@@ -16,15 +16,15 @@ import re
 import numpy as np
 import pytest
 
-from olp_compensate.calibration import ToolPoint, nominal_calibration
-from olp_compensate.compensate import Compensator, compensate_pose
+from olp_compensate.calibration import nominal_calibration
+from olp_compensate.compensate import compensate_pose
 from olp_compensate.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
                                         pose_from_rotation_translation, quat_wxyz_from_matrix,
                                         rotation_angle_between, rotation_from_rotvec)
 from olp_compensate.ik import branch_of, closed_form_inverse, fit_family, select_branch
 from olp_compensate.identify import IdentificationOptions, identify
 from olp_compensate.program_compensation import compensate_program
-from olp_compensate.programs import loads
+from olp_compensate.programs import loads, resolve
 from olp_compensate.model import build_model, forward
 from olp_compensate.registration import kabsch
 from olp_compensate.robot import load_robot
@@ -146,9 +146,23 @@ def _frames(world: World, seed: int):
     return program_tool, wobj, tool_rot, true_tool
 
 
+_WORLDS: dict = {}
+
+
+def _world(name: str) -> World:
+    if name not in _WORLDS:
+        _WORLDS[name] = World(name, seed=3)
+    return _WORLDS[name]
+
+
 @pytest.fixture(scope="module", params=["abb_irb2400", "ur5e"])
 def rapid_world(request):
-    return World(request.param, seed=3)
+    return _world(request.param)
+
+
+@pytest.fixture(scope="module")
+def irb2400_world():
+    return _world("abb_irb2400")
 
 
 @pytest.mark.parametrize("emit", ["pose", "joints"])
@@ -284,13 +298,11 @@ UNNORMALIZED = ("MODULE Q\n  CONST robtarget p1:=[[950,0,1100],[0,0,2,0],[0,0,0,
                 "  ENDPROC\nENDMODULE\n")
 
 
-def test_unnormalized_quaternion_survives_nominal_and_is_rewritten_whole(rapid_world):
+def test_unnormalized_quaternion_survives_nominal_and_is_rewritten_whole(irb2400_world):
     nominal = nominal_calibration(load_robot("abb_irb2400"))
     out, report = compensate_program(UNNORMALIZED, "rapid", nominal)
     assert out == UNNORMALIZED and report.exit_code == 0
-    if rapid_world.robot.name != "abb_irb2400":
-        return
-    out, report = compensate_program(UNNORMALIZED, "rapid", rapid_world.calibration)
+    out, report = compensate_program(UNNORMALIZED, "rapid", irb2400_world.calibration)
     assert report.exit_code == 0
     quat = loads(out, "rapid").targets[0].orientation_values()
     assert abs(np.linalg.norm(quat) - 1.0) < 1e-5     # no mix of old scale and new values
@@ -303,10 +315,8 @@ TWO_TOOLS = ("MODULE T\n  PERS tooldata tA:=[TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,
              "  ENDPROC\nENDMODULE\n")
 
 
-def test_target_used_with_two_tools_is_left_as_written_and_reported(rapid_world):
-    if rapid_world.robot.name != "abb_irb2400":
-        pytest.skip("one robot is enough")
-    out, report = compensate_program(TWO_TOOLS, "rapid", rapid_world.calibration)
+def test_target_used_with_two_tools_is_left_as_written_and_reported(irb2400_world):
+    out, report = compensate_program(TWO_TOOLS, "rapid", irb2400_world.calibration)
     assert out == TWO_TOOLS and report.exit_code == 2
     assert [r.status for r in report.rows] == ["ambiguous", "ambiguous"]
     assert {r.tool for r in report.rows} == {"tool0", "tA"}
@@ -320,17 +330,14 @@ STATIONARY = ("MODULE S\n"
               "  PROC main()\n    MoveL p1,v100,fine,tFix\\WObj:=wHeld;\n  ENDPROC\nENDMODULE\n")
 
 
-def test_stationary_tool_target_reaches_the_fixed_tool(rapid_world):
+def test_stationary_tool_target_reaches_the_fixed_tool(irb2400_world):
     """Robot-held work object at a stationary tool: the real flange must put the work
     object's target point on the fixed TCP."""
-    world = rapid_world
-    if world.robot.name != "abb_irb2400":
-        pytest.skip("one robot is enough")
+    world = irb2400_world
     out, report = compensate_program(STATIONARY, "rapid", world.calibration)
     assert report.exit_code == 0, report.rows
     program = loads(out, "rapid")
-    (rt,) = [r for r in __import__("olp_compensate.programs", fromlist=["resolve"]).resolve(
-        program).targets if r.target.name == "p1"]
+    (rt,) = [r for r in resolve(program).targets if r.target.name == "p1"]
     # controller: base_T_flange = base_T_tool inv(wobj_T_target) inv(flange_T_wobj)
     q_ctrl = world.controller(rt.base_T_flange[None], np.array(rt.target.config_values())[None])
     original = loads(STATIONARY, "rapid").targets[0].pose()
