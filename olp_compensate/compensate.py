@@ -181,13 +181,11 @@ def _stack(pose, m: int, name: str) -> np.ndarray:
     if pose is None:
         return np.broadcast_to(np.eye(4), (m, 4, 4))
     a = np.asarray(pose, dtype=float)
-    if a.shape == (4, 4):
-        return np.broadcast_to(a, (m, 4, 4))
-    if a.shape != (m, 4, 4):
+    if a.shape not in ((4, 4), (m, 4, 4)):
         raise DataError(f"{name}: expected shape (4, 4) or ({m}, 4, 4), got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise DataError(f"{name}: poses must be finite")
-    return a
+    return np.broadcast_to(a, (m, 4, 4))
 
 
 def compensate_poses(calibration: Calibration | Compensator, wobj_T_target, tool=None,

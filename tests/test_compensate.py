@@ -392,3 +392,13 @@ def test_compliance_found_by_diagnose_is_compensated_too():
         errors[label] = worst
     assert errors["extended"] < TOLERANCE_M, errors
     assert errors["geometric"] > 2 * TOLERANCE_M, errors
+
+
+def test_bad_pose_input_is_a_data_error():
+    from olp_compensate.errors import DataError
+
+    cal = nominal_calibration(load_robot("abb_irb2400"))
+    with pytest.raises(DataError, match="tool: poses must be finite"):
+        compensate_pose(cal, np.eye(4), tool=np.full((4, 4), np.nan))
+    with pytest.raises(DataError, match="wobj: expected shape"):
+        compensate_pose(cal, np.eye(4), wobj=np.eye(3))
