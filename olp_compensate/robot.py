@@ -1,6 +1,6 @@
 """A robot description: the serial chain of a URDF, from its root link to the flange.
 
-The URDF is read with yourdfpy; dynamics (gravity torques) are computed with pinocchio from
+The URDF is read by :mod:`olp_compensate.urdf`; dynamics (gravity torques) are computed with pinocchio from
 the same text. Joint frames, axes and limits are kept exactly as the URDF gives them (metres,
 radians); the calibration model (:mod:`olp_compensate.model`) is built from them.
 """
@@ -8,7 +8,6 @@ radians); the calibration model (:mod:`olp_compensate.model`) is built from them
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -18,6 +17,7 @@ import numpy as np
 
 from .data import data_folder
 from .errors import ModelError
+from .urdf import read_urdf_chain
 
 FLANGE_LINK = "tool0"
 
@@ -149,10 +149,6 @@ class Robot:
         return [model.getJointId(j.name) for j in self.joints]
 
 
-def _origin(matrix) -> np.ndarray:
-    return np.eye(4) if matrix is None else np.asarray(matrix, dtype=float)
-
-
 def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
                          flange_link: str = FLANGE_LINK,
                          urdf_from_controller: np.ndarray | None = None) -> Robot:
@@ -161,17 +157,10 @@ def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
     Raises :class:`ModelError` when the text is not a URDF, has no flange link, or the chain
     holds joint kinds other than revolute, continuous, prismatic and fixed.
     """
-    import yourdfpy
-
     where = source or "<urdf>"
-    try:
-        urdf = yourdfpy.URDF.load(io.BytesIO(text.encode("utf-8")), build_scene_graph=False, load_meshes=False,
-                                  build_collision_scene_graph=False, load_collision_meshes=False)
-    except Exception as exc:  # yourdfpy raises a variety of XML and value errors
-        raise ModelError(f"{where}: not a readable URDF ({exc})") from None
-    robot = urdf.robot
+    robot = read_urdf_chain(text, where)
     joints_by_child = {j.child: j for j in robot.joints}
-    links = {link.name for link in robot.links}
+    links = robot.links
     if flange_link not in links:
         raise ModelError(f"{where}: the URDF has no link '{flange_link}' (the flange frame)")
     chain = []
@@ -185,13 +174,13 @@ def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
     joints: list[Joint] = []
     pending = np.eye(4)
     for j in chain:
-        pending = pending @ _origin(j.origin)
+        pending = pending @ j.origin
         if j.type == "fixed":
             continue
         if j.type not in ("revolute", "continuous", "prismatic"):
             raise ModelError(f"{where}: joint '{j.name}' is of type '{j.type}'; "
                              "only revolute, continuous, prismatic and fixed joints are supported")
-        if j.mimic is not None:
+        if j.mimic:
             raise ModelError(f"{where}: joint '{j.name}' mimics another joint; not a serial arm")
         axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
         norm = np.linalg.norm(axis)

@@ -325,3 +325,57 @@ def test_yourdfpy_agrees_with_pinocchio(name):
         urdf.update_cfg({f"joint_{i + 1}": q[i] for i in range(6)})
         pose = urdf.get_transform("tool0", "base_link")
         assert_pose_close(np.asarray(pose), pin_tool0(model, data, q))
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_own_urdf_reader_agrees_with_yourdfpy(name):
+    """olp_compensate.urdf reads every joint as yourdfpy does (origin, axis, limits)."""
+    from olp_compensate.urdf import read_urdf_chain
+
+    theirs = yourdfpy.URDF.load(str(urdf_path(name)), load_meshes=False,
+                                build_collision_scene_graph=False,
+                                load_collision_meshes=False).robot
+    ours = read_urdf_chain(urdf_path(name).read_text(), name)
+    assert ours.name == theirs.name
+    assert ours.links == {link.name for link in theirs.links}
+    assert [j.name for j in ours.joints] == [j.name for j in theirs.joints]
+    for a, b in zip(ours.joints, theirs.joints):
+        assert (a.type, a.parent, a.child, a.mimic) == (b.type, b.parent, b.child, b.mimic is not None)
+        np.testing.assert_allclose(a.origin, np.eye(4) if b.origin is None else b.origin,
+                                   atol=1e-15)
+        if b.axis is None or a.type == "fixed":
+            continue
+        np.testing.assert_allclose(a.axis, b.axis, atol=0)
+        assert (a.limit.lower, a.limit.upper, a.limit.velocity, a.limit.effort) == \
+            (b.limit.lower, b.limit.upper, b.limit.velocity, b.limit.effort)
+
+
+def test_own_urdf_reader_rpy_matches_yourdfpy_on_a_general_origin():
+    from olp_compensate.urdf import read_urdf_chain
+
+    text = ('<robot name="r"><link name="a"/><link name="b"/>'
+            '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+            '<origin xyz="0.1 -0.2 0.3" rpy="0.3 -1.1 2.5"/><axis xyz="0 1 0"/>'
+            '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+    ours = read_urdf_chain(text).joints[0].origin
+    theirs = yourdfpy.URDF.load(__import__("io").BytesIO(text.encode()), load_meshes=False,
+                                build_collision_scene_graph=False,
+                                load_collision_meshes=False).robot.joints[0].origin
+    np.testing.assert_allclose(ours, theirs, atol=1e-14)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("not xml at all", "not a readable URDF"),
+    ("<sdf/>", "expected <robot>"),
+    ('<robot><joint name="j" type="fixed"><parent link="a"/></joint></robot>', "needs <parent"),
+    ('<robot><joint name="j" type="fixed"><parent link="a"/><child link="b"/>'
+     '<origin xyz="0 0"/></joint></robot>', "must hold 3 numbers"),
+    ('<robot><joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+     '<limit lower="x"/></joint></robot>', "is not a number"),
+])
+def test_own_urdf_reader_rejects_bad_text(text, message):
+    from olp_compensate.errors import ModelError
+    from olp_compensate.urdf import read_urdf_chain
+
+    with pytest.raises(ModelError, match=message):
+        read_urdf_chain(text, "bad.urdf")
