@@ -114,18 +114,47 @@ class CompensationReport:
     def to_csv(self) -> str:
         """The report as CSV text (one row per target use; units in the column names)."""
         buf = io.StringIO()
-        writer = csv.writer(buf, lineterminator="\n")
         joints = [f"q{k + 1}_deg" for k in range(self.n_joints)]
-        writer.writerow(["target", "file", "line", "column", "status", "tool", "wobj",
-                         "dx_mm", "dy_mm", "dz_mm", "drot_deg", "dq_max_deg",
-                         "config_before", "config_after", *joints, "note"])
+        csv.writer(buf, lineterminator="\n").writerow(
+            ["target", "file", "line", "column", "status", "tool", "wobj", "dx_mm", "dy_mm",
+             "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after", *joints, "note"])
+        # one %-format per row for the numbers (100k-target programs); rows with a
+        # missing number take the per-field path
+        numbers = ",".join(["%.4f"] * 3 + ["%.5f"] * 2)
+        joint_numbers = ",".join(["%.6f"] * self.n_joints)
+        empty_joints = "," * (self.n_joints - 1)
+        lines = []
+        field_text = _csv_field
         for r in self.rows:
-            q = list(r.joints) if r.joints else [math.nan] * self.n_joints
-            writer.writerow([r.target, r.file, r.line, r.column, r.status, r.tool, r.wobj,
-                             *(_num(v, 4) for v in r.correction_mm), _num(r.correction_deg, 5),
-                             _num(r.joint_change, 5), r.config_before, r.config_after,
-                             *(_num(v, 6) for v in q), r.note])
-        return buf.getvalue()
+            values = (*r.correction_mm, r.correction_deg, r.joint_change)
+            try:
+                middle = numbers % values if math.isfinite(sum(values)) else None
+            except TypeError:   # a None
+                middle = None
+            if middle is None:
+                middle = ",".join([*(_num(v, 4) for v in r.correction_mm),
+                                   _num(r.correction_deg, 5), _num(r.joint_change, 5)])
+            q = r.joints
+            if not q:
+                joint_text = empty_joints
+            elif len(q) == self.n_joints and math.isfinite(sum(q)):
+                joint_text = joint_numbers % q
+            else:
+                joint_text = ",".join(_num(v, 6) for v in q)
+            lines.append(",".join((field_text(r.target), field_text(r.file), str(r.line),
+                                   str(r.column), field_text(r.status), field_text(r.tool),
+                                   field_text(r.wobj), middle, field_text(r.config_before),
+                                   field_text(r.config_after), joint_text,
+                                   field_text(r.note))))
+        lines.append("")
+        return buf.getvalue() + "\n".join(lines)
+
+
+def _csv_field(text: str) -> str:
+    """One CSV field as csv.writer writes it (quoted only when it must be)."""
+    if "," in text or '"' in text or "\n" in text or "\r" in text:
+        return '"' + text.replace('"', '""') + '"'
+    return text
 
 
 def _num(value: float, decimals: int) -> str:

@@ -402,3 +402,30 @@ def test_bad_pose_input_is_a_data_error():
         compensate_pose(cal, np.eye(4), tool=np.full((4, 4), np.nan))
     with pytest.raises(DataError, match="wobj: expected shape"):
         compensate_pose(cal, np.eye(4), wobj=np.eye(3))
+
+
+def test_report_csv_reads_back_field_for_field():
+    """The report's CSV (hand-assembled for speed) is what csv.reader reads back: quoted
+    names and notes, empty cells for missing numbers, every number in its unit."""
+    import csv
+    import io
+    import math
+
+    from olp_compensate.program_compensation import CompensationReport, TargetReport
+
+    rows = (TargetReport("p1", "a,b.mod", 3, 5, "ok", "tool \"x\"", "wobj0",
+                         (1.0, -2.5, 0.00004), 0.25, 1.5, "[0,0,0,0]", "[0,-1,0,0]",
+                         (10.0, 20.0, 30.0, 40.0, 50.0, 60.0), "line1\nline2"),
+            TargetReport("p2", "f.mod", 4, 1, "unreachable", correction_mm=(math.nan,) * 3,
+                         joints=(1.0, math.nan, 3.0, 4.0, 5.0, 6.0)),
+            TargetReport("Offs(p1,0,0,10)", "f.mod", 9, 2, "runtime", note="built at run time"))
+    table = list(csv.reader(io.StringIO(CompensationReport("f.mod", rows).to_csv())))
+    assert table[0][:8] == ["target", "file", "line", "column", "status", "tool", "wobj", "dx_mm"]
+    assert table[1] == ["p1", "a,b.mod", "3", "5", "ok", "tool \"x\"", "wobj0", "1.0000",
+                        "-2.5000", "0.0000", "0.25000", "1.50000", "[0,0,0,0]", "[0,-1,0,0]",
+                        "10.000000", "20.000000", "30.000000", "40.000000", "50.000000",
+                        "60.000000", "line1\nline2"]
+    assert table[2][7:12] == [""] * 5 and table[2][14:20] == ["1.000000", "", "3.000000",
+                                                              "4.000000", "5.000000", "6.000000"]
+    assert table[3][14:20] == [""] * 6 and table[3][-1] == "built at run time"
+    assert all(len(row) == len(table[0]) for row in table)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -183,3 +184,30 @@ def test_unnormalized_quaternion_kept_when_unchanged_and_rewritten_whole_when_no
                       + tool_edits(tool, quat_wxyz=turned)), "rapid")
     for numbers in (new.targets[0].orientation, new.tools[0].orientation):
         np.testing.assert_allclose([n.value for n in numbers], turned, atol=1e-6)
+
+
+def test_batch_fast_path_writes_what_the_general_path_writes():
+    """The one-format-per-target path of edits_for_targets gives the same text as the
+    number-by-number path, for plain numbers and for every style it must leave to it."""
+    styles = ["[[1,2,3],[1,0,0,0]", "[[1.5,-2.25,3.125],[0.5,0.5,0.5,0.5]",
+              "[[+1.5,.5,-.5],[1,0,0,0]", "[[1E2,2.5e-01,3],[1,0,0,0]",
+              "[[1.12345,2,3],[0.70710678,0.70710678,0,0]", "[ [1, 2 ,3] ,\r\n [1,0,0,0]",
+              "[[1,2,3],[1,0,0,0]", "[[1,2,3], ! 5,6\n [1,0,0,0]"]
+    lines = ["MODULE M"]
+    for k, s in enumerate(styles):
+        lines.append(f"  CONST robtarget p{k}:={s},[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    lines.append("ENDMODULE")
+    program = loads("\n".join(lines), "rapid")
+    targets = program.targets
+    rng = np.random.default_rng(3)
+    pos = np.array([t.position_mm() for t in targets]) + rng.normal(0, 0.5, (len(targets), 3))
+    pos[0] = [-0.0001, 0.0004, -0.00049]    # round to zero: never "-0.000"
+    ori = np.array([t.orientation_values() for t in targets], float)
+    ori = ori / np.linalg.norm(ori, axis=1, keepdims=True) + rng.normal(0, 1e-3, ori.shape)
+    ori[6] = [np.sqrt(1 - 3e-14), -1e-7, 1e-7, -1e-7]
+    batch = dumps(program, edits_for_targets(program, pos, ori))
+    single = []
+    for t, p, o in zip(targets, pos, ori):
+        single += target_edits(t, position_mm=p, orientation=o)
+    assert batch == dumps(program, single)
+    assert not re.search(r"-0\.0+(?![0-9])", batch) and "[[0.000,0.000,0.000]" in batch

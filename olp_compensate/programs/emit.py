@@ -11,6 +11,8 @@ microradian), or more when the original had more.
 from __future__ import annotations
 
 import math
+from itertools import chain
+import re
 from collections.abc import Iterable, Mapping
 
 import numpy as np
@@ -250,6 +252,52 @@ def target_edits(target: CartesianTarget, position_mm=None, orientation=None, co
     return out
 
 
+class _FastRun:
+    """The common case of :func:`edits_for_targets` in one ``%`` format per target: every
+    column changes, the columns are consecutive numbers, and each is written plainly
+    (``-12.5``: no exponent, sign ``+`` or bare ``.5``) with no more decimals than the new
+    value gets. Then the new text is the old span with each number replaced by
+    ``%.{decimals}f``; the separators between the numbers (commas, brackets, spaces) come
+    from the text and the template is cached per separator tuple."""
+
+    def __init__(self, cols: list[int], decimals: list[int], text: str):
+        self.ok = cols == list(range(cols[0], cols[0] + len(cols)))
+        self.cols, self.decimals, self.text = cols, decimals, text
+        self.first, self.last = cols[0], cols[-1]
+        plain = [r"-?\d+(?:\.\d{0,%d})?" % d for d in decimals]
+        self.pattern = re.compile("(" + ")(.*?)(".join(plain) + ")", re.S)
+        self.templates: dict[tuple[str, ...], str] = {}
+        self.all_true = [True] * len(cols)
+
+    def zero_small(self, new: np.ndarray) -> list[list[float]]:
+        """``new`` (k, columns) as rows of floats, values that round to zero written as 0 so
+        no ``-0.000`` appears (the general path strips the sign the same way)."""
+        tol = 0.5 * 10.0 ** -np.array(self.decimals, float)
+        return np.where(np.abs(new) < tol, 0.0, new).tolist()
+
+    def applies(self, row_mask: list[bool], target) -> bool:
+        return self.ok and row_mask == self.all_true and len(target.texts) > self.last
+
+    def edit(self, target, values: list[float]) -> Edit | None:
+        starts, texts = target.starts, target.texts
+        begin = starts[self.first]
+        end = starts[self.last] + len(texts[self.last])
+        match = self.pattern.fullmatch(self.text, begin, end)
+        if match is None:
+            return None
+        groups = match.groups()
+        if groups[0::2] != texts[self.first:self.last + 1]:
+            return None   # a number the lazy separators did not align with (comments)
+        separators = groups[1::2]
+        template = self.templates.get(separators)
+        if template is None:
+            pieces = ["%%.%df" % self.decimals[0]]
+            for sep, d in zip(separators, self.decimals[1:]):
+                pieces += [sep.replace("%", "%%"), "%%.%df" % d]
+            template = self.templates[separators] = "".join(pieces)
+        return _edit((begin, end, template % tuple(values)))
+
+
 def edits_for_targets(program: Program, position_mm=None, orientation=None, config=None,
                       targets=None) -> list[Edit]:
     """:func:`target_edits` for many targets at once (vectorized): one edit per changed
@@ -272,7 +320,8 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
     width = 3 + (4 if quat else 3)
     parts = []  # (first number index, new values (n, k), decimals)
     with no_gc():
-        old = np.array([[float(v) for v in t.texts[:width]] for t in targets])
+        old = np.fromiter(map(float, chain.from_iterable(t.texts[:width] for t in targets)),
+                          float, n * width).reshape(n, width)
         if position_mm is not None:
             parts.append((0, _batch("position_mm", position_mm, n, 3), MM_DECIMALS))
         if orientation is not None:
@@ -305,10 +354,21 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
                 mask = mask.tolist()
             else:
                 mask = (np.abs(new - reference) >= tol).tolist()
+            fast = _FastRun(cols, decimals, text)
+            new_fast = fast.zero_small(new)
             new = new.tolist()
+        else:
+            fast = new_fast = None
         out: list[Edit] = []
         fmt = _format
         for i, t in enumerate(targets):
+            if fast is not None and fast.applies(mask[i], t):
+                edit = fast.edit(t, new_fast[i])
+                if edit is not None:
+                    out.append(edit)
+                    if config is not None:
+                        out += target_edits(t, config=config[i])
+                    continue
             if parts and True in mask[i]:
                 texts, starts = t.texts, t.starts
                 pieces = []
