@@ -20,6 +20,7 @@ robhold) is None with the reason in ``notes``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import chain
 
 import numpy as np
 
@@ -286,11 +287,13 @@ def target_poses(targets) -> np.ndarray:
     quat = [i for i, t in enumerate(targets) if t.orientation_kind == QUAT_WXYZ]
     euler = [i for i, t in enumerate(targets) if t.orientation_kind != QUAT_WXYZ]
     if quat:
-        v = np.array([[float(x) for x in targets[i].texts[:7]] for i in quat])
+        v = np.fromiter(map(float, chain.from_iterable(targets[i].texts[:7] for i in quat)),
+                        float, 7 * len(quat)).reshape(-1, 7)
         poses[quat] = pose_from_rotation_translation(matrix_from_quat_wxyz(v[:, 3:7]),
                                                      v[:, :3] * MM)
     if euler:
-        v = np.array([[float(x) for x in targets[i].texts[:6]] for i in euler])
+        v = np.fromiter(map(float, chain.from_iterable(targets[i].texts[:6] for i in euler)),
+                        float, 6 * len(euler)).reshape(-1, 6)
         a = np.deg2rad(v[:, 3:6])
         poses[euler] = pose_from_rotation_translation(
             matrix_from_euler_zyz(a[:, 0], a[:, 1], a[:, 2]), v[:, :3] * MM)

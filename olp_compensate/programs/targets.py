@@ -76,6 +76,9 @@ _make_number = Number._make
 _LAYOUT = {QUAT_WXYZ: (0, 3, 7, 11, 17), EULER_ZYZ_DEG: (0, 3, 6, 6, 6)}
 
 
+_CONFIG_VALUES: dict[tuple[str, ...], tuple[int, ...]] = {}
+
+
 class CartesianTarget(NamedTuple):
     """A Cartesian target: a RAPID robtarget or a V+ transformation.
 
@@ -155,7 +158,13 @@ class CartesianTarget(NamedTuple):
     def config_values(self) -> tuple[int, ...]:
         """RAPID confdata (cf1, cf4, cf6, cfx) as integers; () for V+."""
         k = _LAYOUT[self.orientation_kind]
-        return tuple(int(round(float(t))) for t in self.texts[k[2]:k[3]])
+        texts = self.texts[k[2]:k[3]]
+        values = _CONFIG_VALUES.get(texts)
+        if values is None:   # programs repeat a handful of confdata: parse each once
+            if len(_CONFIG_VALUES) > 4096:
+                _CONFIG_VALUES.clear()
+            values = _CONFIG_VALUES[texts] = tuple(int(round(float(t))) for t in texts)
+        return values
 
     def rotation(self) -> np.ndarray:
         """Rotation matrix (3, 3) of the orientation (quaternion normalized)."""
