@@ -18,6 +18,7 @@ from ..io.atomic import write_bytes_atomic, write_text_atomic
 from ..io.calibration_file import read_calibration
 from ..program_compensation import EMIT_MODES, compensate_program
 from ..programs import DIALECTS, ENCODING, dialect_for, load
+from ..programs.grammar import no_gc
 from ..robot import load_robot
 from .common import run_guarded
 
@@ -61,6 +62,13 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def run(args) -> int:
+    # a short batch run over millions of small acyclic records: the cyclic collector's
+    # full scans (each time it comes back on between stages) would only cost time
+    with no_gc():
+        return _run(args)
+
+
+def _run(args) -> int:
     started = time.perf_counter()
     path = Path(args.program)
     out = Path(args.output) if args.output else default_output(path)
