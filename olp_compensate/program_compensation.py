@@ -46,6 +46,8 @@ KEPT = ("joint_target",)
 EMIT_MODES = ("pose", "joints")
 CONFIG_SLACK_RAD = math.radians(1.0)
 """A written quadrant is kept while its axis is less than this outside it."""
+TOOL_FRAME_SLACK_RAD = math.radians(5.0)
+"""A calibrated tool orientation this close to the tooldata's is taken as the real one."""
 _SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree within this
 
 
@@ -175,13 +177,24 @@ class _Job:
 
 
 def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
-    """flange_T_tool of the real robot for the program tool ``name``, and a note."""
+    """flange_T_tool of the real robot for the program tool ``name``, and a note.
+
+    A calibrated orientation more than :data:`TOOL_FRAME_SLACK_RAD` from the tooldata's is
+    the frame of the measuring device's probe, not the tool's axes: the tooldata's
+    orientation is kept then (and the note says so)."""
     for cal_name, tool in calibration.tools.items():
         if cal_name.lower() == name.lower():
-            rotation = (program_tool[:3, :3] if tool.quat_wxyz is None
-                        else matrix_from_quat_wxyz(tool.quat_wxyz))
-            return (pose_from_rotation_translation(rotation, tool.xyz_m),
-                    f"real TCP of {name} from the calibration")
+            note = f"real TCP of {name} from the calibration"
+            rotation = program_tool[:3, :3]
+            if tool.quat_wxyz is not None:
+                measured = matrix_from_quat_wxyz(tool.quat_wxyz)
+                apart = float(rotation_angle_between(measured, rotation))
+                if apart <= TOOL_FRAME_SLACK_RAD:
+                    rotation = measured
+                else:
+                    note += (f" (its measured frame is {math.degrees(apart):.1f} deg from the "
+                             f"tooldata's: the tooldata's orientation kept)")
+            return pose_from_rotation_translation(rotation, tool.xyz_m), note
     return program_tool, ""
 
 

@@ -429,3 +429,33 @@ def test_report_csv_reads_back_field_for_field():
                                                               "4.000000", "5.000000", "6.000000"]
     assert table[3][14:20] == [""] * 6 and table[3][-1] == "built at run time"
     assert all(len(row) == len(table[0]) for row in table)
+
+
+@pytest.mark.parametrize("turn_deg, used", [(2.0, True), (90.0, False)])
+def test_calibrated_tool_orientation_used_only_near_the_tooldata(turn_deg, used):
+    """A calibrated tool of the tooldata's name gives the real TCP; its orientation is
+    taken when it is a few degrees from the tooldata's (the tool's axes, measured), kept
+    from the tooldata when far (the frame of a measuring probe, not the tool's axes)."""
+    import dataclasses
+
+    from olp_compensate.calibration import ToolPoint
+
+    robot = load_robot("abb_irb2400")
+    program_rotation = matrix_from_quat_wxyz([0.92388, 0, 0.382683, 0])
+    tool_xyz = np.array([120.5, 0, 210]) * MM
+    measured = program_rotation @ rotation_from_rotvec(np.radians([turn_deg, 0, 0]))
+    cal = dataclasses.replace(nominal_calibration(robot), tools={
+        "tGun": ToolPoint(xyz_m=tool_xyz, quat_wxyz=quat_wxyz_from_matrix(measured))})
+    text = ("MODULE M\n  PERS tooldata tGun:=[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],"
+            "[2.5,[0,0,80],[1,0,0,0],0,0,0]];\n"
+            "  CONST robtarget p1:=[[1200,100,900],[0,0,1,0],[0,0,0,0],"
+            "[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+            "  PROC main()\n    MoveL p1,v100,fine,tGun;\n  ENDPROC\nENDMODULE\n")
+    out, report = compensate_program(text, "rapid", cal)
+    row = report.rows[0]
+    assert row.status == "ok"
+    if used:  # the TCP turned by 2 deg about its own x: the target turns with it
+        assert out != text and row.correction_deg == pytest.approx(turn_deg, abs=1e-3)
+        assert "kept" not in row.note
+    else:
+        assert out == text and "tooldata's orientation kept" in row.note
