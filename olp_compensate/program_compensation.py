@@ -51,7 +51,7 @@ TOOL_FRAME_SLACK_RAD = math.radians(5.0)
 _SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree within this
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)   # not frozen: a frozen __init__ costs 2 us a row
 class TargetReport:
     """One row of the report: one target with one tool/work-object pair (or one run-time
     motion). Lengths in mm, angles in degrees; NaN where not compensated.
