@@ -173,7 +173,7 @@ class _Job:
     entries: list = field(default_factory=list)       # ResolvedTarget
     confdata: list = field(default_factory=list)      # (4,) or None
     real_tool_note: list = field(default_factory=list)
-    base: dict = field(default_factory=dict)          # ResolvedTarget -> report fields
+    base: list = field(default_factory=list)          # report fields (_base_fields)
 
 
 def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
@@ -208,6 +208,14 @@ def _config_text(values) -> str:
     if text is None:
         text = _CONFIG_TEXT[key] = "[" + ",".join(str(int(v)) for v in key) + "]" if key else ""
     return text
+
+
+def _base_fields(rt, config) -> dict:
+    """The report fields every row of resolved target ``rt`` shares."""
+    t = rt.target
+    where = t.location
+    return dict(target=t.display_name, file=where.file, line=where.line, column=where.column,
+                tool=rt.tool_name, wobj=rt.wobj_name, config_before=_config_text(config))
 
 
 def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
@@ -266,15 +274,12 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
     index_of = {}
     for k, rt in enumerate(resolution.targets):
         t = rt.target
-        where = t.location
-        base = dict(target=t.display_name, file=where.file, line=where.line,
-                    column=where.column, tool=rt.tool_name, wobj=rt.wobj_name)
         if isinstance(t, JointTarget):
-            rows[k] = TargetReport(**base, status="joint_target",
+            rows[k] = TargetReport(**_base_fields(rt, ()), status="joint_target",
                                    joints=tuple(t.joints_deg()), note="joints kept as written")
             continue
         config = t.config_values() if not vplus else ()
-        base["config_before"] = _config_text(config)
+        base = _base_fields(rt, config)
         if "unused" in rt.notes and not rt.uses and unused == "skip":
             rows[k] = TargetReport(**base, status="unused",
                                    note="not moved to in this file: tool and work object "
@@ -286,7 +291,7 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         index_of[k] = len(job.entries)
         job.entries.append(rt)
         job.confdata.append(config if config else None)
-        job.base[rt] = base
+        job.base.append(base)
 
     n = len(job.entries)
     if n:
@@ -397,12 +402,16 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
     for k, i in index_of.items():
         rt = job.entries[i]
         t = rt.target
-        base = job.base[rt]
-        notes = [x for x in rt.notes if x != "unused"] + [job.real_tool_note[i]]
-        if "unused" in rt.notes:
-            notes.append("not moved to in this file: tool0/wobj0 assumed")
+        base = job.base[i]
+        if rt.notes:
+            notes = [x for x in rt.notes if x != "unused"] + [job.real_tool_note[i]]
+            if "unused" in rt.notes:
+                notes.append("not moved to in this file: tool0/wobj0 assumed")
+            note = "; ".join(x for x in notes if x)
+        else:
+            note = job.real_tool_note[i]
         if not ok[i]:
-            rows[k] = TargetReport(**base, status=str(status[i]), note="; ".join(x for x in notes if x))
+            rows[k] = TargetReport(**base, status=str(status[i]), note=note)
             continue
         if i in ambiguous:
             rows[k] = TargetReport(**base, status="ambiguous",
@@ -418,8 +427,7 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         rows[k] = TargetReport(
             **base, config_after=config_after, status=str(status[i]),
             correction_mm=tuple(shift_mm[i]), correction_deg=turn_deg[i],
-            joint_change=change[i], joints=tuple(joints_deg[i]),
-            note="; ".join(x for x in notes if x))
+            joint_change=change[i], joints=tuple(joints_deg[i]), note=note)
 
     order = [rows[k] for k in sorted(rows)]
     for use, why in resolution.unresolved:
