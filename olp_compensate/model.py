@@ -23,6 +23,9 @@ every joint (the geometric Jacobian), all from one pass.
 
 from __future__ import annotations
 
+import math
+import sys
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,6 +117,8 @@ class ChainResult:
     ``points``: (m, 3) positions of the tool points; ``flange``: (m, 4, 4) flange poses;
     with ``jacobian=True`` also ``dpoint_dparam`` (m, 3, P), ``drot_dparam`` (m, 3, P)
     (angular velocity per unit parameter), ``dpoint_dq`` (m, 3, n) and ``drot_dq`` (m, 3, n).
+    The derivative arrays are views that may share memory (a joint's columns are those of
+    its zero offset's step): read them, do not write into them.
     """
 
     points: np.ndarray
@@ -128,9 +133,15 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross costs ten times more on single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
 def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
     """Angle (rad) rotating direction ``a`` onto ``b`` about ``axis`` (all perpendicular)."""
-    return float(np.arctan2(np.dot(np.cross(a, b), axis), np.dot(a, b)))
+    return math.atan2(float(np.dot(_cross(a, b), axis)), float(np.dot(a, b)))
 
 
 class _ChainBuilder:
@@ -164,7 +175,7 @@ def _dh_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
     normal = foot1 - foot0
     a = float(np.linalg.norm(normal))
     if a < 1e-9:
-        cross = np.cross(z0, direction)
+        cross = _cross(z0, direction)
         x_new = _unit(cross) if np.linalg.norm(cross) > 1e-9 else x0
         a = 0.0
     else:
@@ -173,7 +184,7 @@ def _dh_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
     alpha = _signed_angle(z0, direction, x_new)
     new = np.eye(4)
     new[:3, 0], new[:3, 2] = x_new, direction
-    new[:3, 1] = np.cross(direction, x_new)
+    new[:3, 1] = _cross(direction, x_new)
     new[:3, 3] = foot1
     return (theta, float(s), a, alpha), new
 
@@ -188,7 +199,7 @@ def _hayati_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
     a = float(np.linalg.norm(v))
     x_new = v / a if a > 1e-9 else x0  # collinear axes: Hayati is singular, the SVD will say
     theta = _signed_angle(x0, x_new, z0)
-    y_new = np.cross(z0, x_new)
+    y_new = _cross(z0, x_new)
     u, w_, h = np.dot(direction, x_new), np.dot(direction, y_new), np.dot(direction, z0)
     beta = float(np.arcsin(np.clip(u, -1.0, 1.0)))
     alpha = float(np.arctan2(-w_, h))
@@ -221,7 +232,7 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
     if np.linalg.norm(x) < 1e-6:
         x = np.array([0.0, 1.0, 0.0]) - z[1] * z
     x = _unit(x)
-    first[:3, 0], first[:3, 1], first[:3, 2] = x, np.cross(z, x), z
+    first[:3, 0], first[:3, 1], first[:3, 2] = x, _cross(z, x), z
 
     chain = _ChainBuilder()
     frame = first
@@ -254,11 +265,55 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
         chain.add(True, 2, "theta", last, 0.0, moves_with=last)
     else:
         chain.add(False, 2, "d", last, 0.0, moves_with=last)
-    last_T_flange = np.linalg.inv(frame) @ robot.flange_at_zero()
+    frame_inv = np.eye(4)  # frame is rigid: its inverse is (R^T, -R^T t)
+    frame_inv[:3, :3] = frame[:3, :3].T
+    frame_inv[:3, 3] = -frame[:3, :3].T @ frame[:3, 3]
+    last_T_flange = frame_inv @ robot.flange_at_zero()
     return KinematicModel(robot_name=robot.name, fingerprint=robot.fingerprint, joint_kinds=kinds,
                           base_T_first=first, steps=tuple(chain.steps),
                           last_T_flange=last_T_flange, parameters=tuple(chain.parameters),
                           conventions=tuple(conventions), convention=convention)
+
+
+_SPARES = threading.local()
+SPARE_BYTES = 16 << 20
+"""Arrays up to this size are kept by :func:`reusable_array` for reuse."""
+
+
+def _free_reference_count() -> int:
+    """What ``sys.getrefcount`` reports, in :func:`reusable_array`'s loop, for an array that
+    only its pool refers to (measured, not assumed: interpreters count loop variables and
+    arguments differently)."""
+    for spare in [np.empty(0)]:
+        return sys.getrefcount(spare)
+    raise AssertionError
+
+
+_FREE = _free_reference_count()
+
+
+def reusable_array(tag: str, shape: tuple[int, ...], slots: int = 1) -> np.ndarray:
+    """An uninitialized float array of ``shape``: one of the last ``slots`` arrays handed
+    out under ``tag`` in this thread, when it has that shape and nothing refers to it any
+    more, not even a view (a view refers to it, so its reference count shows it), else a
+    new one.
+
+    For the large arrays a fit fills again at every evaluation (the chain's derivatives, the
+    Jacobian): fresh memory costs a page fault per 4 KiB, which at a thousand poses takes
+    longer than the arithmetic that fills it."""
+    pool = getattr(_SPARES, tag, None)
+    if pool is None:
+        pool = []
+        setattr(_SPARES, tag, pool)
+    for spare in pool:
+        if spare.shape == shape and sys.getrefcount(spare) == _FREE:
+            return spare
+    array = np.empty(shape)
+    if array.nbytes <= SPARE_BYTES:
+        pool.append(array)
+        if len(pool) > slots:
+            del pool[0]
+    return array
 
 
 def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
@@ -271,61 +326,116 @@ def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
     q : (m, n) joint values, rad or m.
     tool_points : (m, 3) points in the flange frame (m); default the flange origin.
     jacobian : also return the analytic derivatives (see :class:`ChainResult`).
+
+    The derivatives are twists: a step turning about the unit axis w through the point o
+    moves the tool point p by ``w x (p - o)`` and turns the flange by ``w`` per unit of its
+    value; a step translating along w moves p by ``w``. One pass through the chain records
+    w and o of every step straight into the output arrays; the cross products with the
+    final p are then taken for all steps at once.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     m = q.shape[0]
-    # Frame columns and origin as (3, m) arrays: contiguous per component, cheap to update.
-    cols = [np.repeat(model.base_T_first[:3, k, None], m, axis=1) for k in range(3)]
-    origin = np.repeat(model.base_T_first[:3, 3, None], m, axis=1)
-    records = []
-    for step in model.steps:
-        value = values[step.parameter]
-        if step.joint is not None:
-            value = value + q[:, step.joint]
+    scalars = np.asarray(values, dtype=float).tolist()  # constant steps in float arithmetic
+    steps = model.steps
+    n_par, n_q = model.n_parameters, model.n_joints
+    moving = [s for s, step in enumerate(steps) if step.joint is not None]
+    if moving:  # the values of the moving steps, (k, m), with cosines and sines, at once
+        moved = q.T[[steps[s].joint for s in moving]]
+        moved += np.array([scalars[steps[s].parameter] for s in moving])[:, None]
+        cosines, sines = np.cos(moved), np.sin(moved)
+        slot = dict(zip(moving, range(len(moving))))
+    if jacobian:
+        by_parameter = [step.parameter for step in steps]
+        direct = sorted(by_parameter) == list(range(n_par))  # one step per parameter
+        n_rows = n_par if direct else len(steps)
+        # One block for the derivatives, (k, 3, m) each: [dp/dpar | dr/dpar | scratch]; the
+        # joints' are views of their steps' rows.
+        block = reusable_array("forward", (3 * n_rows, 3, m), slots=2)
+        dpoint, drot, scratch = block[:n_rows], block[n_rows:2 * n_rows], block[2 * n_rows:]
+        row_of = by_parameter if direct else list(range(len(steps)))
+    # Frame columns and origin as (3, m) arrays (contiguous per component, cheap to update);
+    # they start as (3, 1) and broadcast to m at the first step that moves.
+    bt = model.base_T_first
+    cols = [bt[:3, k, None].copy() for k in range(3)]
+    origin = bt[:3, 3, None].copy()
+    for s, step in enumerate(steps):
+        value = scalars[step.parameter] if step.joint is None else moved[slot[s]]
+        if jacobian:
+            # the axis w, and for rotations the origin o in the dpoint row (replaced below)
+            drot[row_of[s]] = cols[step.axis]
+            if step.rotation:
+                dpoint[row_of[s]] = origin
         if step.rotation:
-            if jacobian:
-                records.append((origin, cols[step.axis]))
-            c, s = np.cos(value), np.sin(value)
+            if step.joint is None:
+                c, s_ = math.cos(value), math.sin(value)
+            else:
+                c, s_ = cosines[slot[s]], sines[slot[s]]
             j, k = (step.axis + 1) % 3, (step.axis + 2) % 3
-            cols[j], cols[k] = c * cols[j] + s * cols[k], c * cols[k] - s * cols[j]
+            cols[j], cols[k] = c * cols[j] + s_ * cols[k], c * cols[k] - s_ * cols[j]
         else:
-            if jacobian:
-                records.append((None, cols[step.axis]))
             origin = origin + value * cols[step.axis]
-    rot = np.stack(cols, axis=1)  # (3, 3, m): rot[:, k] is column k
-    lf = model.last_T_flange
-    flange_rot = np.einsum("ikm,kj->mij", rot, lf[:3, :3])
-    flange_origin = origin.T + np.einsum("ikm,k->mi", rot, lf[:3, 3])
+    # the flange: the last frame times the constant last_T_flange, one (4, 4) @ (4, 3m) product
+    # on the rows (x, y, z axes, origin)
+    if jacobian and n_rows >= 8:  # the scratch rows are free until the cross products
+        last, flange_rows = scratch[:4], scratch[4:8]
+    else:
+        last, flange_rows = np.empty((4, 3, m)), np.empty((4, 3, m))
+    last[0], last[1], last[2], last[3] = cols[0], cols[1], cols[2], origin
+    np.matmul(model.last_T_flange.T, last.reshape(4, -1), out=flange_rows.reshape(4, -1))
+    flange_cols, flange_origin = flange_rows[:3], flange_rows[3]
     flange = np.zeros((m, 4, 4))
-    flange[:, :3, :3] = flange_rot
-    flange[:, :3, 3] = flange_origin
+    flange[:, :3, :] = flange_rows.transpose(2, 1, 0)
     flange[:, 3, 3] = 1.0
     if tool_points is None:
-        points = flange_origin
+        p = flange_origin.copy()
     else:
-        points = flange_origin + np.einsum("mij,mj->mi", flange_rot, tool_points)
+        tool = np.asarray(tool_points, dtype=float).reshape(-1, 3).T
+        p = (flange_origin + flange_cols[0] * tool[0] + flange_cols[1] * tool[1]
+             + flange_cols[2] * tool[2])
+    points = np.ascontiguousarray(p.T)
     if not jacobian:
         return ChainResult(points=points, flange=flange)
 
-    n_par, n_q = model.n_parameters, model.n_joints
-    dp_dpar = np.zeros((n_par, 3, m))
-    dr_dpar = np.zeros((n_par, 3, m))
-    dp_dq = np.zeros((n_q, 3, m))
-    dr_dq = np.zeros((n_q, 3, m))
-    p = points.T
-    for step, (o, w) in zip(model.steps, records):
-        if o is None:
-            dp, dr = w, 0.0
+    # dpoint = w x (p - o) for every row (a translation's row, o = 0 here, is fixed below),
+    # in place, with the scratch rows for the intermediate products.
+    translations = [row_of[s] for s, step in enumerate(steps) if not step.rotation]
+    if translations:
+        dpoint[translations] = 0.0
+    np.subtract(p, dpoint, out=dpoint)
+    w0, w1, w2 = drot[:, 0], drot[:, 1], drot[:, 2]
+    r0, r1, r2 = dpoint[:, 0], dpoint[:, 1], dpoint[:, 2]
+    c0, c1, t = scratch[:, 0], scratch[:, 1], scratch[:, 2]
+    np.subtract(np.multiply(w1, r2, out=c0), np.multiply(w2, r1, out=t), out=c0)
+    np.subtract(np.multiply(w2, r0, out=c1), np.multiply(w0, r2, out=t), out=c1)
+    np.subtract(np.multiply(w0, r1, out=r2), np.multiply(w1, r0, out=t), out=r2)
+    r0[...] = c0
+    r1[...] = c1
+    if translations:  # through the scratch rows: no temporary
+        np.take(drot, translations, axis=0, out=scratch[:len(translations)])
+        dpoint[translations] = scratch[:len(translations)]
+        drot[translations] = 0.0
+    if direct:
+        dp_dpar, dr_dpar = dpoint, drot
+    else:  # several steps share a parameter: sum their columns
+        dp_dpar, dr_dpar = (np.zeros((n_par, 3, m)) for _ in range(2))
+        np.add.at(dp_dpar, by_parameter, dpoint)
+        np.add.at(dr_dpar, by_parameter, drot)
+    joints = [steps[s].joint for s in moving]
+    rows = [row_of[s] for s in moving]
+    if sorted(joints) == list(range(n_q)):  # one moving step per joint: its rows, as views
+        order = [rows[i] for i in sorted(range(n_q), key=joints.__getitem__)]
+        stride = order[1] - order[0] if n_q > 1 else 1
+        if stride > 0 and order == list(range(order[0], order[0] + stride * n_q, stride)):
+            dp_dq = dpoint[order[0]:order[-1] + 1:stride]
+            dr_dq = drot[order[0]:order[-1] + 1:stride]
         else:
-            r = p - o
-            dp = np.stack([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2],
-                           w[0] * r[1] - w[1] * r[0]])
-            dr = w
-        dp_dpar[step.parameter] += dp
-        dr_dpar[step.parameter] += dr
-        if step.joint is not None:
-            dp_dq[step.joint] += dp
-            dr_dq[step.joint] += dr
+            dp_dq, dr_dq = dpoint[order], drot[order]
+    else:
+        dp_dq, dr_dq = (np.zeros((n_q, 3, m)) for _ in range(2))
+        np.add.at(dp_dq, joints, dpoint[rows])
+        np.add.at(dr_dq, joints, drot[rows])
+    # (m, 3, k) views of the (k, 3, m) arrays; ``.transpose(2, 1, 0)`` gives the contiguous
+    # (k, 3, m) layout back.
     return ChainResult(points=points, flange=flange,
                        dpoint_dparam=dp_dpar.transpose(2, 1, 0),
                        drot_dparam=dr_dpar.transpose(2, 1, 0),

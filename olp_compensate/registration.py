@@ -10,13 +10,21 @@ from __future__ import annotations
 import numpy as np
 
 
+def _det3(a: np.ndarray) -> float:
+    return float(a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
+                 - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+                 + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+
+
 def kabsch(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """The rigid transform (4, 4) minimizing |T source - target|, points (m, 3)."""
-    cs, ct = source.mean(axis=0), target.mean(axis=0)
+    cs = np.add.reduce(source, axis=0) / len(source)
+    ct = np.add.reduce(target, axis=0) / len(target)
     h = (source - cs).T @ (target - ct)
     u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    rotation = vt.T @ u.T
+    if _det3(rotation) < 0:  # a reflection: turn the axis of the smallest singular value
+        rotation = (vt.T * [1.0, 1.0, -1.0]) @ u.T
     pose = np.eye(4)
     pose[:3, :3] = rotation
     pose[:3, 3] = ct - rotation @ cs
@@ -30,18 +38,27 @@ def register_device(flange: np.ndarray, measured: np.ndarray, point_index: np.nd
     ``flange``: (m, 4, 4) base frame poses of the flange; ``measured``: (m, 3) device frame;
     ``point_index``: (m,) which tool point each row measured.
     """
-    rot, origin = flange[:, :3, :3], flange[:, :3, 3]
+    rot, origin = np.ascontiguousarray(flange[:, :3, :3]), flange[:, :3, 3]
     tools = np.zeros((n_points, 3))
     linear = _linear_start(rot, origin, measured, point_index, n_points)
     if linear is not None:
         tools = linear
     device_T_base = np.eye(4)
+    # the mean over each point's rows, as one product: (n_points, m) @ (m, 3)
+    member = np.arange(n_points)[:, None] == point_index[None, :]
+    average = member / member.sum(axis=1, keepdims=True)
+    stacked = rot.reshape(-1, 3)  # (3m, 3): one point's rows as one matrix-vector product
     for _ in range(iterations):
-        predicted = origin + np.einsum("mij,mj->mi", rot, tools[point_index])
+        if n_points == 1:
+            predicted = origin + (stacked @ tools[0]).reshape(-1, 3)
+        else:
+            predicted = origin + np.matmul(rot, tools[point_index][:, :, None])[:, :, 0]
         device_T_base = kabsch(predicted, measured)
-        in_base = (measured - device_T_base[:3, 3]) @ device_T_base[:3, :3]
-        local = np.einsum("mji,mj->mi", rot, in_base - origin)
-        new_tools = np.array([local[point_index == k].mean(axis=0) for k in range(n_points)])
+        offset = (measured - device_T_base[:3, 3]) @ device_T_base[:3, :3] - origin
+        if n_points == 1:  # the mean of rot^T offset over the rows
+            new_tools = (offset.reshape(-1) @ stacked)[None, :] / len(offset)
+        else:
+            new_tools = average @ np.matmul(offset[:, None, :], rot)[:, 0]
         if np.max(np.abs(new_tools - tools)) < 1e-9:
             tools = new_tools
             break
@@ -52,28 +69,30 @@ def register_device(flange: np.ndarray, measured: np.ndarray, point_index: np.nd
 def _linear_start(rot, origin, measured, point_index, n_points):
     """Tool points from the linear model ``p = M o + sum_k (t_k M) r_k + c`` (M, t_k M and c
     free: 12 + 27 per point unknowns), global, no initial guess needed; None when the poses
-    are too few or too alike for it."""
+    are too few or too alike for it.
+
+    Row i of p involves only row i of M, of c and of each t_k M, with the same regressors
+    (o, 1 and the columns r_k of the flange rotation) for every i: one least-squares problem
+    with m rows, 4 + 9 per point unknowns and the three coordinates as right-hand sides."""
     m = len(measured)
     n_unknowns = 12 + 27 * n_points
     if 3 * m < 2 * n_unknowns:
         return None
-    a = np.zeros((m, 3, n_unknowns))
-    for i in range(3):  # row i of p depends on row i of M and of each t_k M
-        a[:, i, 3 * i:3 * i + 3] = origin
-        a[:, i, 9 + i] = 1.0
-        for k in range(3):
-            for p in range(n_points):
-                col = 12 + 27 * p + 9 * k + 3 * i
-                sel = point_index == p
-                a[sel, i, col:col + 3] = rot[sel, :, k]
-    solution, *_ = np.linalg.lstsq(a.reshape(3 * m, -1), measured.ravel(), rcond=None)
-    m_est = solution[:9].reshape(3, 3)
+    a = np.zeros((m, 4 + 9 * n_points))
+    a[:, :3] = origin
+    a[:, 3] = 1.0
+    for p in range(n_points):
+        sel = point_index == p
+        a[sel, 4 + 9 * p:13 + 9 * p] = rot[sel].transpose(0, 2, 1).reshape(-1, 9)  # r_0 r_1 r_2
+    solution, *_ = np.linalg.lstsq(a, measured, rcond=None)  # (4 + 9P, 3): column i for row i
+    m_est = solution[:3].T
     u, s, vt = np.linalg.svd(m_est)
     if s[-1] < 0.5 * s[0]:
         return None
     tools = np.zeros((n_points, 3))
+    norm2 = np.sum(m_est * m_est)
     for p in range(n_points):
         for k in range(3):
-            n_k = solution[12 + 27 * p + 9 * k:12 + 27 * p + 9 * k + 9].reshape(3, 3)
-            tools[p, k] = np.trace(m_est.T @ n_k) / np.trace(m_est.T @ m_est)
+            n_k = solution[4 + 9 * p + 3 * k:7 + 9 * p + 3 * k].T  # t_k M
+            tools[p, k] = np.sum(m_est * n_k) / norm2  # trace(M^T N_k) / trace(M^T M)
     return tools

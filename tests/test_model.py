@@ -75,3 +75,63 @@ def test_dh_table_robot_built_in_code_matches_its_table():
     q = np.random.default_rng(2).uniform(-3, 3, (20, 6))
     np.testing.assert_allclose(forward(model, model.nominal, q).flange, dh_forward(IRB2400_DH, q),
                                atol=1e-9)
+
+
+def _central_differences(model, values, q, tool, h=1e-6):
+    """(dpoint/dparam (m, 3, P), dpoint/dq (m, 3, n)) by central differences."""
+    dpar = np.zeros((len(q), 3, model.n_parameters))
+    for k in range(model.n_parameters):
+        dv = np.zeros_like(values)
+        dv[k] = h
+        dpar[:, :, k] = (forward(model, values + dv, q, tool).points
+                         - forward(model, values - dv, q, tool).points) / (2 * h)
+    dq = np.zeros((len(q), 3, model.n_joints))
+    for j in range(model.n_joints):
+        step = np.zeros_like(q)
+        step[:, j] = h
+        dq[:, :, j] = (forward(model, values, q + step, tool).points
+                       - forward(model, values, q - step, tool).points) / (2 * h)
+    return dpar, dq
+
+
+def test_jacobian_of_chains_that_share_parameters_or_joints():
+    """Steps sharing a parameter and a joint moving two steps take forward's general path
+    (sums over steps), a prismatic joint its translation branch."""
+    import dataclasses
+
+    robot = load_robot("abb_irb2400")
+    model = build_model(robot)
+    steps = list(model.steps)
+    steps[6] = dataclasses.replace(steps[6], parameter=2)  # two steps, one parameter
+    steps[1] = dataclasses.replace(steps[1], joint=2)  # joint 3 moves a second step
+    moving = [s for s, step in enumerate(model.steps) if step.joint == 1][0]
+    prismatic = list(model.steps)
+    prismatic[moving] = dataclasses.replace(prismatic[moving], rotation=False)
+    rng = np.random.default_rng(3)
+    q = robot.joints_from_controller(random_joints(robot, 5, rng))
+    tool = rng.normal(0, 0.1, (5, 3))
+    for variant in (dataclasses.replace(model, steps=tuple(steps)),
+                    dataclasses.replace(model, steps=tuple(prismatic))):
+        values = variant.nominal + rng.normal(0, 1e-3, variant.n_parameters)
+        res = forward(variant, values, q, tool, jacobian=True)
+        dpar, dq = _central_differences(variant, values, q, tool)
+        np.testing.assert_allclose(res.dpoint_dparam, dpar, atol=1e-8)
+        np.testing.assert_allclose(res.dpoint_dq, dq, atol=1e-8)
+
+
+def test_derivatives_are_not_overwritten_by_later_evaluations():
+    """forward reuses its derivative block only once nothing refers to it any more."""
+    robot = load_robot("abb_irb2400")
+    model = build_model(robot)
+    q = robot.joints_from_controller(random_joints(robot, 20, np.random.default_rng(4)))
+    first = forward(model, model.nominal, q, jacobian=True)
+    kept = first.drot_dq  # one view is enough to keep the block
+    expected = {name: getattr(first, name).copy()
+                for name in ("dpoint_dparam", "drot_dparam", "dpoint_dq", "drot_dq")}
+    del first
+    for shift in (1e-3, 2e-3, 3e-3):  # released results are recycled, the kept one is not
+        forward(model, model.nominal + shift, q, jacobian=True)
+    np.testing.assert_array_equal(kept, expected["drot_dq"])
+    again = forward(model, model.nominal, q, jacobian=True)
+    for name, value in expected.items():
+        np.testing.assert_array_equal(getattr(again, name), value)
