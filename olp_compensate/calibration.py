@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .conventions import matrix_from_quat_wxyz
 from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
                       geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
                       length_scale, needs_torque)
@@ -18,16 +19,20 @@ from .robot import Robot
 @dataclass(frozen=True)
 class ToolPoint:
     """A calibrated tool point in the flange frame: ``xyz_m`` (3,), its standard deviation
-    (3,) or None, and the tool orientation as a quaternion (w, x, y, z) when known."""
+    (3,) or None, and the tool orientation as a quaternion (w, x, y, z) when known (the
+    rotation of the tool's frame in the flange frame), with ``rot_std_rad`` (3,), the
+    standard deviation of a small rotation about the tool frame's own axes, when identified."""
 
     xyz_m: np.ndarray
     std_m: np.ndarray | None = None
     quat_wxyz: np.ndarray | None = None
+    rot_std_rad: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
 class Validation:
-    """How good a calibration is, in mm: residuals of the fit and of held-out folds."""
+    """How good a calibration is, in mm: residuals of the fit and of held-out folds; with
+    orientation rows also the angle between measured and predicted tool frames, deg."""
 
     method: str
     poses: int
@@ -36,6 +41,10 @@ class Validation:
     heldout_rms_mm: float | None
     heldout_max_mm: float | None
     condition_number: float
+    orientation_rms_deg: float | None = None
+    orientation_max_deg: float | None = None
+    heldout_orientation_rms_deg: float | None = None
+    heldout_orientation_max_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -134,6 +143,20 @@ class Calibration:
         local = self.tool_points(names)
         base = flange[:, :3, 3] + np.einsum("mij,mj->mi", flange[:, :3, :3], local)
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
+
+    def predict_rotations(self, q: np.ndarray, names, conditions: Conditions | None = None,
+                          ) -> np.ndarray:
+        """Rotations (m, 3, 3) of the named tools' frames in the device frame (what a
+        full-pose device measures) for controller axis values (m, n); every named tool needs
+        its orientation (``quat_wxyz``)."""
+        names = list(names)
+        unknown = sorted({n for n in names if n not in self.tools or self.tools[n].quat_wxyz is None})
+        if unknown:
+            raise DataError(f"no calibrated tool orientation for {', '.join(unknown)}")
+        conditions = self._conditions_for(names, conditions)
+        flange = self.flange_poses(q, conditions)
+        turn = np.array([matrix_from_quat_wxyz(self.tools[n].quat_wxyz) for n in names])
+        return self.device_T_base[:3, :3] @ flange[:, :3, :3] @ turn.reshape(-1, 3, 3)
 
 
 def nominal_calibration(robot: Robot, convention: str = "auto") -> Calibration:

@@ -77,8 +77,9 @@ class VirtualRobot:
     ``origin_errors``: (n, 6) per joint, translation (m) then rotation vector (rad), applied
     on the right of each joint origin; ``joint_offsets``: (n,) rad or m, true joint =
     reading + offset; ``device_T_base``: (4, 4); ``tools``: name -> (3,) flange frame, m;
-    ``effects``: hidden non-geometric effects. A payload sits at the tool point 'tcp' (else
-    the first tool point).
+    ``effects``: hidden non-geometric effects; ``tool_rotations``: name -> (3, 3) rotation of
+    the tool's frame in the flange frame (missing: the flange's own), which a full-pose
+    device measures. A payload sits at the tool point 'tcp' (else the first tool point).
     """
 
     robot: Robot
@@ -89,6 +90,7 @@ class VirtualRobot:
     seed: int | None = None
     notes: dict = field(default_factory=dict)
     effects: tuple[HiddenEffect, ...] = ()
+    tool_rotations: dict[str, np.ndarray] = field(default_factory=dict)
 
     def _pinocchio(self):
         import pinocchio as pin
@@ -195,13 +197,35 @@ class VirtualRobot:
         base = flange[:, :3, 3] + np.einsum("mij,mj->mi", flange[:, :3, :3], local)
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
 
+    def tool_rotation(self, name: str) -> np.ndarray:
+        """Rotation (3, 3) of tool ``name``'s frame in the flange frame."""
+        return np.asarray(self.tool_rotations.get(name, np.eye(3)), dtype=float)
+
+    def true_frames(self, joints: np.ndarray, names, payload_kg=None, temperature_c=None,
+                    directions=None) -> np.ndarray:
+        """Noise-free poses (m, 4, 4) of the named tools' frames in the device frame, m."""
+        flange = self.flange_poses(joints, payload_kg, temperature_c, directions)
+        names = list(names)
+        local = np.array([self.tools[n] for n in names]).reshape(-1, 3)
+        turn = np.array([self.tool_rotation(n) for n in names]).reshape(-1, 3, 3)
+        frames = np.zeros((len(flange), 4, 4))
+        frames[:, :3, :3] = self.device_T_base[:3, :3] @ flange[:, :3, :3] @ turn
+        base = flange[:, :3, 3] + np.einsum("mij,mj->mi", flange[:, :3, :3], local)
+        frames[:, :3, 3] = base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
+        frames[:, 3, 3] = 1.0
+        return frames
+
     def measure(self, joints: np.ndarray, noise_m: float, rng: np.random.Generator,
                 points_per_pose: list[str] | None = None, payload_kg=None, temperature_c=None,
-                time_s=None, directions=None, pose_ids=None) -> Measurements:
+                time_s=None, directions=None, pose_ids=None,
+                orientation_noise_rad: float | None = None) -> Measurements:
         """Measure every tool point (or the given names) at each joint vector, with Gaussian
         noise of ``noise_m`` per axis. Per pose (P,): ``payload_kg``, ``temperature_c``,
         ``time_s``; ``directions`` (P, n) approach directions, +1/-1 (0: unknown);
-        ``pose_ids`` (default '1', '2', ...; repeat one to measure a pose again)."""
+        ``pose_ids`` (default '1', '2', ...; repeat one to measure a pose again).
+        With ``orientation_noise_rad`` (rad per axis, a small rotation of the tool frame
+        about its own axes) also the orientation of each tool's frame, as a full-pose device
+        does (``Measurements.orientation``)."""
         names = points_per_pose or sorted(self.tools)
         joints = np.atleast_2d(joints)
         per = len(names)
@@ -215,9 +239,18 @@ class VirtualRobot:
         pose_ids = np.array([ids[k] for k in range(len(joints)) for _ in names], dtype=object)
         payload, temperature, when, direction = (rows(payload_kg), rows(temperature_c),
                                                  rows(time_s), rows(directions))
-        points = (self.true_points(q, point_names, payload, temperature, direction)
-                  + rng.normal(0.0, noise_m, (len(q), 3)))
+        orientation = None
+        if orientation_noise_rad is None:
+            points = self.true_points(q, point_names, payload, temperature, direction)
+        else:
+            frames = self.true_frames(q, point_names, payload, temperature, direction)
+            points = frames[:, :3, 3]
+        points = points + rng.normal(0.0, noise_m, (len(q), 3))
+        if orientation_noise_rad is not None:
+            turn = rotation_from_rotvec(rng.normal(0.0, orientation_noise_rad, (len(q), 3)))
+            orientation = quat_wxyz_from_matrix(frames[:, :3, :3] @ turn)
         return Measurements(joints=q, points=points, pose_ids=pose_ids, point_names=point_names,
+                            orientation=orientation,
                             payload_kg=payload, temperature_c=temperature, time_s=when,
                             directions=direction, rows=np.arange(len(q)) + 1,
                             source="<virtual robot>")
@@ -234,7 +267,9 @@ class VirtualRobot:
             "joint_offsets_unit": [j.unit for j in self.robot.joints],
             "device_T_base": {"xyz_mm": (self.device_T_base[:3, 3] * 1e3).tolist(),
                               "quat_wxyz": quat_wxyz_from_matrix(self.device_T_base[:3, :3]).tolist()},
-            "tools": {n: {"xyz_mm": (v * 1e3).tolist()} for n, v in self.tools.items()},
+            "tools": {n: {"xyz_mm": (v * 1e3).tolist(),
+                          "quat_wxyz": quat_wxyz_from_matrix(self.tool_rotation(n)).tolist()}
+                      for n, v in self.tools.items()},
             "hidden_effects": [e.to_dict() for e in self.effects],
             **self.notes,
         }
@@ -258,7 +293,9 @@ class VirtualRobot:
                    device_T_base=pose,
                    tools={n: np.array(t["xyz_mm"]) * 1e-3 for n, t in doc["tools"].items()},
                    seed=doc.get("seed"),
-                   effects=tuple(HiddenEffect.from_dict(e) for e in doc.get("hidden_effects", [])))
+                   effects=tuple(HiddenEffect.from_dict(e) for e in doc.get("hidden_effects", [])),
+                   tool_rotations={n: matrix_from_quat_wxyz(t["quat_wxyz"])
+                                   for n, t in doc["tools"].items() if t.get("quat_wxyz")})
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -273,7 +310,8 @@ def make_virtual_robot(robot: Robot, seed: int, length_error_m: float = 1e-3,
     """A virtual robot with errors drawn from ``seed``: per joint origin N(0, length) per
     axis and N(0, angle) per rotation axis, zero offsets N(0, angle), a device at a random
     orientation ``device_distance_m`` away, and ``n_points`` tool points ('tcp', 'p2', ...)
-    50-250 mm from the flange."""
+    50-250 mm from the flange, each with its frame at a random orientation (drawn after
+    everything else, so a seed gives the same errors, device and points as before)."""
     rng = np.random.default_rng(seed)
     n = robot.n_joints
     errors = np.hstack([rng.normal(0, length_error_m, (n, 3)), rng.normal(0, angle_error_rad, (n, 3))])
@@ -288,8 +326,9 @@ def make_virtual_robot(robot: Robot, seed: int, length_error_m: float = 1e-3,
         name = "tcp" if k == 0 else f"p{k + 1}"
         tools[name] = np.array([rng.uniform(-0.08, 0.08), rng.uniform(-0.08, 0.08),
                                 rng.uniform(0.05, 0.25)])
+    rotations = {name: random_rotation(rng) for name in tools}
     return VirtualRobot(robot=robot, origin_errors=errors, joint_offsets=offsets,
-                        device_T_base=device, tools=tools, seed=seed)
+                        device_T_base=device, tools=tools, seed=seed, tool_rotations=rotations)
 
 
 def random_joints(robot: Robot, n: int, rng: np.random.Generator, margin: float = 0.1) -> np.ndarray:

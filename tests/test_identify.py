@@ -82,12 +82,17 @@ def test_device_far_away_and_rotated_converges(angle_deg):
     np.testing.assert_allclose(result.calibration.device_T_base[:3, 3], device[:3, 3], atol=5e-3)
 
 
-def test_several_points_per_pose_identify_the_last_joint_zero():
+def test_several_points_per_pose_leave_the_last_joint_zero_to_the_tools():
+    # Turning every tool point about axis 6 is the same as changing j6.theta, however many
+    # points a pose has: j6.theta is held (with that reason), not a tool coordinate.
     robot = load_robot("abb_irb2400")
     virtual = make_virtual_robot(robot, seed=11, n_points=3)
     rng = np.random.default_rng(12)
     result = identify(robot, virtual.measure(random_joints(robot, 25, rng), NOISE, rng))
-    assert "j6.theta" not in result.calibration.frozen
+    frozen = result.identifiability.frozen
+    assert "redundant with the tools" in frozen["j6.theta"]
+    assert not [name for name in frozen if name.startswith("tool.")], frozen
+    assert not result.identifiability.weak
     assert set(result.calibration.tools) == {"tcp", "p2", "p3"}
     for name, point in virtual.tools.items():
         np.testing.assert_allclose(result.calibration.tools[name].xyz_m, point, atol=2e-3)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..identify import IdentificationOptions, identify
 from ..io.calibration_file import write_calibration
 from ..io.measurements import read_measurements_any
@@ -49,16 +51,25 @@ def add_arguments(p) -> None:
                    help="auto: D-H or Hayati per link (singularity-free); dh: D-H everywhere")
     p.add_argument("--freeze", action="append", default=[], metavar="PARAM",
                    help="hold a parameter at nominal (repeatable), e.g. j3.beta")
+    p.add_argument("--position-sigma-mm", type=float, default=0.05,
+                   help="with orientation columns: the device's position noise per axis, mm")
+    p.add_argument("--orientation-sigma-deg", type=float, default=0.01,
+                   help="with orientation columns: the device's orientation noise per axis, "
+                        "deg (orientation residuals are weighted by the ratio of the sigmas)")
 
 
 def report(result) -> str:
     """The identification report, as printed."""
     cal = result.calibration
     ident = result.identifiability
+    n_tool = (sum(n.startswith("tool.") for n in result.unknown_names) if result.unknown_names
+              else 3 * len(cal.tools))
+    orientations = (f" ({result.n_orientation_rows} rows with orientation)"
+                    if result.n_orientation_rows else "")
     lines = [
-        f"robot {cal.robot.name}: {result.n_poses} poses, {result.n_equations} equations, "
-        f"{result.n_unknowns} unknowns (6 device registration + "
-        f"{result.n_unknowns - 6 - 3 * len(cal.tools)} geometric + {3 * len(cal.tools)} tool)",
+        f"robot {cal.robot.name}: {result.n_poses} poses, {result.n_equations} equations"
+        f"{orientations}, {result.n_unknowns} unknowns (6 device registration + "
+        f"{result.n_unknowns - 6 - n_tool} geometric + {n_tool} tool)",
         "links: " + ", ".join(f"{k + 1}-{k + 2} {c}" for k, c in enumerate(cal.model.conventions)),
         f"solver: {result.message} after {result.iterations} iterations",
         f"condition number (unit-scaled Jacobian): {ident.condition_number:.1f}",
@@ -76,6 +87,11 @@ def report(result) -> str:
         xyz = ", ".join(f"{v:.3f}" for v in tool.xyz_m * 1e3)
         std = ", ".join(f"{v:.3f}" for v in tool.std_m * 1e3)
         lines.append(f"tool {name}: ({xyz}) mm in the flange frame, std ({std}) mm")
+        if tool.quat_wxyz is not None and tool.rot_std_rad is not None:
+            quat = ", ".join(f"{v:.6f}" for v in tool.quat_wxyz)
+            rot_std = ", ".join(f"{v:.4f}" for v in np.degrees(tool.rot_std_rad))
+            lines.append(f"tool {name} frame: quaternion (w, x, y, z) ({quat}) in the flange "
+                         f"frame, std ({rot_std}) deg about its axes")
     lines.append("")
     if cal.frozen:
         lines.append("frozen (not identified):")
@@ -87,9 +103,16 @@ def report(result) -> str:
     if result.outlier_rows:
         lines.append(f"outliers rejected (file lines): {', '.join(map(str, result.outlier_rows))}")
     lines.append(f"residual: RMS {mm(result.residual_rms)}, max {mm(result.residual_max)}")
+    if result.orientation_rms is not None:
+        lines.append(f"orientation residual: RMS {np.degrees(result.orientation_rms):.4f} deg, "
+                     f"max {np.degrees(result.orientation_max):.4f} deg")
     if result.heldout_rms is not None:
         lines.append(f"held-out ({cal.validation.method}): RMS {mm(result.heldout_rms)}, "
                      f"max {mm(result.heldout_max)}")
+        if result.heldout_orientation_rms is not None:
+            lines.append(f"held-out orientation: RMS "
+                         f"{np.degrees(result.heldout_orientation_rms):.4f} deg, max "
+                         f"{np.degrees(result.heldout_orientation_max):.4f} deg")
     else:
         lines.append("held-out: not computed (too few poses or --folds 0)")
     return "\n".join(lines)
@@ -100,7 +123,9 @@ def run(args) -> int:
     meas = read_measurement_source(args, [j.unit for j in robot.joints])
     options = IdentificationOptions(convention=args.convention, solver=args.solver,
                                     robust=args.robust, folds=args.folds,
-                                    freeze=tuple(args.freeze))
+                                    freeze=tuple(args.freeze),
+                                    position_sigma_mm=args.position_sigma_mm,
+                                    orientation_sigma_deg=args.orientation_sigma_deg)
     result = identify(robot, meas, options)
     print(report(result))
     if args.output:

@@ -6,6 +6,11 @@ list of ``{"kind", "joint" (1-based controller axis, null for arm-wide), "parame
 "std", "unit"}`` (SI; see :mod:`olp_compensate.effects`), plus ``"order"`` for a gear
 harmonic and ``"reference_temperature_c"`` for thermal expansion; files whose list is empty
 (every file written before effects existed) read as before.
+
+A tool identified from full-pose rows also has ``"quat_wxyz"`` (its frame in the flange frame)
+and ``"rot_std_deg"`` (standard deviation of a small rotation about the tool's own axes); the
+validation then has ``orientation_rms_deg``, ``orientation_max_deg`` and their held-out
+counterparts. These keys are optional: files without them read as before.
 """
 
 from __future__ import annotations
@@ -55,12 +60,20 @@ def calibration_to_dict(cal: Calibration) -> dict:
                     "std_mm": None if t.std_m is None else (np.asarray(t.std_m) * 1e3).tolist(),
                     "quat_wxyz": None if t.quat_wxyz is None else np.asarray(t.quat_wxyz).tolist()}
              for name, t in cal.tools.items()}
+    for name, t in cal.tools.items():
+        if t.rot_std_rad is not None:
+            tools[name]["rot_std_deg"] = np.degrees(np.asarray(t.rot_std_rad)).tolist()
     validation = None
     if cal.validation is not None:
         v = cal.validation
         validation = {"method": v.method, "poses": v.poses, "residual_rms_mm": v.residual_rms_mm,
                       "residual_max_mm": v.residual_max_mm, "heldout_rms_mm": v.heldout_rms_mm,
                       "heldout_max_mm": v.heldout_max_mm, "condition_number": v.condition_number}
+        if v.orientation_rms_deg is not None:
+            validation.update(orientation_rms_deg=v.orientation_rms_deg,
+                              orientation_max_deg=v.orientation_max_deg,
+                              heldout_orientation_rms_deg=v.heldout_orientation_rms_deg,
+                              heldout_orientation_max_deg=v.heldout_orientation_max_deg)
     return {
         "format": FORMAT, "version": VERSION,
         "robot": {"name": cal.robot.name, "fingerprint": cal.robot.fingerprint,
@@ -133,12 +146,17 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
         tools[name] = ToolPoint(
             xyz_m=np.array(t["xyz_mm"]) * 1e-3,
             std_m=None if t.get("std_mm") is None else np.array(t["std_mm"]) * 1e-3,
-            quat_wxyz=None if t.get("quat_wxyz") is None else np.array(t["quat_wxyz"]))
+            quat_wxyz=None if t.get("quat_wxyz") is None else np.array(t["quat_wxyz"]),
+            rot_std_rad=None if t.get("rot_std_deg") is None else np.radians(t["rot_std_deg"]))
     v = doc.get("validation")
     validation = None if v is None else Validation(
         method=v["method"], poses=v["poses"], residual_rms_mm=v["residual_rms_mm"],
         residual_max_mm=v["residual_max_mm"], heldout_rms_mm=v["heldout_rms_mm"],
-        heldout_max_mm=v["heldout_max_mm"], condition_number=v["condition_number"])
+        heldout_max_mm=v["heldout_max_mm"], condition_number=v["condition_number"],
+        orientation_rms_deg=v.get("orientation_rms_deg"),
+        orientation_max_deg=v.get("orientation_max_deg"),
+        heldout_orientation_rms_deg=v.get("heldout_orientation_rms_deg"),
+        heldout_orientation_max_deg=v.get("heldout_orientation_max_deg"))
     return Calibration(robot=embedded, model=model, values=values, std=std, device_T_base=pose,
                        frozen=frozen, tools=tools,
                        effects=tuple(effect_from_dict(e, embedded.n_joints, source)

@@ -6,6 +6,16 @@ measured point. Required: ``q1_deg`` .. ``qN_deg`` (``qK_mm`` for a prismatic jo
 ``qw, qx, qy, qz`` (measured orientation, full-pose devices), ``payload_kg``,
 ``temperature_c``, ``time_s``, ``direction_K`` (approach direction of joint K, +1/-1).
 Other columns are kept and reported, never fatal.
+
+Full-pose rows: ``qw, qx, qy, qz`` is the orientation, in the device frame, of the measured
+point's own frame (a laser tracker's 6-DoF probe, a camera's marker), as a quaternion, w
+first, normalized on input. That frame is the flange frame (``tool0``) turned by a constant
+rotation of the tool, the same for every row of one ``point`` and unknown (the probe may be
+mounted any way round): identification finds it with the geometry
+(:mod:`olp_compensate.identify`). A file has all four columns or none; in a file that has
+them, a row whose four cells are all empty is a position-only row (NaN in
+``Measurements.orientation``); three cells filled and one empty, a zero-length or non-finite
+quaternion are errors naming file, line and column.
 """
 
 from __future__ import annotations
@@ -22,6 +32,7 @@ from ..errors import DataError
 from .atomic import write_text_atomic
 
 FORMAT_LINE = "# olp-compensate measurements v1"
+ORIENTATION_COLUMNS = ("qw", "qx", "qy", "qz")
 KNOWN_OPTIONAL = ("pose", "point", "qw", "qx", "qy", "qz", "payload_kg", "temperature_c",
                   "time_s")
 
@@ -31,8 +42,9 @@ class Measurements:
     """Measured points, one row each, in the units of the file converted to SI.
 
     ``joints``: (m, n) rad (m for prismatic); ``points``: (m, 3) device frame, m;
-    ``pose_ids`` and ``point_names``: (m,) strings; ``orientation``: (m, 4) quaternion
-    (w, x, y, z) or None; optional per-row columns (m,) or None; ``extra``: unknown columns,
+    ``pose_ids`` and ``point_names``: (m,) strings; ``orientation``: (m, 4) unit quaternion
+    (w, x, y, z) of the measured point's frame in the device frame (module docstring), NaN
+    on position-only rows, or None; optional per-row columns (m,) or None; ``extra``: unknown columns,
     kept as text; ``rows``: (m,) 1-based line numbers in the file (for messages).
     """
 
@@ -87,6 +99,22 @@ def parse_cell_number(text: str, source: str, line: int, column: str) -> float:
     return value
 
 
+def _parse_quaternion(cell: dict[str, str], source: str, line: int) -> list[float]:
+    """The unit quaternion (w, x, y, z) of one row, or four NaN when its cells are empty."""
+    empty = [c for c in ORIENTATION_COLUMNS if not cell[c]]
+    if len(empty) == len(ORIENTATION_COLUMNS):
+        return [math.nan] * 4
+    if empty:
+        raise DataError(f"{source}:{line}: column '{empty[0]}': empty, but the row has other "
+                        f"orientation cells (give all of qw, qx, qy, qz, or none)")
+    quat = [parse_cell_number(cell[c], source, line, c) for c in ORIENTATION_COLUMNS]
+    norm = math.sqrt(sum(v * v for v in quat))
+    if norm < 1e-9:
+        raise DataError(f"{source}:{line}: columns 'qw', 'qx', 'qy', 'qz': quaternion of zero "
+                        f"length (not an orientation)")
+    return [v / norm for v in quat]
+
+
 def parse_measurements(text: str, joint_units: list[str], source: str = "<measurements>",
                        ) -> Measurements:
     """Parse measurement CSV text for a robot whose joints read in ``joint_units``
@@ -114,7 +142,11 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
             raise DataError(f"{source}:{start + 1}: missing column '{name}' "
                             f"(header has: {', '.join(header)})")
     index = {h: k for k, h in enumerate(header)}
-    has_orientation = all(c in index for c in ("qw", "qx", "qy", "qz"))
+    has_orientation = all(c in index for c in ORIENTATION_COLUMNS)
+    if not has_orientation and any(c in index for c in ORIENTATION_COLUMNS):
+        missing = [c for c in ORIENTATION_COLUMNS if c not in index]
+        raise DataError(f"{source}:{start + 1}: orientation columns need all of qw, qx, qy, qz; "
+                        f"missing {', '.join(missing)}")
     direction_cols = [h for h in header if h.startswith("direction_")]
     known = set(expected_joints) | {"x_mm", "y_mm", "z_mm"} | set(KNOWN_OPTIONAL) | set(direction_cols)
     extra_cols = [h for h in header if h not in known]
@@ -136,7 +168,7 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
         poses.append(cell.get("pose") or str(len(poses)))
         names.append(cell.get("point") or "tcp")
         if has_orientation:
-            quats.append([parse_cell_number(cell[c], source, line, c) for c in ("qw", "qx", "qy", "qz")])
+            quats.append(_parse_quaternion(cell, source, line))
         for column, target in (("payload_kg", payload), ("temperature_c", temperature),
                                ("time_s", time_s)):
             if column in index:
@@ -153,9 +185,6 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
     quat_array = None
     if has_orientation:
         quat_array = np.array(quats)
-        bad = np.linalg.norm(quat_array, axis=1) < 1e-9
-        if np.any(bad):
-            raise DataError(f"{source}:{rows[int(np.argmax(bad))]}: quaternion of zero length")
     direction_array = None
     if direction_cols:
         direction_array = np.zeros((len(rows), len(joint_units)))
@@ -249,7 +278,7 @@ def format_measurements(meas: Measurements, joint_units: list[str],
         row += [f"{values[k]:.6g}" for _, values in optional if values is not None]
         row += [f"{meas.directions[k, j]:.0f}" for j in direction_joints]
         if meas.orientation is not None:
-            row += [f"{v:.9f}" for v in meas.orientation[k]]
+            row += [f"{v:.9f}" if np.isfinite(v) else "" for v in meas.orientation[k]]
         writer.writerow(row)
     return out.getvalue()
 
