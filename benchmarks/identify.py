@@ -4,10 +4,16 @@ Run: python benchmarks/identify.py   (one core: OMP_NUM_THREADS=1 is set below)
 
 Prints, for noise 0.05 mm per axis on an ABB IRB 2400:
 1. RMS error of the identified model against the truth at 1,000 new poses, for 15, 30, 50
-   and 100 measured poses (targets: <= 2x the noise at 15, <= 1x at 50);
+   and 100 measured poses (targets: <= 2x the noise at 15, <= 1x at 50); for 15, 30 and 50
+   also with planned poses (olp_compensate.pose_planning: I-optimal, the default, and
+   D-optimal, chosen among 5,000 random candidates at the nominal model, never the truth;
+   the same robots, noise and test poses), with the planner's own prediction and its time;
 2. the time to identify from 100 and 1,000 poses next to scipy.optimize.least_squares with a
    finite-difference Jacobian on the same residuals (targets: < 50 ms at 1,000; >= 10x);
-   also our LM against scipy's trust region with our analytic Jacobian;
+   also our LM against scipy's trust region with our analytic Jacobian; then the fits alone
+   from the same start (our LM as identify runs it against the peer), with the evaluations
+   each made (the peer's count can change by one Jacobian with rounding-level changes of the
+   start, its tolerances sitting at machine precision);
 3. automatic (D-H + Hayati) against plain D-H frames: condition number and held-out error;
 4. condition number with the measured point on the axis of joint 6 and offset from it.
 """
@@ -23,7 +29,8 @@ import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
 from olp_compensate.identify import (IdentificationOptions, IdentificationProblem,  # noqa: E402
-                                     identify)
+                                     _fit, identify)
+from olp_compensate.pose_planning import plan_poses, planning_space  # noqa: E402
 from olp_compensate.robot import load_robot  # noqa: E402
 from olp_compensate.simulate import make_virtual_robot, random_joints  # noqa: E402
 
@@ -31,13 +38,15 @@ NOISE = 0.05e-3
 ROBOT = load_robot("abb_irb2400")
 
 
-def error_against_truth(poses: int, seeds=range(5)) -> float:
+def error_against_truth(poses: int, seeds=range(5), joints=None) -> float:
+    """RMS 3-D error (m) at 1,000 new poses of models identified from ``poses`` random
+    poses, or from the given ``joints`` (the same for every robot)."""
     errors = []
     for seed in seeds:
         virtual = make_virtual_robot(ROBOT, seed)
         rng = np.random.default_rng(1000 + seed)
-        result = identify(ROBOT, virtual.measure(random_joints(ROBOT, poses, rng), NOISE, rng),
-                          IdentificationOptions(folds=0))
+        q = random_joints(ROBOT, poses, rng) if joints is None else joints
+        result = identify(ROBOT, virtual.measure(q, NOISE, rng), IdentificationOptions(folds=0))
         test = random_joints(ROBOT, 1000, np.random.default_rng(5000 + seed))
         names = np.array(["tcp"] * len(test), dtype=object)
         diff = result.calibration.predict_points(test, names) - virtual.true_points(test, names)
@@ -54,12 +63,23 @@ def best_time(fn, repeat=5) -> float:
     return min(times)
 
 
+def best_times(fns: dict, rounds=5) -> dict:
+    """The best of ``rounds`` runs of each function, the functions taking turns (round
+    robin), so that a slow spell of the machine touches all of them alike."""
+    times = {name: [] for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - start)
+    return {name: min(t) for name, t in times.items()}
+
+
 def speed(poses: int) -> None:
     virtual = make_virtual_robot(ROBOT, 1)
     rng = np.random.default_rng(2)
     meas = virtual.measure(random_joints(ROBOT, poses, rng), NOISE, rng)
     options = IdentificationOptions(folds=0)
-    ours = best_time(lambda: identify(ROBOT, meas, options))
     result = identify(ROBOT, meas, options)
     cal = result.calibration
     free = np.flatnonzero(~np.isnan(cal.std))
@@ -81,13 +101,33 @@ def speed(poses: int) -> None:
         return least_squares(problem.residuals, x0, jac=lambda x: problem.residuals_and_jacobian(x)[1],
                              method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12)
 
-    fd = best_time(peer, repeat=2)
-    tr = best_time(trf, repeat=3)
-    fd_cost = peer().cost
+    def fit():  # our LM alone, from the peer's start, as identify runs it
+        return _fit(problem, x0, options)
+
+    times = best_times({"ours": lambda: identify(ROBOT, meas, options), "fit": fit,
+                        "peer": peer, "trf": trf})
+    ours, lm, fd, tr = times["ours"], times["fit"], times["peer"], times["trf"]
+    peer_result = peer()
+    fd_cost = peer_result.cost
     print(f"{poses:>6} poses: ours (registration + identifiability + LM + statistics) "
           f"{ours * 1e3:7.1f} ms | scipy least_squares finite differences (fit only) "
           f"{fd * 1e3:8.1f} ms | ratio {fd / ours:5.1f}x | scipy trf with our Jacobian "
           f"{tr * 1e3:6.1f} ms | cost ours/peer {0.5 * result.residual_rms**2 * meas.n_rows / fd_cost:.4f}")
+    # the same fit from the same start, and what each side evaluated
+    calls = {"residuals_and_jacobian": 0, "residuals": 0}
+    counted = IdentificationProblem(cal.model, meas_urdf, cal.model.nominal, free, ["tcp"], pose0)
+    for name in calls:
+        def count(x, name=name, method=getattr(counted, name)):
+            calls[name] += 1
+            return method(x)
+        setattr(counted, name, count)
+    x_fit, steps, _, _ = _fit(counted, x0, options)
+    fit_cost = 0.5 * float(np.sum(problem.residuals(x_fit) ** 2))
+    print(f"{'':>6}        fit only, same start: ours LM {lm * 1e3:7.1f} ms ({steps} steps; "
+          f"{calls['residuals_and_jacobian']} residual+Jacobian, {calls['residuals']} residual-only "
+          f"evaluations) | peer {fd * 1e3:8.1f} ms ({peer_result.njev} finite-difference Jacobians "
+          f"x {len(x0)} + {peer_result.nfev} residual evaluations) | ratio {fd / lm:5.1f}x | "
+          f"cost ours/peer {fit_cost / fd_cost:.4f}")
 
 
 def conventions() -> None:
@@ -123,10 +163,20 @@ def point_on_axis_6() -> None:
 def main() -> None:
     print(f"IRB 2400, noise {NOISE * 1e3} mm per axis (3-D noise RMS {NOISE * 1e3 * np.sqrt(3):.4f} mm)")
     print("1. error of the identified model against the truth at 1,000 new poses (5 robots):")
+    space = planning_space(ROBOT)  # nominal model, default tool guess, seed 0
     for poses in (15, 30, 50, 100):
         rms = error_against_truth(poses)
+        planned = ""
+        if poses <= 50:
+            for criterion in ("i", "d"):
+                start = time.perf_counter()
+                plan = plan_poses(space, poses, criterion)
+                took = time.perf_counter() - start
+                planned_rms = error_against_truth(poses, joints=plan.joints)
+                planned += (f" | planned {criterion.upper()}-optimal {planned_rms / NOISE:.2f}x "
+                            f"(predicted {plan.quality.expected_error:.2f}x, {took:.2f} s)")
         print(f"  {poses:>4} poses: RMS {rms * 1e3:.4f} mm = {rms / NOISE:.2f}x the per-axis noise "
-              f"({rms / (NOISE * np.sqrt(3)):.2f}x the 3-D noise)")
+              f"({rms / (NOISE * np.sqrt(3)):.2f}x the 3-D noise){planned}")
     print("2. speed (one core):")
     for poses in (100, 1000):
         speed(poses)

@@ -11,9 +11,11 @@ from .. import __version__
 from . import cal_export_urdf, cal_identify, cal_nominal, cal_predict, cal_simulate
 from . import cal_merge, cal_record, cal_tool
 from . import cal_diagnose
+from . import cal_plan
 from .common import run_guarded
 
 COMMANDS = {
+    "plan": cal_plan,
     "simulate": cal_simulate,
     "identify": cal_identify,
     "diagnose": cal_diagnose,

@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.measurements import write_measurements
+from ..io.poses import check_within_limits, read_poses
 from ..robot import load_robot
 from ..simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
                         random_joints, scaled_effect)
@@ -20,8 +21,14 @@ DEFAULT_EFFECT_SIZE = 5.0
 
 def add_arguments(p) -> None:
     p.add_argument("--robot", required=True, help="bundled robot name or path to a URDF")
-    p.add_argument("--poses", type=int, required=True, help="number of measured poses")
+    p.add_argument("--poses", type=int, help="number of measured poses (random joints)")
+    p.add_argument("--joints", metavar="CSV",
+                   help="measure at these poses instead of random ones: a CSV with pose, "
+                        "q1_deg..qN_deg (e.g. from olp-cal plan)")
     p.add_argument("--noise-mm", type=float, default=0.05, help="measurement noise per axis, mm")
+    p.add_argument("--orientation-noise-deg", type=float, metavar="DEG",
+                   help="also measure the orientation of the tool frames (columns qw, qx, qy, "
+                        "qz; a full-pose device), with this noise per axis, deg")
     p.add_argument("--seed", type=int, default=0, help="random seed (errors and poses)")
     p.add_argument("--points", type=int, default=1, help="measured points on the tool per pose")
     p.add_argument("--length-error-mm", type=float, default=1.0, help="link error size, mm")
@@ -103,16 +110,28 @@ def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | Non
 
 
 def run(args) -> int:
-    if args.poses < 1 or args.noise_mm < 0 or args.points < 1 or args.repeats < 0:
+    if (args.poses is None) == (args.joints is None):
+        raise DataError("give either --poses N (random joints) or --joints poses.csv")
+    if ((args.poses is not None and args.poses < 1) or args.noise_mm < 0 or args.points < 1
+            or args.repeats < 0):
         raise DataError("--poses and --points must be positive, --noise-mm and --repeats "
                         "not negative")
+    if args.orientation_noise_deg is not None and not args.orientation_noise_deg >= 0:
+        raise DataError(f"--orientation-noise-deg must not be negative, got "
+                        f"{args.orientation_noise_deg}")
     robot = load_robot(args.robot)
+    planned = None
+    if args.joints is not None:
+        planned = read_poses(args.joints, [j.unit for j in robot.joints])
+        check_within_limits(planned, robot)
+        args.poses = len(planned.joints)
     specs = [parse_effect(s, robot.n_joints) for s in args.effect]
     virtual = make_virtual_robot(robot, args.seed, args.length_error_mm * 1e-3,
                                  np.radians(args.angle_error_deg), args.points,
                                  args.device_distance_m)
     rng = np.random.default_rng(args.seed + 1_000_003)
-    joints = random_joints(robot, args.poses, rng)
+    joints = random_joints(robot, args.poses, rng) if planned is None else planned.joints
+    ids = [str(k + 1) for k in range(args.poses)] if planned is None else planned.pose_ids
     effect_rng = np.random.default_rng(args.seed + 2_000_003)
     payload = temperature = time_s = None
     if args.payloads:
@@ -139,22 +158,28 @@ def run(args) -> int:
             effect = scaled_effect(virtual, effect, joints, size, **conditions)
         hidden.append(effect)
     virtual = replace(virtual, effects=tuple(hidden))
-    pose_ids = None
+    pose_ids = None if planned is None else ids
     if args.repeats:
         k = min(args.repeats, args.poses)
         order_ = np.concatenate([np.arange(args.poses), np.arange(k)])
         joints = joints[order_]
-        pose_ids = [str(i + 1) for i in order_]
+        pose_ids = [ids[i] for i in order_]
 
         def again(a):
             return None if a is None else a[order_]
         payload, temperature = again(payload), again(temperature)
         time_s = None if time_s is None else 60.0 * np.arange(len(order_))
+    orientation_noise = (None if args.orientation_noise_deg is None
+                         else np.radians(args.orientation_noise_deg))
     meas = virtual.measure(joints, args.noise_mm * 1e-3, rng, payload_kg=payload,
-                           temperature_c=temperature, time_s=time_s, pose_ids=pose_ids)
+                           temperature_c=temperature, time_s=time_s, pose_ids=pose_ids,
+                           orientation_noise_rad=orientation_noise)
     units = [j.unit for j in robot.joints]
     notes = [f"# robot: {robot.name}", f"# virtual robot seed {args.seed}, "
              f"noise {args.noise_mm} mm per axis"]
+    if orientation_noise is not None:
+        notes.append(f"# orientation (qw, qx, qy, qz) of each tool frame, noise "
+                     f"{args.orientation_noise_deg} deg per axis")
     if hidden:
         notes.append("# hidden effects: " + ", ".join(e.label for e in hidden)
                      + " (see the truth file)")
@@ -162,7 +187,8 @@ def run(args) -> int:
     if args.truth:
         write_text_atomic(args.truth, virtual.to_json())
     effects = "".join(f"; hidden {e.label} = {e.value:.4g}" for e in hidden)
-    print(f"wrote {meas.n_rows} measured points ({args.poses} poses, {args.points} per pose"
+    print(f"wrote {meas.n_rows} measured {'frames' if orientation_noise is not None else 'points'}"
+          f" ({args.poses} poses, {args.points} per pose"
           f"{f', {args.repeats} repeated' if args.repeats else ''}) to {args.output}"
           + (f", truth to {args.truth}" if args.truth else "") + effects)
     return 0
