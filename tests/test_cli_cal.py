@@ -42,7 +42,6 @@ def test_simulate_identify_predict_export(measured, capsys):
 
 def test_nominal_calibration_is_the_nominal_robot(tmp_path):
     from olp_compensate.io.calibration_file import read_calibration
-    from olp_compensate.model import forward
 
     out = tmp_path / "nominal.json"
     assert main(["nominal", "--robot", "ur5e", "-o", str(out)]) == 0
