@@ -40,7 +40,7 @@ import numpy as np
 from .conventions import MM, rotation_angle_between, rotation_from_rotvec, skew
 from .errors import DataError
 from .io.atomic import write_text_atomic
-from .io.measurements import parse_cell_number
+from .io.measurements import data_records, parse_cell_number
 
 COND_LIMIT = 25.0
 """Largest accepted condition number of the column-scaled design matrix (see module doc)."""
@@ -463,12 +463,7 @@ def read_marks_csv(path, n_joints: int, frame: str | None = None) -> ToolRequest
                             f"(header has: {', '.join(header)})")
     index = {h: k for k, h in enumerate(header)}
     labels, joints, marks, frames, filled = [], [], [], [], []
-    for offset, record in enumerate(reader):
-        line = start + 2 + offset
-        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
-            continue
-        if len(record) != len(header):
-            raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
+    for line, record in data_records(reader, start, len(header), source):
         cell = {h: record[k].strip() for h, k in index.items()}
         labels.append(cell["mark"] or f"M{len(labels) + 1}")
         joints.append([parse_cell_number(cell[c], source, line, c) for c in joint_cols])

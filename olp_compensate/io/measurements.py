@@ -88,6 +88,19 @@ def joint_columns(joint_units: list[str]) -> list[str]:
     return [f"q{k + 1}_{unit}" for k, unit in enumerate(joint_units)]
 
 
+def data_records(reader, start: int, n_fields: int, source: str):
+    """(1-based line, fields) of the data rows of a CSV ``reader`` positioned after the
+    header at 0-based line ``start``: blank and ``#`` rows skipped; a row of another field
+    count than the header's ``n_fields`` is a DataError naming file and line."""
+    for offset, record in enumerate(reader):
+        line = start + 2 + offset
+        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
+            continue
+        if len(record) != n_fields:
+            raise DataError(f"{source}:{line}: {len(record)} fields, the header has {n_fields}")
+        yield line, record
+
+
 def parse_cell_number(text: str, source: str, line: int, column: str) -> float:
     """A finite number from a CSV cell; :class:`DataError` naming file, line and column."""
     try:
@@ -154,14 +167,7 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
     joints, points, poses, names, quats = [], [], [], [], []
     payload, temperature, time_s, directions, rows = [], [], [], [], []
     extra: dict[str, list[str]] = {h: [] for h in extra_cols}
-    for offset, record in enumerate(reader):
-        line = start + 2 + offset
-        if not record or all(not c.strip() for c in record):
-            continue
-        if record[0].startswith("#"):
-            continue
-        if len(record) != len(header):
-            raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
+    for line, record in data_records(reader, start, len(header), source):
         cell = {h: record[k].strip() for h, k in index.items()}
         joints.append([parse_cell_number(cell[c], source, line, c) for c in expected_joints])
         points.append([parse_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
@@ -206,16 +212,22 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
         extra=extra, metadata=metadata, rows=np.array(rows), source=source)
 
 
-def read_measurements(path: str | Path, joint_units: list[str]) -> Measurements:
-    """Read a measurement CSV file (see :func:`parse_measurements`)."""
+def read_csv_text(path: str | Path, expected: str) -> str:
+    """The text of a CSV file; DataError naming the file when it cannot be read or is
+    binary (``expected`` says what it should have been, for the message)."""
     path = Path(path)
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.strerror})") from None
     if b"\x00" in raw[:4096]:
-        raise DataError(f"{path}: binary file, expected a measurement CSV")
-    return parse_measurements(raw.decode("utf-8", errors="replace"), joint_units, str(path))
+        raise DataError(f"{path}: binary file, expected {expected}")
+    return raw.decode("utf-8", errors="replace")
+
+
+def read_measurements(path: str | Path, joint_units: list[str]) -> Measurements:
+    """Read a measurement CSV file (see :func:`parse_measurements`)."""
+    return parse_measurements(read_csv_text(path, "a measurement CSV"), joint_units, str(path))
 
 
 def read_measurements_any(path: str | Path, joint_units: list[str], points=None,

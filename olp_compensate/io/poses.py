@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import DataError
 from .atomic import write_text_atomic
-from .measurements import joint_columns, parse_cell_number
+from .measurements import data_records, joint_columns, parse_cell_number, read_csv_text
 
 FORMAT_LINE = "# olp-compensate poses v1"
 
@@ -84,12 +84,7 @@ def parse_poses(text: str, joint_units: list[str], source: str = "<poses>") -> P
     scale = np.array([np.pi / 180.0 if u == "deg" else 1e-3 for u in joint_units])
     joints, ids, rows = [], [], []
     seen: dict[str, int] = {}
-    for offset, record in enumerate(reader):
-        line = start + 2 + offset
-        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
-            continue
-        if len(record) != len(header):
-            raise DataError(f"{source}:{line}: {len(record)} fields, the header has {len(header)}")
+    for line, record in data_records(reader, start, len(header), source):
         q = np.array([parse_cell_number(record[index[c]].strip(), source, line, c)
                       for c in columns]) * scale
         pose = record[index["pose"]].strip() if "pose" in index else ""
@@ -111,14 +106,7 @@ def parse_poses(text: str, joint_units: list[str], source: str = "<poses>") -> P
 
 def read_poses(path: str | Path, joint_units: list[str]) -> PoseList:
     """Read a pose list file (see :func:`parse_poses`)."""
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.strerror})") from None
-    if b"\x00" in raw[:4096]:
-        raise DataError(f"{path}: binary file, expected a CSV of joint values")
-    return parse_poses(raw.decode("utf-8", errors="replace"), joint_units, str(path))
+    return parse_poses(read_csv_text(path, "a CSV of joint values"), joint_units, str(path))
 
 
 def check_within_limits(poses: PoseList, robot) -> None:

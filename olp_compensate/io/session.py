@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError, OlpError
-from .measurements import Measurements, write_measurements
+from .measurements import Measurements, data_records, write_measurements
 from .rtde_source import Ask, JointSource, Say
 
 FORMAT = "olp-compensate session v1"
@@ -209,12 +209,7 @@ def _read_device_csv(path: Path):
                             f"(header has: {', '.join(header)})")
     index = {h: k for k, h in enumerate(header)}
     rows = []
-    for offset, record in enumerate(reader):
-        line = start + 2 + offset
-        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
-            continue
-        if len(record) != len(header):
-            raise DataError(f"{path}:{line}: {len(record)} fields, the header has {len(header)}")
+    for line, record in data_records(reader, start, len(header), str(path)):
         cell = {h: record[k].strip() for h, k in index.items()}
 
         def number(column):
