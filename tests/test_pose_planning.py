@@ -161,3 +161,21 @@ def test_cli_simulate_joints_bad_input(tmp_path, capsys):
     assert main(["simulate", "--robot", "abb_irb2400", "--joints", str(poses), "--poses", "3",
                  "-o", str(out)]) == 1
     assert "either --poses" in capsys.readouterr().err
+
+
+def test_csv_rows_of_another_width_are_refused_with_file_and_line():
+    """Pose lists and measurements share one row loop: blank and '#' rows are skipped, a
+    row with more or fewer fields than the header names its line."""
+    from olp_compensate.errors import DataError
+    from olp_compensate.io.measurements import parse_measurements
+    from olp_compensate.io.poses import parse_poses
+
+    units = ["deg"] * 6
+    poses = "pose,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n1,0,0,0,0,0,0\n\n# note\n2,0,0,0,0,0\n"
+    with pytest.raises(DataError, match=r"^p\.csv:5: 6 fields, the header has 7$"):
+        parse_poses(poses, units, "p.csv")
+    meas = ("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n"
+            "0,0,0,0,0,0,1,2,3\n#c\n0,0,0,0,0,0,1,2,3,4\n")
+    with pytest.raises(DataError, match=r"^m\.csv:4: 10 fields, the header has 9$"):
+        parse_measurements(meas, units, "m.csv")
+    assert len(parse_poses(poses.rsplit("2,", 1)[0], units, "p.csv").joints) == 1
