@@ -147,48 +147,6 @@ class IdentificationResult:
     n_orientation_rows: int = 0
 
 
-def _skew3(v: np.ndarray) -> np.ndarray:
-    """``skew`` of one 3-vector (conventions.skew serves batches, at ten times the cost)."""
-    x, y, z = float(v[0]), float(v[1]), float(v[2])
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
-def _rotation3(phi: np.ndarray) -> np.ndarray:
-    """``rotation_from_rotvec`` of one rotation vector (same formula, scalar arithmetic)."""
-    k = _skew3(phi)
-    angle = math.sqrt(float(phi @ phi))
-    if angle < 1e-8:
-        a, b = 1.0 - angle**2 / 6.0, 0.5 - angle**2 / 24.0
-    else:
-        a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle**2
-    return np.eye(3) + a * k + b * (k @ k)
-
-
-def _rotvec3(rotation: np.ndarray) -> np.ndarray:
-    """``rotvec_from_rotation`` of one rotation matrix: the same quaternion (largest of the
-    four branches, w >= 0) and the same angle formula, in scalar arithmetic."""
-    r = rotation.tolist()
-    trace = r[0][0] + r[1][1] + r[2][2]
-    branch = max(range(4), key=(trace, r[0][0], r[1][1], r[2][2]).__getitem__)
-    if branch == 0:
-        s = 2.0 * math.sqrt(1.0 + trace)
-        q = [0.25 * s, (r[2][1] - r[1][2]) / s, (r[0][2] - r[2][0]) / s, (r[1][0] - r[0][1]) / s]
-    elif branch == 1:
-        s = 2.0 * math.sqrt(1.0 + r[0][0] - r[1][1] - r[2][2])
-        q = [(r[2][1] - r[1][2]) / s, 0.25 * s, (r[0][1] + r[1][0]) / s, (r[0][2] + r[2][0]) / s]
-    elif branch == 2:
-        s = 2.0 * math.sqrt(1.0 + r[1][1] - r[0][0] - r[2][2])
-        q = [(r[0][2] - r[2][0]) / s, (r[0][1] + r[1][0]) / s, 0.25 * s, (r[1][2] + r[2][1]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + r[2][2] - r[0][0] - r[1][1])
-        q = [(r[1][0] - r[0][1]) / s, (r[0][2] + r[2][0]) / s, (r[1][2] + r[2][1]) / s, 0.25 * s]
-    w, x, y, z = [-v for v in q] if q[0] < 0 else q
-    sin_half = math.sqrt(x * x + y * y + z * z)
-    angle = 2.0 * math.atan2(sin_half, min(max(w, -1.0), 1.0))
-    scale = 2.0 if sin_half < 1e-12 else angle / sin_half
-    return np.array([x * scale, y * scale, z * scale])
-
-
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
     _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
@@ -208,7 +166,7 @@ def _point_index(point_names: np.ndarray, tool_names: list[str]) -> np.ndarray:
 
 def _so3_right_jacobian(phi: np.ndarray) -> np.ndarray:
     theta = math.sqrt(float(phi @ phi))
-    k = _skew3(phi)
+    k = skew(phi)
     if theta < 1e-8:
         return np.eye(3) - 0.5 * k
     return (np.eye(3) - (1 - math.cos(theta)) / theta**2 * k
@@ -338,7 +296,7 @@ class IdentificationProblem:
         start = 6 + len(self.free)
         tools = x[start:start + 3 * len(self.tool_names)].reshape(-1, 3)
         pose = np.eye(4)
-        pose[:3, :3] = self.r0 @ _rotation3(x[3:6])
+        pose[:3, :3] = self.r0 @ rotation_from_rotvec(x[3:6])
         pose[:3, 3] = self.t0 + self.r0 @ x[:3]
         return values, pose, tools
 
@@ -358,7 +316,7 @@ class IdentificationProblem:
         ``effect_values`` default to the values the effects carry, ``tool_rotations``
         ((T, 3, 3) for ``rotated_tools``) to the reference rotations."""
         rho = self.r0.T @ (device_T_base[:3, 3] - self.t0)
-        phi = _rotvec3(self.r0.T @ device_T_base[:3, :3])
+        phi = rotvec_from_rotation(self.r0.T @ device_T_base[:3, :3])
         if effect_values is None:
             effect_values = [np.array(e.values) for e in self.effects]
         if tool_rotations is None:
