@@ -22,7 +22,8 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass, field
+import operator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,7 +38,7 @@ from .programs import Program, loads, resolve
 from .programs.grammar import no_gc
 from .programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
                             target_edits)
-from .programs.targets import JointTarget
+from .programs.targets import QUAT_WXYZ, JointTarget
 
 __all__ = ["TargetReport", "CompensationReport", "compensate_program", "KEPT", "EMIT_MODES"]
 
@@ -120,36 +121,45 @@ class CompensationReport:
         csv.writer(buf, lineterminator="\n").writerow(
             ["target", "file", "line", "column", "status", "tool", "wobj", "dx_mm", "dy_mm",
              "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after", *joints, "note"])
-        # one %-format per row for the numbers (100k-target programs); rows with a
-        # missing number take the per-field path
-        numbers = ",".join(["%.4f"] * 3 + ["%.5f"] * 2)
-        joint_numbers = ",".join(["%.6f"] * self.n_joints)
-        empty_joints = "," * (self.n_joints - 1)
-        lines = []
+        # one %-format per row (100k-target programs); a row with a missing number takes
+        # the per-field path. Fields repeated across rows are quoted once.
+        nj = self.n_joints
+        row_format = ",".join(["%s,%s,%d,%d,%s,%s,%s"] + ["%.4f"] * 3 + ["%.5f"] * 2
+                              + ["%s,%s"] + ["%.6f"] * nj + ["%s"])
+        empty_joints = "," * (nj - 1)
+        quoted = _Quoted()
         field_text = _csv_field
+        lines = []
         for r in self.rows:
-            values = (*r.correction_mm, r.correction_deg, r.joint_change)
+            numbers = (*r.correction_mm, r.correction_deg, r.joint_change, *r.joints)
             try:
-                middle = numbers % values if math.isfinite(sum(values)) else None
+                whole = len(numbers) == 5 + nj and math.isfinite(sum(numbers))
             except TypeError:   # a None
-                middle = None
-            if middle is None:
-                middle = ",".join([*(_num(v, 4) for v in r.correction_mm),
-                                   _num(r.correction_deg, 5), _num(r.joint_change, 5)])
+                whole = False
+            if whole:
+                lines.append(row_format % (
+                    field_text(r.target), quoted[r.file], r.line, r.column, quoted[r.status],
+                    quoted[r.tool], quoted[r.wobj], *numbers[:5], quoted[r.config_before],
+                    quoted[r.config_after], *numbers[5:], quoted[r.note]))
+                continue
             q = r.joints
-            if not q:
-                joint_text = empty_joints
-            elif len(q) == self.n_joints and math.isfinite(sum(q)):
-                joint_text = joint_numbers % q
-            else:
-                joint_text = ",".join(_num(v, 6) for v in q)
-            lines.append(",".join((field_text(r.target), field_text(r.file), str(r.line),
-                                   str(r.column), field_text(r.status), field_text(r.tool),
-                                   field_text(r.wobj), middle, field_text(r.config_before),
-                                   field_text(r.config_after), joint_text,
-                                   field_text(r.note))))
+            joint_text = ",".join(_num(v, 6) for v in q) if q else empty_joints
+            lines.append(",".join((
+                field_text(r.target), quoted[r.file], str(r.line), str(r.column),
+                quoted[r.status], quoted[r.tool], quoted[r.wobj],
+                *(_num(v, 4) for v in r.correction_mm), _num(r.correction_deg, 5),
+                _num(r.joint_change, 5), quoted[r.config_before], quoted[r.config_after],
+                joint_text, quoted[r.note])))
         lines.append("")
         return buf.getvalue() + "\n".join(lines)
+
+
+class _Quoted(dict):
+    """text -> its CSV field, computed once per distinct text."""
+
+    def __missing__(self, text: str) -> str:
+        value = self[text] = _csv_field(text)
+        return value
 
 
 def _csv_field(text: str) -> str:
@@ -164,17 +174,6 @@ def _num(value: float, decimals: int) -> str:
 
 
 # ----------------------------------------------------------------------------------------
-
-@dataclass
-class _Job:
-    """Targets to solve: desired real flange, the flange the program asks the nominal
-    controller for, and how to turn a flange back into the written target."""
-
-    entries: list = field(default_factory=list)       # ResolvedTarget
-    confdata: list = field(default_factory=list)      # (4,) or None
-    real_tool_note: list = field(default_factory=list)
-    base: list = field(default_factory=list)          # report fields (_base_fields)
-
 
 def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
     """flange_T_tool of the real robot for the program tool ``name``, and a note.
@@ -208,14 +207,6 @@ def _config_text(values) -> str:
     if text is None:
         text = _CONFIG_TEXT[key] = "[" + ",".join(str(int(v)) for v in key) + "]" if key else ""
     return text
-
-
-def _base_fields(rt, config) -> dict:
-    """The report fields every row of resolved target ``rt`` shares."""
-    t = rt.target
-    where = t.location
-    return dict(target=t.display_name, file=where.file, line=where.line, column=where.column,
-                tool=rt.tool_name, wobj=rt.wobj_name, config_before=_config_text(config))
 
 
 def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
@@ -266,187 +257,259 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
             raise DataError("dialect: needed when the program is given as text")
         program = loads(program, dialect, file)
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
-    cal, robot = comp.calibration, comp.robot
-    resolution = resolve(program)
+    robot = comp.robot
+    res = resolve(program)
     vplus = program.dialect == "vplus"
-    rows: dict[int, TargetReport] = {}          # index in resolution.targets -> row
-    job = _Job()
-    index_of = {}
-    for k, rt in enumerate(resolution.targets):
-        t = rt.target
-        if isinstance(t, JointTarget):
-            rows[k] = TargetReport(**_base_fields(rt, ()), status="joint_target",
+    targets, pairs = res.entry_targets, res.pairs
+    m = len(targets)
+    pair_of = res.entry_pairs.tolist()
+
+    # what to do with each entry: a row now, or solve it (job: entry indices)
+    rows: list = [None] * m
+    job: list[int] = []
+    known = np.isfinite(res.base_T_flange[:, 0, 0]).tolist()
+    for k, t in enumerate(targets):
+        if known[k]:
+            if unused == "skip" and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
+                rows[k] = _row(t, pairs[pair_of[k]], "unused", _NOT_MOVED)
+            else:
+                job.append(k)
+        elif type(t) is JointTarget:
+            pair = pairs[pair_of[k]]
+            rows[k] = TargetReport(*_where(t), "joint_target", pair.tool_name, pair.wobj_name,
                                    joints=tuple(t.joints_deg()), note="joints kept as written")
-            continue
-        config = t.config_values() if not vplus else ()
-        base = _base_fields(rt, config)
-        if "unused" in rt.notes and not rt.uses and unused == "skip":
-            rows[k] = TargetReport(**base, status="unused",
-                                   note="not moved to in this file: tool and work object "
-                                        "unknown, left as written")
-            continue
-        if rt.base_T_flange is None:
-            rows[k] = TargetReport(**base, status="unresolved", note="; ".join(rt.notes))
-            continue
-        index_of[k] = len(job.entries)
-        job.entries.append(rt)
-        job.confdata.append(config if config else None)
-        job.base.append(base)
+        elif unused == "skip" and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
+            rows[k] = _row(t, pairs[pair_of[k]], "unused", _NOT_MOVED)
+        else:
+            rows[k] = _row(t, pairs[pair_of[k]], "unresolved", "; ".join(res.entry_notes[k]))
 
-    n = len(job.entries)
+    n = len(job)
+    write: dict[int, int] = {}   # id(target) -> job row to write, in text order
     if n:
-        with_conf = [i for i, c in enumerate(job.confdata) if c is not None]
-        without = [i for i, c in enumerate(job.confdata) if c is None]
-        requested = np.array([rt.base_T_flange for rt in job.entries])
-        desired = requested.copy()
-        # the real TCP: a calibrated tool of the tooldata's name (one pose per tool name)
-        real_tools: dict = {}
-        for i, rt in enumerate(job.entries):
-            if rt.stationary_tool:
-                job.real_tool_note.append("stationary tool")
-                continue
-            key = (rt.tool_name, id(rt.flange_T_tool))
-            if key not in real_tools:
-                real_tools[key] = (_real_tool(cal, rt.tool_name, rt.flange_T_tool), [])
-            (tool, note), members = real_tools[key]
-            members.append(i)
-            job.real_tool_note.append(note)
-        for ((tool, note), members) in real_tools.values():
-            if note:  # a calibrated tool differs from the program's: re-aim the flange
-                tcp = requested[members] @ job.entries[members[0]].flange_T_tool
-                desired[members] = tcp @ invert_pose(tool)
-        q = np.full((n, robot.n_joints), np.nan)
-        flange = np.full((n, 4, 4), np.nan)
-        nominal = np.full((n, robot.n_joints), np.nan)
-        status = np.empty(n, dtype=object)
-        if without:
-            # no written configuration (V+): the arm stays in the one the nominal
-            # controller takes for the original target (the branch nearest zero)
-            q_nominal = comp.solve_nominal(requested[without], None)
-            reachable = np.all(np.isfinite(q_nominal), axis=1)
-            implied = [i for i, r in zip(without, reachable) if r]
-            implied_conf = comp.confdata(q_nominal[reachable]) if implied else None
-            without = [i for i, r in zip(without, reachable) if not r]
-            with_conf_arr = np.array([job.confdata[i] for i in with_conf], int).reshape(-1, 4)
-            with_conf = with_conf + implied
-            conf_all = np.concatenate([with_conf_arr, implied_conf.reshape(-1, 4)]) \
-                if implied else with_conf_arr
-        else:
-            conf_all = np.array([job.confdata[i] for i in with_conf], int).reshape(-1, 4)
-        for idx, conf in ((with_conf, conf_all), (without, None)):
-            if not idx:
-                continue
-            qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
-            q[idx], flange[idx], nominal[idx] = qi, fi, nomi
-            status[idx] = sol.reason
-        ok = np.isin(status.astype(str), COMPENSATED)
-        wobj = np.array([rt.base_T_wobj for rt in job.entries])
-        tool = np.array([rt.flange_T_tool for rt in job.entries])
-        original = np.array([rt.wobj_T_target for rt in job.entries])
-        stationary = np.array([rt.stationary_tool for rt in job.entries], bool)
-        # robot-held tool: inv(wobj) F tool; stationary tool: inv(flange_T_wobj) inv(F) world_T_tool
-        moved = flange.copy()
-        if np.any(stationary):
-            moved[stationary] = invert_pose(flange[stationary])
-        new_targets = invert_pose(wobj) @ moved @ tool
-        new_targets[~ok] = np.nan
-        q_ctrl = robot.controller_from_joints(q)
-        nominal_ctrl = robot.controller_from_joints(nominal)
-        computed_conf = np.full((n, 4), -99, int)
-        if np.any(ok):
-            computed_conf[ok] = comp.confdata(q[ok])
-        if with_conf and not vplus:
-            rows_c = np.array([i for i in range(n) if job.confdata[i] is not None and ok[i]], int)
-            if len(rows_c):
-                written = np.array([job.confdata[i] for i in rows_c], int)
-                computed_conf[rows_c] = _keep_config(written, computed_conf[rows_c],
-                                                     q_ctrl[rows_c], nominal_ctrl[rows_c])
-        conf_list = computed_conf.tolist()
-        shift_mm = ((new_targets[:, :3, 3] - original[:, :3, 3]) / MM).tolist()
-        turn_deg = np.degrees(rotation_angle_between(new_targets[:, :3, :3],
-                                                     original[:, :3, :3])).tolist()
-        joints_deg = robot.to_degrees_or_mm(q_ctrl).tolist()
-        change = np.abs(robot.to_degrees_or_mm(q_ctrl - nominal_ctrl))
-        change = np.where(np.all(np.isnan(change), axis=1), np.nan,
-                          np.nanmax(np.where(np.isnan(change), -np.inf, change), axis=1)).tolist()
-        vplus_text = {}
-        if vplus and isinstance(comp.family, OPWParameters) and np.any(ok):
-            flags = vplus_configuration(comp.family, q[ok])
-            for i, (righty, above, flip) in zip(np.flatnonzero(ok), flags):
-                vplus_text[i] = " ".join(("RIGHTY" if righty else "LEFTY",
-                                          "ABOVE" if above else "BELOW",
-                                          "FLIP" if flip else "NOFLIP"))
-    else:
-        ok = np.zeros(0, bool)
-
-    # one target, several tool/work-object pairs: write only when they agree
-    by_target: dict[int, list[int]] = {}
-    for k, i in index_of.items():
-        by_target.setdefault(id(job.entries[i].target), []).append(i)
-    ambiguous = set()
-    for members in by_target.values():
-        if len(members) < 2:
-            continue
-        good = [i for i in members if ok[i]]
-        if len(good) < len(members):
-            ambiguous.update(members)
-            continue
-        first = new_targets[good[0]]
-        for i in good[1:]:
-            if (np.linalg.norm(new_targets[i][:3, 3] - first[:3, 3]) > _SAME_MM * MM
-                    or rotation_angle_between(new_targets[i][:3, :3], first[:3, :3]) > _SAME_RAD):
-                ambiguous.update(members)
-                break
-
-    write: dict[int, int] = {}                   # id(target) -> job index to write
-    for k, i in index_of.items():
-        rt = job.entries[i]
-        t = rt.target
-        base = job.base[i]
-        if rt.notes:
-            notes = [x for x in rt.notes if x != "unused"] + [job.real_tool_note[i]]
-            if "unused" in rt.notes:
-                notes.append("not moved to in this file: tool0/wobj0 assumed")
-            note = "; ".join(x for x in notes if x)
-        else:
-            note = job.real_tool_note[i]
-        if not ok[i]:
-            rows[k] = TargetReport(**base, status=str(status[i]), note=note)
-            continue
-        if i in ambiguous:
-            rows[k] = TargetReport(**base, status="ambiguous",
-                                   joints=tuple(joints_deg[i]),
-                                   note="used with several tools/work objects needing "
-                                        "different corrections; left as written")
-            continue
-        write[id(t)] = i
-        if vplus:
-            config_after = vplus_text.get(i, "")
-        else:
-            config_after = _config_text(conf_list[i])
-        rows[k] = TargetReport(
-            **base, config_after=config_after, status=str(status[i]),
-            correction_mm=tuple(shift_mm[i]), correction_deg=turn_deg[i],
-            joint_change=change[i], joints=tuple(joints_deg[i]), note=note)
-
-    order = [rows[k] for k in sorted(rows)]
-    for use, why in resolution.unresolved:
+        solved = _solve(comp, res, job, vplus)
+        ambiguous = _ambiguous(res, job, solved)
+        config_after = ([solved.vplus_text.get(i, "") for i in range(n)] if vplus else
+                        [_config_text(c) for c in solved.conf.tolist()])
+        ok, reason = solved.ok.tolist(), solved.reason
+        shift = solved.shift_mm.tolist()
+        turn, change = solved.turn_deg.tolist(), solved.change_deg.tolist()
+        joints = solved.joints_deg.tolist()
+        for i, k in enumerate(job):
+            t = targets[k]
+            pair = pairs[pair_of[k]]
+            before = solved.config_before[i]
+            note = _note(res.entry_notes[k], solved.tool_note[i])
+            name, file, line, column = _where(t)
+            if not ok[i]:
+                rows[k] = TargetReport(name, file, line, column, reason[i], pair.tool_name,
+                                       pair.wobj_name, config_before=before, note=note)
+            elif k in ambiguous:
+                rows[k] = TargetReport(name, file, line, column, "ambiguous", pair.tool_name,
+                                       pair.wobj_name, config_before=before,
+                                       joints=tuple(joints[i]),
+                                       note="used with several tools/work objects needing "
+                                            "different corrections; left as written")
+            else:
+                write[id(t)] = i
+                rows[k] = TargetReport(name, file, line, column, reason[i], pair.tool_name,
+                                       pair.wobj_name, tuple(shift[i]), turn[i], change[i],
+                                       before, config_after[i], tuple(joints[i]), note)
+    for use, why in res.unresolved:
         where = use.location
         name = (use.runtime.expression if use.runtime is not None
                 else use.target_name or "<target>")
-        order.append(TargetReport(target=name, file=where.file, line=where.line,
-                                  column=where.column,
-                                  status="runtime" if use.runtime is not None else "unresolved",
-                                  tool=use.tool or "", wobj=use.wobj or "", note=why))
-    order.sort(key=lambda r: (r.line, r.column))
+        rows.append(TargetReport(target=name, file=where.file, line=where.line,
+                                 column=where.column,
+                                 status="runtime" if use.runtime is not None else "unresolved",
+                                 tool=use.tool or "", wobj=use.wobj or "", note=why))
+    rows.sort(key=_LINE_COLUMN)
 
-    warnings = list(resolution.warnings)
-    edits = _edits(program, comp, job, write, new_targets if n else None,
-                   computed_conf if n else None, q_ctrl if n else None, emit, vplus, warnings)
+    warnings = list(res.warnings)
+    edits = _edits(program, comp, res, job, write, solved if n else None, emit, vplus,
+                   warnings)
     text = splice(program.text, edits) if edits else program.text
-    report = CompensationReport(file=program.file, rows=tuple(order), warnings=tuple(warnings),
+    report = CompensationReport(file=program.file, rows=tuple(rows), warnings=tuple(warnings),
                                 n_joints=robot.n_joints, emit=emit, edits=len(edits))
     return text, report
+
+
+_LINE_COLUMN = operator.attrgetter("line", "column")
+_NOT_MOVED = "not moved to in this file: tool and work object unknown, left as written"
+
+
+def _where(t) -> tuple:
+    """The first fields of a report row: target, file, line, column."""
+    file, line, column = t.source
+    return t.display_name, file, line, column
+
+
+def _row(t, pair, status: str, note: str) -> TargetReport:
+    """A row for a Cartesian target left as written."""
+    config = t.config_values() if t.orientation_kind == QUAT_WXYZ else ()
+    return TargetReport(*_where(t), status, pair.tool_name, pair.wobj_name,
+                        config_before=_config_text(config), note=note)
+
+
+def _note(notes: tuple[str, ...], tool_note: str) -> str:
+    """The report note of a solved entry: its resolution notes and the real-tool note."""
+    if not notes:
+        return tool_note
+    kept = [x for x in notes if x != "unused"] + [tool_note]
+    if "unused" in notes:
+        kept.append("not moved to in this file: tool0/wobj0 assumed")
+    return "; ".join(x for x in kept if x)
+
+
+@dataclass(eq=False)
+class _Solved:
+    """The solved job (one row per job entry); lengths mm, angles deg, joints controller.
+
+    written : (n, 4) confdata as written, has_conf : (n,) whether there is one (not V+);
+    config_before : its text; conf : (n, 4) the confdata to write.
+    new_targets : (n, 4, 4) the compensated targets in their work objects, m (NaN rows
+    where not compensated).
+    """
+
+    ok: np.ndarray
+    reason: list
+    written: np.ndarray
+    has_conf: np.ndarray
+    config_before: list
+    conf: np.ndarray
+    new_targets: np.ndarray
+    q_ctrl: np.ndarray
+    shift_mm: np.ndarray
+    turn_deg: np.ndarray
+    change_deg: np.ndarray
+    joints_deg: np.ndarray
+    tool_note: list
+    vplus_text: dict
+
+
+def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
+    """Solve the real arm for the job entries and derive what the report and the emitter
+    need."""
+    robot, cal = comp.robot, comp.calibration
+    n = len(job)
+    pair_index = res.entry_pairs[job]
+    written = res.written[job, 7:11]
+    has_conf = np.isfinite(written).all(axis=1)
+    written = np.where(has_conf[:, None], np.rint(written), -99).astype(int)
+    requested = res.base_T_flange[job]
+    desired = requested.copy()
+    # the real TCP: a calibrated tool of the tooldata's name
+    tool_note = [""] * n
+    for p in np.unique(pair_index).tolist():
+        pair = res.pairs[p]
+        members = np.flatnonzero(pair_index == p)
+        if pair.stationary_tool:
+            note = "stationary tool"
+        else:
+            tool, note = _real_tool(cal, pair.tool_name, pair.flange_T_tool)
+            if note:  # a calibrated tool differs from the program's: re-aim the flange
+                desired[members] = requested[members] @ pair.flange_T_tool @ invert_pose(tool)
+        for i in members.tolist():
+            tool_note[i] = note
+    q = np.full((n, robot.n_joints), np.nan)
+    flange = np.full((n, 4, 4), np.nan)
+    nominal = np.full((n, robot.n_joints), np.nan)
+    reason = np.empty(n, dtype=object)
+    with_conf = np.flatnonzero(has_conf).tolist()
+    without = np.flatnonzero(~has_conf).tolist()
+    conf_all = written[has_conf]
+    if without:
+        # no written configuration (V+): the arm stays in the one the nominal
+        # controller takes for the original target (the branch nearest zero)
+        q_nominal = comp.solve_nominal(requested[without], None)
+        reachable = np.all(np.isfinite(q_nominal), axis=1)
+        implied = [i for i, r in zip(without, reachable) if r]
+        if implied:
+            conf_all = np.concatenate([conf_all, comp.confdata(q_nominal[reachable])])
+        without = [i for i, r in zip(without, reachable) if not r]
+        with_conf = with_conf + implied
+    for idx, conf in ((with_conf, conf_all), (without, None)):
+        if not idx:
+            continue
+        qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
+        q[idx], flange[idx], nominal[idx] = qi, fi, nomi
+        reason[idx] = sol.reason
+    reason = reason.tolist()
+    ok = np.fromiter((r in COMPENSATED for r in reason), bool, n)
+    pair_wobj = np.array([_pose_or_nan(p.base_T_wobj) for p in res.pairs])
+    pair_tool = np.array([_pose_or_nan(p.flange_T_tool) for p in res.pairs])
+    stationary = np.array([p.stationary_tool for p in res.pairs], bool)[pair_index]
+    # robot-held tool: inv(wobj) F tool; stationary tool: inv(flange_T_wobj) inv(F) world_T_tool
+    moved = flange.copy()
+    if np.any(stationary):
+        moved[stationary] = invert_pose(flange[stationary])
+    new_targets = invert_pose(pair_wobj)[pair_index] @ moved @ pair_tool[pair_index]
+    new_targets[~ok] = np.nan
+    original = res.wobj_T_target[job]
+    q_ctrl = robot.controller_from_joints(q)
+    nominal_ctrl = robot.controller_from_joints(nominal)
+    conf = np.full((n, 4), -99, int)
+    if np.any(ok):
+        conf[ok] = comp.confdata(q[ok])
+    if not vplus:
+        rows_c = np.flatnonzero(ok & has_conf)
+        if len(rows_c):
+            conf[rows_c] = _keep_config(written[rows_c], conf[rows_c], q_ctrl[rows_c],
+                                        nominal_ctrl[rows_c])
+    change = np.abs(robot.to_degrees_or_mm(q_ctrl - nominal_ctrl))
+    change = np.where(np.all(np.isnan(change), axis=1), np.nan,
+                      np.nanmax(np.where(np.isnan(change), -np.inf, change), axis=1))
+    vplus_text = {}
+    if vplus and isinstance(comp.family, OPWParameters) and np.any(ok):
+        flags = vplus_configuration(comp.family, q[ok])
+        for i, (righty, above, flip) in zip(np.flatnonzero(ok).tolist(), flags):
+            vplus_text[i] = " ".join(("RIGHTY" if righty else "LEFTY",
+                                      "ABOVE" if above else "BELOW",
+                                      "FLIP" if flip else "NOFLIP"))
+    return _Solved(
+        ok=ok, reason=reason, written=written, has_conf=has_conf,
+        config_before=_config_texts(written, has_conf), conf=conf, new_targets=new_targets,
+        q_ctrl=q_ctrl, shift_mm=(new_targets[:, :3, 3] - original[:, :3, 3]) / MM,
+        turn_deg=np.degrees(rotation_angle_between(new_targets[:, :3, :3],
+                                                   original[:, :3, :3])),
+        change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
+        vplus_text=vplus_text)
+
+
+def _config_texts(confdata: np.ndarray, has_conf: np.ndarray) -> list[str]:
+    """'[cf1,cf4,cf6,cfx]' of each row of ``confdata`` (n, 4) int, '' where ``has_conf``
+    is False."""
+    if not len(confdata):
+        return []
+    distinct, which = np.unique(confdata, axis=0, return_inverse=True)
+    texts = [_config_text(tuple(c)) for c in distinct.tolist()]
+    return [texts[j] if h else "" for j, h in zip(which.reshape(-1).tolist(),
+                                                   has_conf.tolist())]
+
+
+def _pose_or_nan(pose) -> np.ndarray:
+    return np.full((4, 4), np.nan) if pose is None else pose
+
+
+def _ambiguous(res, job: list[int], solved: _Solved) -> set[int]:
+    """Entries of targets used with several tool/work-object pairs whose compensations
+    differ (or fail for one pair): those are left as written."""
+    if not res.shared:
+        return set()
+    row = {k: i for i, k in enumerate(job)}
+    ambiguous: set[int] = set()
+    for group in res.shared:
+        members = [k for k in group if k in row]   # the entries that were solved
+        if len(members) < 2:
+            continue
+        if not all(solved.ok[row[k]] for k in members):
+            ambiguous.update(members)
+            continue
+        poses = solved.new_targets[[row[k] for k in members]]
+        apart = np.linalg.norm(poses[1:, :3, 3] - poses[0, :3, 3], axis=1)
+        turned = rotation_angle_between(poses[1:, :3, :3], poses[0, :3, :3])
+        if np.any(apart > _SAME_MM * MM) or np.any(turned > _SAME_RAD):
+            ambiguous.update(members)
+    return ambiguous
 
 
 def _orientations(targets, rotations: np.ndarray, vplus: bool) -> np.ndarray:
@@ -466,50 +529,58 @@ def _orientations(targets, rotations: np.ndarray, vplus: bool) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
-def _edits(program, comp, job, write, new_targets, conf, q_ctrl, emit, vplus, warnings):
+def _edits(program, comp, res, job, write, solved, emit, vplus, warnings):
+    """The text edits writing the compensated targets ``write`` (id(target) -> job row,
+    in text order)."""
     if not write:
         return []
     robot = comp.robot
-    chosen = sorted(write.items(), key=lambda kv: job.entries[kv[1]].target.span[0])
-    targets = [job.entries[i].target for _, i in chosen]
-    rows = [i for _, i in chosen]
+    rows = list(write.values())
+    targets = [res.entry_targets[job[i]] for i in rows]
     edits = []
     if emit == "joints":
-        convertible = _joint_convertible(program, job, targets)
+        uses: dict[int, list] = {}
+        for t, u in zip(res.entry_targets, res.entry_uses):
+            uses.setdefault(id(t), []).extend(u)
+        convertible = _joint_convertible(program, uses, targets)
         as_joints = [(t, i) for t, i in zip(targets, rows) if id(t) in convertible]
         try:
-            edits = joint_emit_edits(program, {t: robot.to_degrees_or_mm(q_ctrl[i])
+            edits = joint_emit_edits(program, {t: robot.to_degrees_or_mm(solved.q_ctrl[i])
                                                for t, i in as_joints})
         except DataError as exc:
             warnings.append(f"{exc}; every target is written as a pose instead")
             edits, as_joints = [], []
-        for t, i in zip(targets, rows):
+        for t in targets:
             if id(t) not in convertible:
                 warnings.append(f"{t.location}: {t.display_name} stays a Cartesian target "
-                                f"(compensated): {_joint_blocker(program, job, t)}")
+                                f"(compensated): {_joint_blocker(program, uses, t)}")
         done = {id(t) for t, _ in as_joints}
         rest = [(t, i) for t, i in zip(targets, rows) if id(t) not in done]
         if not rest:
-            return sorted(edits, key=lambda e: e.start)
+            return sorted(edits, key=_START)
         targets, rows = [t for t, _ in rest], [i for _, i in rest]
-    positions = new_targets[rows, :3, 3] / MM
-    orientation = _orientations(targets, new_targets[rows, :3, :3], vplus)
-    edits += edits_for_targets(program, positions, orientation, None, targets)
+    new_targets = solved.new_targets[rows]
+    orientation = _orientations(targets, new_targets[:, :3, :3], vplus)
+    edits += edits_for_targets(program, new_targets[:, :3, 3] / MM, orientation, None, targets,
+                               res.written[[job[i] for i in rows]])
     if not vplus:
-        for t, i in zip(targets, rows):
-            if tuple(conf[i]) != tuple(job.confdata[i]):
-                edits += target_edits(t, config=conf[i])
-    edits.sort(key=lambda e: e.start)
+        conf = solved.conf[rows]
+        changed = np.flatnonzero(np.any(conf != solved.written[rows], axis=1)
+                                 & solved.has_conf[rows])
+        for j in changed.tolist():
+            edits += target_edits(targets[j], config=conf[j])
+    edits.sort(key=_START)
     return edits
 
 
+_START = operator.itemgetter(0)
 _JOINT_INSTRUCTIONS = {"movel", "movej", "move", "moves", "appro", "appros", "depart", "departs"}
 
 
-def _joint_blocker(program: Program, job, t) -> str | None:
-    """Why target ``t`` cannot become a joint target, or None."""
-    uses = [u for rt in job.entries if rt.target is t for u in rt.uses]
-    for u in uses:
+def _joint_blocker(program: Program, uses: dict, t) -> str | None:
+    """Why target ``t`` cannot become a joint target, or None (``uses``: id(target) ->
+    its motion uses)."""
+    for u in uses.get(id(t), ()):
         if u.instruction.lower() not in _JOINT_INSTRUCTIONS:
             return f"{u.instruction} at line {u.location.line} needs a Cartesian target"
         if u.wobj is not None and program.dialect == "vplus":
@@ -526,11 +597,11 @@ def _joint_blocker(program: Program, job, t) -> str | None:
     return None
 
 
-def _joint_convertible(program: Program, job, targets) -> set[int]:
+def _joint_convertible(program: Program, uses: dict, targets) -> set[int]:
     """ids of the targets that can become joint targets: every use a plain move, no
     run-time use, and (RAPID arrays) every element of the declaration convertible."""
     chosen = {id(t) for t in targets}
-    ok = {id(t) for t in targets if _joint_blocker(program, job, t) is None}
+    ok = {id(t) for t in targets if _joint_blocker(program, uses, t) is None}
     if program.dialect == "rapid":
         by_decl: dict = {}
         for t in program.targets:

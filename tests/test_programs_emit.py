@@ -14,6 +14,7 @@ from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like
                                      joint_emit_edits, joint_target_edits, load, loads,
                                      splice, target_edits, tool_edits)
 from olp_compensate.programs.emit import aligned_quaternion, nearest_euler_zyz_deg
+from olp_compensate.programs.semantics import written_values
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -167,8 +168,14 @@ def test_batch_and_single_target_edits_agree(name):
     for t, p, o in zip(targets, pos, ori):
         single += target_edits(t, position_mm=p, orientation=o)
     assert batch == dumps(program, single)
+    # the written numbers handed over (as resolve converts them) change nothing
+    written = written_values(targets)
+    assert edits_for_targets(program, pos, ori, written=written) == \
+        edits_for_targets(program, pos, ori)
     with pytest.raises(DataError, match="shape"):
         edits_for_targets(program, pos[:-1])
+    with pytest.raises(DataError, match="written: expected shape"):
+        edits_for_targets(program, pos, ori, written=written[:-1])
 
 
 def test_unnormalized_quaternion_kept_when_unchanged_and_rewritten_whole_when_not():

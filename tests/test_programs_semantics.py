@@ -10,6 +10,7 @@ import pytest
 from olp_compensate.conventions import (MM, invert_pose, matrix_from_euler_zyz,
                                         matrix_from_quat_wxyz, pose_from_rotation_translation)
 from olp_compensate.programs import load, loads, resolve
+from olp_compensate.programs.targets import CartesianTarget
 
 ROOT = Path(__file__).resolve().parents[1]
 NINES = "[9E9,9E9,9E9,9E9,9E9,9E9]"
@@ -163,3 +164,32 @@ def test_run_time_changes_are_noted():
     assert p10.notes == ("moved to only through Offs(), RelTool()",)
     assert any("parameter of go_to" in why for _, why in res.unresolved)
     assert any("pNow has no literal value" in why for _, why in res.unresolved)
+
+
+def test_resolution_columns_agree_with_the_records():
+    """The columns resolve() fills in batches hold, row for row, what each ResolvedTarget
+    says, and the written numbers are the file's (V+ has no confdata)."""
+    for name in ("cell_a.mod", "cell_b.pg"):
+        program = load(ROOT / "samples" / name)
+        res = resolve(program)
+        assert len(res.targets) == len(res.entry_targets) == len(res.base_T_flange)
+        for k, rt in enumerate(res.targets):
+            assert rt.target is res.entry_targets[k]
+            assert rt.tool_name == res.pairs[res.entry_pairs[k]].tool_name
+            if rt.base_T_flange is None:
+                assert np.isnan(res.base_T_flange[k]).all()
+            else:
+                np.testing.assert_array_equal(rt.base_T_flange, res.base_T_flange[k])
+            t = rt.target
+            if isinstance(t, CartesianTarget):
+                written = res.written[k]
+                np.testing.assert_array_equal(written[:3], t.position_mm())
+                o = t.orientation_values()
+                np.testing.assert_array_equal(written[3:3 + len(o)], o)
+                config = t.config_values()
+                if config:
+                    np.testing.assert_array_equal(written[7:11], config)
+                else:
+                    assert np.isnan(written[6:]).all()
+            else:
+                assert np.isnan(res.written[k]).all()

@@ -299,7 +299,7 @@ class _FastRun:
 
 
 def edits_for_targets(program: Program, position_mm=None, orientation=None, config=None,
-                      targets=None) -> list[Edit]:
+                      targets=None, written=None) -> list[Edit]:
     """:func:`target_edits` for many targets at once (vectorized): one edit per changed
     target, spanning its first to its last changed number with the original text between
     them kept, in target order (text order for ``program.targets``).
@@ -307,6 +307,8 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
     targets : default ``program.targets``, all of one dialect.
     position_mm : (n, 3) mm; orientation : (n, 4) quaternions (RAPID) or (n, 3) degrees
     (V+); config : (n, 4) integers; each None to leave that part as written.
+    written : (n, >= 7 or 6) the targets' leading numbers as written, when the caller has
+    converted them already (:func:`~olp_compensate.programs.semantics.written_values`).
     """
     targets = program.targets if targets is None else targets
     text = program.text
@@ -320,8 +322,15 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
     width = 3 + (4 if quat else 3)
     parts = []  # (first number index, new values (n, k), decimals)
     with no_gc():
-        old = np.fromiter(map(float, chain.from_iterable(t.texts[:width] for t in targets)),
-                          float, n * width).reshape(n, width)
+        if written is None:
+            old = np.fromiter(map(float, chain.from_iterable(t.texts[:width]
+                                                             for t in targets)),
+                              float, n * width).reshape(n, width)
+        else:
+            old = np.asarray(written, dtype=float)[:, :width]
+            if old.shape != (n, width):
+                raise DataError(f"written: expected shape ({n}, >= {width}), got "
+                                f"{np.shape(written)}")
         if position_mm is not None:
             parts.append((0, _batch("position_mm", position_mm, n, 3), MM_DECIMALS))
         if orientation is not None:

@@ -19,6 +19,7 @@ robhold) is None with the reason in ``notes``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from itertools import chain
 
@@ -73,20 +74,74 @@ class ResolvedTarget:
         return self.base_T_flange @ self.flange_T_tool
 
 
+@dataclass(frozen=True, eq=False, slots=True)
+class FramePair:
+    """The tool and work object of some target uses, as poses (metres).
+
+    flange_T_tool, base_T_wobj : see :class:`ResolvedTarget`; None when unknown.
+    stationary_tool : the tool is fixed and the robot holds the work object.
+    notes : remarks and problems of the pair; problem : the flange pose cannot be known.
+    """
+
+    tool_name: str
+    wobj_name: str
+    flange_T_tool: np.ndarray | None
+    base_T_wobj: np.ndarray | None
+    stationary_tool: bool
+    notes: tuple[str, ...]
+    problem: bool
+
+
 @dataclass(frozen=True, eq=False)
 class Resolution:
     """Everything :func:`resolve` found.
 
-    targets : one entry per (target, tool, work object); every literal target at least once.
+    One entry per (target, tool, work object), every literal target at least once, in
+    text order, held as columns (a 100,000-target program resolves without making an
+    object per entry; :attr:`targets` makes them on demand):
+
+    entry_targets : the target of each entry; entry_uses : its motion uses with this pair
+        (empty when never moved to); entry_notes : its notes (pair notes included).
+    entry_pairs : (m,) index into ``pairs``, the entry's tool and work object.
+    written : (m, 11) each target's leading numbers as written (:func:`written_values`;
+        NaN for joint targets).
+    wobj_T_target : (m, 4, 4) each target in its work object, m (NaN for joint targets).
+    base_T_flange : (m, 4, 4) the flange pose asked for, m (NaN where it cannot be known).
+    shared : entry index groups of one target used with several pairs.
     unresolved : motion uses that name no literal target of the file, with the reason.
     frames : names of V+ transformations used as tool or frame, not as targets.
     warnings : one line each, starting with file:line.
     """
 
-    targets: tuple[ResolvedTarget, ...]
+    entry_targets: tuple[CartesianTarget | JointTarget, ...]
+    entry_uses: tuple[tuple[MotionUse, ...], ...]
+    entry_notes: tuple[tuple[str, ...], ...]
+    entry_pairs: np.ndarray
+    pairs: tuple[FramePair, ...]
+    written: np.ndarray
+    wobj_T_target: np.ndarray
+    base_T_flange: np.ndarray
+    shared: tuple[tuple[int, ...], ...]
     unresolved: tuple[tuple[MotionUse, str], ...]
     frames: tuple[str, ...]
     warnings: tuple[str, ...]
+
+    @functools.cached_property
+    def targets(self) -> tuple[ResolvedTarget, ...]:
+        """The entries as :class:`ResolvedTarget` records."""
+        out = []
+        for k, (t, uses, notes, p) in enumerate(zip(self.entry_targets, self.entry_uses,
+                                                     self.entry_notes,
+                                                     self.entry_pairs.tolist())):
+            pair = self.pairs[p]
+            cartesian = isinstance(t, CartesianTarget)
+            known = cartesian and not pair.problem
+            out.append(ResolvedTarget(t, uses, pair.tool_name, pair.wobj_name,
+                                      pair.flange_T_tool, pair.base_T_wobj,
+                                      self.wobj_T_target[k] if cartesian else None,
+                                      self.base_T_flange[k] if known else None,
+                                      pair.stationary_tool, notes))
+        return tuple(out)
 
 
 class _Scope:
@@ -131,12 +186,10 @@ def _resolve(program: Program) -> Resolution:
     unresolved: list[tuple[MotionUse, str]] = []
     frame_names: set[str] = set()
     groups: dict = {}  # id(target) -> {pair key: [uses]}
-    order: dict = {}
     pair_info: dict = {}
 
     def add(target, use, key, info):
         groups.setdefault(id(target), {}).setdefault(key, []).append(use)
-        order.setdefault(id(target), target)
         pair_info[key] = info
 
     # -- tools and work objects of every use (memoized: a program has few of them)
@@ -232,22 +285,24 @@ def _resolve(program: Program) -> Resolution:
             for t in targets.get(r.base_name, r.routine) or ():
                 changed.setdefault(id(t), []).append(r)
 
-    entries: list = []  # (target, uses, info, notes)
+    entries: list = []  # (target, uses, pair key, notes)
+    shared: list = []
     all_targets = sorted(program.targets + program.joint_targets, key=lambda t: t.span[0])
     default_key = (("tool0",), ("wobj0",))
     default_info = (("NULL" if vplus else "tool0", None), ("base" if vplus else "wobj0", None))
     for t in all_targets:
-        if vplus and t.name and t.name.lower() in frame_names and id(t) not in groups:
-            continue  # a tool or frame, not a target
-        pairs = groups.get(id(t))
-        notes: list[str] = [f"changed at run time by {r.expression!r} (line "
-                            f"{r.location.line}): the literal is only its first value"
-                            for r in changed.get(id(t), ())]
+        tid = id(t)
+        pairs = groups.get(tid)
         if vplus and t.name and t.name.lower() in frame_names:
+            if pairs is None:
+                continue  # a tool or frame, not a target
             warnings.append(f"{t.location}: {t.display_name} is used both as a target and as "
                             f"a tool or frame")
+        notes: list[str] = [f"changed at run time by {r.expression!r} (line "
+                            f"{r.location.line}): the literal is only its first value"
+                            for r in changed.get(tid, ())]
         if not pairs:
-            via = indirect.get(id(t))
+            via = indirect.get(tid)
             if via:
                 pairs = {}
                 for use, key, info in via:
@@ -259,76 +314,110 @@ def _resolve(program: Program) -> Resolution:
                 pairs = {default_key: []}
                 pair_info.setdefault(default_key, default_info)
                 notes.append("unused")
-                for r in refs.get(id(t), ()):
+                for r in refs.get(tid, ()):
                     warnings.append(f"{r.location}: {r.name} is passed to {r.context}: its "
                                     f"tool and work object are unknown, "
                                     f"{'tool0/wobj0' if not vplus else 'identity'} assumed")
-        if len(pairs) > 1 and isinstance(t, JointTarget):
+        if len(pairs) == 1:
+            ((key, uses),) = pairs.items()
+            entries.append((t, tuple(uses), key, tuple(notes)))
+            continue
+        if isinstance(t, JointTarget):
             # joint values do not depend on the tool or work object: one entry
-            merged = [u for us in pairs.values() for u in us]
-            pairs = {next(iter(pairs)): merged}
-        if len(pairs) > 1:
-            listed = "; ".join(f"{pair_info[k][0][0]}/{pair_info[k][1][0]} (line "
-                               f"{us[0].location.line})" for k, us in pairs.items())
-            warnings.append(f"{t.location}: {t.display_name} is used with "
-                            f"{len(pairs)} tool/work-object pairs: {listed}")
+            entries.append((t, tuple(u for us in pairs.values() for u in us),
+                            next(iter(pairs)), tuple(notes)))
+            continue
+        listed = "; ".join(f"{pair_info[k][0][0]}/{pair_info[k][1][0]} (line "
+                           f"{us[0].location.line})" for k, us in pairs.items())
+        warnings.append(f"{t.location}: {t.display_name} is used with "
+                        f"{len(pairs)} tool/work-object pairs: {listed}")
+        shared.append(tuple(range(len(entries), len(entries) + len(pairs))))
         for key, uses in pairs.items():
-            entries.append((t, tuple(uses), key, notes))
-    return Resolution(_resolve_all(entries, pair_info), tuple(unresolved),
-                      tuple(sorted(frame_names)), tuple(warnings))
+            entries.append((t, tuple(uses), key, tuple(notes)))
+    return _columns(entries, pair_info, tuple(shared), tuple(unresolved),
+                    tuple(sorted(frame_names)), tuple(warnings))
 
 
-def target_poses(targets) -> np.ndarray:
-    """wobj_T_target of Cartesian targets, (n, 4, 4), metres, computed in one batch."""
+WRITTEN_COLUMNS = 11
+
+
+def written_values(targets) -> np.ndarray:
+    """The leading numbers of Cartesian targets as written, (n, 11), converted in one batch:
+    position in mm (columns 0-2), orientation (3-6: quaternion w, x, y, z, or V+ Z-Y-Z
+    degrees then NaN) and RAPID confdata cf1, cf4, cf6, cfx (7-10; NaN for V+)."""
+    n = len(targets)
+    out = np.full((n, WRITTEN_COLUMNS), np.nan)
+    full = [i for i, t in enumerate(targets)
+            if t.orientation_kind == QUAT_WXYZ and len(t.texts) >= WRITTEN_COLUMNS]
+    if full:
+        out[full] = np.fromiter(
+            map(float, chain.from_iterable(targets[i].texts[:WRITTEN_COLUMNS] for i in full)),
+            float, WRITTEN_COLUMNS * len(full)).reshape(-1, WRITTEN_COLUMNS)
+    if len(full) < n:
+        done = set(full)
+        for i, t in enumerate(targets):
+            if i not in done:
+                width = 7 if t.orientation_kind == QUAT_WXYZ else 6
+                out[i, :width] = [float(x) for x in t.texts[:width]]
+                if width == 7 and len(t.texts) > 7:
+                    config = [float(x) for x in t.texts[7:WRITTEN_COLUMNS]]
+                    out[i, 7:7 + len(config)] = config
+    return out
+
+
+def target_poses(targets, values: np.ndarray | None = None) -> np.ndarray:
+    """wobj_T_target of Cartesian targets, (n, 4, 4), metres, computed in one batch.
+
+    values : their :func:`written_values`, when the caller has them already."""
     n = len(targets)
     poses = np.zeros((n, 4, 4))
     if n == 0:
         return poses
-    quat = [i for i, t in enumerate(targets) if t.orientation_kind == QUAT_WXYZ]
-    euler = [i for i, t in enumerate(targets) if t.orientation_kind != QUAT_WXYZ]
-    if quat:
-        v = np.fromiter(map(float, chain.from_iterable(targets[i].texts[:7] for i in quat)),
-                        float, 7 * len(quat)).reshape(-1, 7)
-        poses[quat] = pose_from_rotation_translation(matrix_from_quat_wxyz(v[:, 3:7]),
-                                                     v[:, :3] * MM)
-    if euler:
-        v = np.fromiter(map(float, chain.from_iterable(targets[i].texts[:6] for i in euler)),
-                        float, 6 * len(euler)).reshape(-1, 6)
-        a = np.deg2rad(v[:, 3:6])
+    v = written_values(targets) if values is None else values
+    euler = np.fromiter((t.orientation_kind != QUAT_WXYZ for t in targets), bool, n)
+    if not euler.all():
+        quat = ~euler
+        poses[quat] = pose_from_rotation_translation(matrix_from_quat_wxyz(v[quat, 3:7]),
+                                                     v[quat, :3] * MM)
+    if euler.any():
+        a = np.deg2rad(v[euler, 3:6])
         poses[euler] = pose_from_rotation_translation(
-            matrix_from_euler_zyz(a[:, 0], a[:, 1], a[:, 2]), v[:, :3] * MM)
+            matrix_from_euler_zyz(a[:, 0], a[:, 1], a[:, 2]), v[euler, :3] * MM)
     return poses
 
 
-def _resolve_all(entries, pair_info) -> tuple[ResolvedTarget, ...]:
-    cart = [k for k, e in enumerate(entries) if isinstance(e[0], CartesianTarget)]
-    poses = target_poses([entries[k][0] for k in cart])
-    row = {k: i for i, k in enumerate(cart)}
-    frames: dict = {}  # pair key -> (tool pose, wobj pose, stationary, notes, problem)
-    flange: dict = {}
-    by_key: dict = {}
-    for k in cart:
-        by_key.setdefault(entries[k][2], []).append(k)
-    for key in {e[2] for e in entries}:
-        frames[key] = _pair(pair_info[key])
-    for key, ks in by_key.items():
-        tool, wobj, stationary, _, problem = frames[key]
-        if problem:
+def _columns(entries, pair_info, shared, unresolved, frames, warnings) -> Resolution:
+    """The Resolution of ``entries`` (target, uses, pair key, notes): poses in batches."""
+    m = len(entries)
+    keys: dict = {}   # pair key -> index into pairs
+    pair_index = np.fromiter((keys.setdefault(e[2], len(keys)) for e in entries), np.intp, m)
+    pairs = tuple(_pair(pair_info[key]) for key in keys)
+    targets = tuple([e[0] for e in entries])
+    cart = np.fromiter((type(t) is CartesianTarget for t in targets), bool, m)
+    wobj_T_target = np.full((m, 4, 4), np.nan)
+    written = np.full((m, WRITTEN_COLUMNS), np.nan)
+    rows = np.flatnonzero(cart)
+    cartesian = [targets[k] for k in rows.tolist()]
+    written[rows] = written_values(cartesian)
+    wobj_T_target[rows] = target_poses(cartesian, written[rows])
+    base_T_flange = np.full((m, 4, 4), np.nan)
+    for p, pair in enumerate(pairs):
+        if pair.problem:
             continue
-        p = poses[[row[k] for k in ks]]
-        if stationary:
-            f = tool @ invert_pose(p) @ invert_pose(wobj)
+        ks = rows[pair_index[rows] == p]
+        if not len(ks):
+            continue
+        poses = wobj_T_target[ks]
+        if pair.stationary_tool:
+            base_T_flange[ks] = (pair.flange_T_tool @ invert_pose(poses)
+                                 @ invert_pose(pair.base_T_wobj))
         else:
-            f = wobj @ p @ invert_pose(tool)
-        flange.update(zip(ks, f))
-    out = []
-    for k, (t, uses, key, notes) in enumerate(entries):
-        tool, wobj, stationary, pnotes, _ = frames[key]
-        (tool_name, _), (wobj_name, _) = pair_info[key]
-        pose = poses[row[k]] if k in row else None
-        out.append(ResolvedTarget(t, uses, tool_name, wobj_name, tool, wobj, pose,
-                                  flange.get(k), stationary, tuple(notes) + pnotes))
-    return tuple(out)
+            base_T_flange[ks] = pair.base_T_wobj @ poses @ invert_pose(pair.flange_T_tool)
+    notes = tuple([e[3] + pairs[p].notes if pairs[p].notes else e[3]
+                   for e, p in zip(entries, pair_index.tolist())])
+    return Resolution(targets, tuple([e[1] for e in entries]), notes, pair_index, pairs,
+                      written, wobj_T_target, base_T_flange, shared, unresolved, frames,
+                      warnings)
 
 
 def _frame_pose(item) -> tuple[np.ndarray | None, str | None, bool | None]:
@@ -353,8 +442,8 @@ def _frame_pose(item) -> tuple[np.ndarray | None, str | None, bool | None]:
     return None, "is not a frame", None
 
 
-def _pair(info):
-    """(flange_T_tool, base_T_wobj, stationary, notes, problem) of a tool/wobj pair."""
+def _pair(info) -> FramePair:
+    """The poses of a (tool, work object) pair, with its notes and problems."""
     (tool_name, tool), (wobj_name, wobj) = info
     notes = []
     tool_pose, tproblem, tool_robhold = _frame_pose(tool)
@@ -374,7 +463,8 @@ def _pair(info):
         notes.append(f"work object {wobj_name} is robot-held but tool {tool_name} is not "
                      f"stationary")
         problem = True
-    return tool_pose, wobj_pose, stationary, tuple(notes), problem
+    return FramePair(tool_name, wobj_name, tool_pose, wobj_pose, stationary,
+                     tuple(notes), problem)
 
 
-__all__ = ["resolve", "target_poses", "Resolution", "ResolvedTarget"]
+__all__ = ["resolve", "target_poses", "written_values", "Resolution", "ResolvedTarget", "FramePair"]
