@@ -258,16 +258,19 @@ class _FastRun:
     (``-12.5``: no exponent, sign ``+`` or bare ``.5``) with no more decimals than the new
     value gets. Then the new text is the old span with each number replaced by
     ``%.{decimals}f``; the separators between the numbers (commas, brackets, spaces) come
-    from the text and the template is cached per separator tuple."""
+    from the text and the template is cached per separator tuple.
+
+    A separator may hold no digit, point or sign: then the numbers the pattern finds in a
+    target's span are exactly the parser's (each is a maximal run of those characters),
+    and anything else (a comment with a number in it) takes the general path."""
 
     def __init__(self, cols: list[int], decimals: list[int], text: str):
         self.ok = cols == list(range(cols[0], cols[0] + len(cols)))
         self.cols, self.decimals, self.text = cols, decimals, text
         self.first, self.last = cols[0], cols[-1]
         plain = [r"-?\d+(?:\.\d{0,%d})?" % d for d in decimals]
-        self.pattern = re.compile("(" + ")(.*?)(".join(plain) + ")", re.S)
+        self.pattern = re.compile("(" + ")([^-+.0-9]*)(".join(plain) + ")")
         self.templates: dict[tuple[str, ...], str] = {}
-        self.all_true = [True] * len(cols)
 
     def zero_small(self, new: np.ndarray) -> list[list[float]]:
         """``new`` (k, columns) as rows of floats, values that round to zero written as 0 so
@@ -275,20 +278,18 @@ class _FastRun:
         tol = 0.5 * 10.0 ** -np.array(self.decimals, float)
         return np.where(np.abs(new) < tol, 0.0, new).tolist()
 
-    def applies(self, row_mask: list[bool], target) -> bool:
-        return self.ok and row_mask == self.all_true and len(target.texts) > self.last
-
     def edit(self, target, values: list[float]) -> Edit | None:
-        starts, texts = target.starts, target.texts
+        """The edit writing ``values`` into ``target`` (every column changes), or None when
+        the target is not of the plain form."""
+        starts, texts, last = target.starts, target.texts, self.last
+        if len(texts) <= last:
+            return None
         begin = starts[self.first]
-        end = starts[self.last] + len(texts[self.last])
+        end = starts[last] + len(texts[last])
         match = self.pattern.fullmatch(self.text, begin, end)
         if match is None:
             return None
-        groups = match.groups()
-        if groups[0::2] != texts[self.first:self.last + 1]:
-            return None   # a number the lazy separators did not align with (comments)
-        separators = groups[1::2]
+        separators = match.groups()[1::2]
         template = self.templates.get(separators)
         if template is None:
             pieces = ["%%.%df" % self.decimals[0]]
@@ -353,36 +354,39 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
                 # describes the same rotation is left alone); a changed unnormalized
                 # quaternion is rewritten whole, never mixed with its old scale
                 q_cols = [c for c, col in enumerate(cols) if 3 <= col < 7]
-                written = old[:, 3:7]
-                w_norm = np.linalg.norm(written, axis=1, keepdims=True)
-                reference[:, q_cols] = written / np.where(w_norm > 0, w_norm, 1.0)
+                old_quat = old[:, 3:7]
+                w_norm = np.linalg.norm(old_quat, axis=1, keepdims=True)
+                reference[:, q_cols] = old_quat / np.where(w_norm > 0, w_norm, 1.0)
                 mask = np.abs(new - reference) >= tol
                 scaled = np.abs(w_norm[:, 0] - 1.0) > 1e-6
                 rewrite = scaled & np.any(mask[:, q_cols], axis=1)
                 mask[np.ix_(rewrite, q_cols)] = True
-                mask = mask.tolist()
             else:
-                mask = (np.abs(new - reference) >= tol).tolist()
+                mask = np.abs(new - reference) >= tol
+            changed = mask.any(axis=1).tolist()
             fast = _FastRun(cols, decimals, text)
-            new_fast = fast.zero_small(new)
-            new = new.tolist()
+            if fast.ok:
+                new_fast = fast.zero_small(new)
+                whole = mask.all(axis=1).tolist()
+            else:
+                fast = None
         else:
-            fast = new_fast = None
+            fast = None
         out: list[Edit] = []
         fmt = _format
         for i, t in enumerate(targets):
-            if fast is not None and fast.applies(mask[i], t):
+            if fast is not None and whole[i]:
                 edit = fast.edit(t, new_fast[i])
                 if edit is not None:
                     out.append(edit)
                     if config is not None:
                         out += target_edits(t, config=config[i])
                     continue
-            if parts and True in mask[i]:
+            if parts and changed[i]:
                 texts, starts = t.texts, t.starts
                 pieces = []
                 first = last = -1
-                for j, hit in enumerate(mask[i]):
+                for j, hit in enumerate(mask[i].tolist()):
                     if hit:
                         k = cols[j]
                         t0 = texts[k]
@@ -391,7 +395,7 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
                             first = s0
                         else:
                             pieces.append(text[last:s0])
-                        pieces.append(fmt(t0, new[i][j], decimals[j]))
+                        pieces.append(fmt(t0, float(new[i, j]), decimals[j]))
                         last = s0 + len(t0)
                 out.append(_edit((first, last, "".join(pieces))))
             if config is not None:
