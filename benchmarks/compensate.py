@@ -94,8 +94,9 @@ def main() -> int:
         print(f"generated {args.targets} targets and a calibration in "
               f"{time.perf_counter() - t0:.1f} s")
 
+        # as a user runs it, summary on the terminal included
         command = [sys.executable, "-m", "olp_compensate.cli.fix", str(module), "--model",
-                   str(model), "--report", str(folder / "report.csv"), "-q"]
+                   str(model), "--report", str(folder / "report.csv")]
         t0 = time.perf_counter()
         done = subprocess.run(command, capture_output=True, text=True)
         whole = time.perf_counter() - t0

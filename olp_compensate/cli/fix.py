@@ -16,7 +16,8 @@ from .. import __version__
 from ..errors import DataError, ParseError
 from ..io.atomic import write_bytes_atomic, write_text_atomic
 from ..io.calibration_file import read_calibration
-from ..program_compensation import EMIT_MODES, compensate_program
+from ..compensate import COMPENSATED
+from ..program_compensation import EMIT_MODES, KEPT, compensate_program
 from ..programs import DIALECTS, ENCODING, dialect_for, load
 from ..programs.grammar import no_gc
 from ..robot import load_robot
@@ -97,17 +98,26 @@ def _run(args) -> int:
 
 def _summary(report, out: Path, report_path: str | None, seconds: float) -> None:
     rows = report.rows
-    done = [r for r in rows if r.compensated]
     counts = report.counts()
     parts = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
     print(f"olp-fix: {report.file}: {len(rows)} target uses ({parts}) in {seconds:.2f} s")
-    if done:
-        shift = max(sum(c * c for c in r.correction_mm) ** 0.5 for r in done)
-        turn = max(r.correction_deg for r in done)
-        dq = max((r.joint_change for r in done if r.joint_change == r.joint_change), default=0.0)
-        print(f"  largest correction {shift:.3f} mm and {turn:.4f} deg; largest joint "
-              f"change {dq:.4f} deg")
-    problems = [r for r in rows if not r.fine]
+    shift = turn = dq = -1.0
+    problems = []
+    for r in rows:
+        if r.status in COMPENSATED:
+            dx, dy, dz = r.correction_mm
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 > shift:
+                shift = d2
+            if r.correction_deg > turn:
+                turn = r.correction_deg
+            if r.joint_change > dq:   # False for NaN
+                dq = r.joint_change
+        elif r.status not in KEPT:
+            problems.append(r)
+    if shift >= 0:
+        print(f"  largest correction {shift ** 0.5:.3f} mm and {turn:.4f} deg; largest joint "
+              f"change {max(dq, 0.0):.4f} deg")
     for r in problems[:SHOWN_PROBLEMS]:
         print(f"  {r.file}:{r.line}:{r.column}: {r.target}: {r.status}"
               + (f" ({r.note})" if r.note else ""))
