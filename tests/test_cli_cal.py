@@ -92,6 +92,21 @@ def test_calibration_for_another_robot_or_version_is_refused(tmp_path, measured)
     out.write_text(json.dumps(doc))
     with pytest.raises(ModelError, match="version 2"):
         read_calibration(out)
+    doc["version"] = 1
+    doc["robot"]["fingerprint"] = 12
+    out.write_text(json.dumps(doc))
+    with pytest.raises(ModelError, match="invalid calibration at robot/fingerprint: 12 is not"):
+        read_calibration(out)
+
+
+def test_calibration_schema_is_a_valid_schema():
+    """The reader trusts the published schema (it is not checked at every read)."""
+    import jsonschema
+
+    from olp_compensate.io.calibration_file import calibration_schema
+
+    schema = calibration_schema()
+    jsonschema.validators.validator_for(schema).check_schema(schema)
 
 
 def test_inputs_are_never_overwritten_and_output_is_atomic(tmp_path, measured):
