@@ -13,7 +13,11 @@ import contextlib
 import contextvars
 import functools
 import gc
+import os
 import re
+import sys
+import threading
+from pathlib import Path
 
 import lark
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
@@ -32,21 +36,74 @@ def grammar_text(name: str) -> str:
 @functools.lru_cache(maxsize=None)
 def parser(name: str, transformer_factory=None, start: tuple[str, ...] = ("start",)
            ) -> lark.Lark:
-    """A cached LALR parser for ``grammars/<name>``, with an inline transformer when given
-    (``transformer_factory()`` is called once; its callbacks, and the token callbacks in its
-    ``lexer_callbacks`` mapping, keep no per-parse state: they reach the parse in progress
-    through :data:`current_sink`)."""
+    """A cached LALR parser for ``grammars/<name>`` (one per process; lark's analysis of
+    the grammar is kept on disk too, see :func:`cache_file`), with an inline transformer
+    when given (``transformer_factory()`` is called once; its callbacks, and the token
+    callbacks in its ``lexer_callbacks`` mapping, keep no per-parse state: they reach the
+    parse in progress through :data:`current_sink`)."""
     transformer = transformer_factory() if transformer_factory is not None else None
     lexer_callbacks = getattr(transformer, "lexer_callbacks", None) or {}
+    cache = cache_file(f"{Path(name).stem}-{'-'.join(start)}")
     return lark.Lark(grammar_text(name), parser="lalr", lexer="contextual",
                      transformer=transformer, maybe_placeholders=False,
                      propagate_positions=False, start=list(start),
-                     lexer_callbacks=dict(lexer_callbacks))
+                     lexer_callbacks=dict(lexer_callbacks), cache=cache or False)
+
+
+def cache_file(key: str) -> str | None:
+    """Where lark keeps a grammar's analysis between runs (it checks the grammar's hash on
+    load, and builds the parser again when the file is stale, unreadable or unwritable):
+    ``olp-compensate`` in the user's cache folder; None when there is no such folder."""
+    if os.name == "nt":
+        base = os.environ.get("LOCALAPPDATA", "")
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
+                                                                ".cache")
+    if not os.path.isabs(base):
+        return None
+    folder = os.path.join(base, "olp-compensate")
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError:
+        return None
+    version = f"lark{lark.__version__}-py{sys.version_info[0]}.{sys.version_info[1]}"
+    return os.path.join(folder, f"{key}-{version}.lark-cache")
 
 
 # The records of the parse in progress; set by the dialect's parse function so that the
 # cached parser's callbacks can append to them (thread- and reentrancy-safe).
 current_sink: contextvars.ContextVar = contextvars.ContextVar("olp_program_sink")
+
+
+_young_gc_lock = threading.Lock()
+_young_gc_depth = 0
+_young_gc_saved = (700, 10, 10)
+
+
+@contextlib.contextmanager
+def young_gc_only():
+    """Hold off the cyclic garbage collector's full collections (nested and across threads:
+    until the last one leaves); the young generations are still collected.
+
+    A parse allocates millions of small objects that live as long as its program: young
+    collections see them in small batches, while they are still in the processor's cache,
+    and stop tracking the plain tuples of plain values among them for good; full
+    collections (one each time a quarter more have piled up) would scan them all again
+    and again.
+    """
+    global _young_gc_depth, _young_gc_saved
+    with _young_gc_lock:
+        if _young_gc_depth == 0:
+            _young_gc_saved = gc.get_threshold()
+            gc.set_threshold(_young_gc_saved[0], _young_gc_saved[1], 1 << 30)
+        _young_gc_depth += 1
+    try:
+        yield
+    finally:
+        with _young_gc_lock:
+            _young_gc_depth -= 1
+            if _young_gc_depth == 0:
+                gc.set_threshold(*_young_gc_saved)
 
 
 @contextlib.contextmanager
@@ -63,17 +120,41 @@ def no_gc():
 
 
 class LineIndex:
-    """Offsets to 1-based (line, column), by bisection over line starts."""
+    """Offsets to 1-based (line, column).
 
-    __slots__ = ("starts",)
+    An offset at or after the previous one (the parse callbacks ask in text order) is
+    answered by counting the line breaks in between; an earlier one by bisection over the
+    line starts, listed on first need.
+    """
+
+    __slots__ = ("text", "_starts", "_offset", "_line", "_line_start")
 
     def __init__(self, text: str):
-        self.starts = [0]
-        self.starts.extend(m.end() for m in re.finditer("\n", text))
+        self.text = text
+        self._starts: list[int] | None = None
+        self._offset, self._line, self._line_start = 0, 1, 0  # the previous answer
+
+    @property
+    def starts(self) -> list[int]:
+        """The offsets where lines start."""
+        if self._starts is None:
+            self._starts = [0]
+            self._starts.extend(m.end() for m in re.finditer("\n", self.text))
+        return self._starts
 
     def line_col(self, offset: int) -> tuple[int, int]:
-        line = bisect.bisect_right(self.starts, offset)
-        return line, offset - self.starts[line - 1] + 1
+        last = self._offset
+        if offset < last:
+            starts = self.starts
+            line = bisect.bisect_right(starts, offset)
+            return line, offset - starts[line - 1] + 1
+        text = self.text
+        breaks = text.count("\n", last, offset)
+        if breaks:
+            self._line += breaks
+            self._line_start = text.rfind("\n", last, offset) + 1
+        self._offset = offset
+        return self._line, offset - self._line_start + 1
 
 
 class PositionedBuilder:

@@ -20,8 +20,8 @@ from lark import Token
 from lark.exceptions import UnexpectedInput
 from lark.utils import TextSlice
 
-from .grammar import (PositionedBuilder, check_text, convert_lark_error, current_sink, error_at, newline_style,
-                      no_gc, parser)
+from .grammar import (PositionedBuilder, check_text, convert_lark_error, current_sink,
+                      error_at, newline_style, parser, young_gc_only)
 from .literals import (JOINTTARGET_RE, ROBTARGET_RE, Agg, Atom, LiteralError, fast_groups,
                        literal_error, numbers_of, read_aggregate, read_elements, shape_of)
 from .rapid_fast import (LEXER_CALLBACKS, MOTIONS, RUNTIME_FUNCS, Arg, Ex, Opt, Sink,
@@ -523,11 +523,27 @@ def _span_key(r: RuntimeTarget):
     return r.span or (0, 0)
 
 
-def _reparse_call(text: str, start: int, end: int) -> None:
+def _location_key(r: NameReference):
+    return r.location.line, r.location.column
+
+
+def _in_order(records: list, in_order: int, key) -> tuple:
+    """``records`` sorted by ``key``, knowing the first ``in_order`` of them are."""
+    return tuple(records) if len(records) == in_order else tuple(sorted(records, key=key))
+
+
+def _reparse_call(text: str, file: str, start: int, end: int) -> None:
     """Parse ``text[start:end]`` as one call with the grammar (its records go to the sink of
-    the parse in progress); raises lark's error, with offsets in the whole text."""
-    parser("rapid.lark", Callbacks, ("start", "call")).parse(TextSlice(text, start, end),
-                                                             start="call")
+    the parse in progress); raises ParseError.
+
+    (It runs inside a lexer callback of the whole parse: lark's own error would be taken
+    by that lexer for one of its own, and reported at the token after the run.)
+    """
+    try:
+        parser("rapid.lark", Callbacks, ("start", "call")).parse(TextSlice(text, start, end),
+                                                                 start="call")
+    except UnexpectedInput as exc:
+        raise convert_lark_error(exc, text, file) from None
 
 
 def parse_rapid(text: str, file: str = "<string>") -> Program:
@@ -536,12 +552,12 @@ def parse_rapid(text: str, file: str = "<string>") -> Program:
     Raises ParseError (file, line, column, caret context) on any malformed input.
     """
     check_text(text, file)
-    with no_gc():
+    with young_gc_only():
         return _parse(text, file)
 
 
 def _parse(text: str, file: str) -> Program:
-    sink = Sink(text, file, lambda start, end: _reparse_call(text, start, end))
+    sink = Sink(text, file, lambda start, end: _reparse_call(text, file, start, end))
     token = current_sink.set(sink)
     try:
         parser("rapid.lark", Callbacks, ("start", "call")).parse(text, start="start")
@@ -552,9 +568,9 @@ def _parse(text: str, file: str) -> Program:
     if not sink.modules:
         raise error_at("no MODULE found", text, file, 0)
     b = _Builder(text, file, sink)
-    b.targets = sink.targets
+    b.targets = sink.targets  # the fast paths' (in text order); the builder appends
     b.motions = sink.motions
-    b.target_names |= sink.names
+    fast_targets, fast_motions = len(sink.targets), len(sink.motions)
     # robtarget/jointtarget names first, so assignments can be recognized
     for rec in sink.decls:
         if b.base_type(rec[2]) in ("robtarget", "jointtarget"):
@@ -563,18 +579,22 @@ def _parse(text: str, file: str) -> Program:
         b.declaration(rec)
     for rec in sink.calls:
         b.call(rec)
+    if sink.assigns or b.references:  # then the names of the fast paths' targets are needed
+        b.target_names.update(t.name.lower() for t in sink.targets[:fast_targets]
+                              if t.name is not None)
     for rec in sink.assigns:
         b.assign(rec)
     names = b.target_names
-    refs = tuple(r for r in b.references if r.name.lower() in names)
+    refs = tuple(sorted((r for r in b.references if r.name.lower() in names),
+                        key=_location_key))
     by_start = lambda t: t.span[0]  # noqa: E731
     return Program(
         file=file, text=text, encoding="latin-1", dialect="rapid",
         newline=newline_style(text),
-        targets=tuple(sorted(b.targets, key=by_start)),
+        targets=_in_order(b.targets, fast_targets, by_start),
         joint_targets=tuple(sorted(b.joints, key=by_start)),
         tools=tuple(b.tools), wobjs=tuple(b.wobjs),
-        motions=tuple(sorted(b.motions, key=_use_key)),
+        motions=_in_order(b.motions, fast_motions, _use_key),
         runtime=tuple(sorted(b.runtime, key=_span_key)), references=refs,
         routines=b.routines, modules=tuple(sink.modules))
 

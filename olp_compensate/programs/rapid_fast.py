@@ -101,11 +101,11 @@ class Arg:
 
 class Sink:
     """The records of one parse. The fast paths build module-level robtarget declarations
-    and the plainest MoveL/MoveJ into model objects at once (``targets``, ``names``,
-    ``motions``); everything else is recorded for the builder."""
+    and the plainest MoveL/MoveJ into model objects at once (``targets``, ``motions``);
+    everything else is recorded for the builder."""
 
     __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
-                 "targets", "names", "motions", "depth", "routine", "pending", "reparse",
+                 "targets", "motions", "depth", "routine", "pending", "reparse",
                  "types")
 
     def __init__(self, text: str, file: str, reparse):
@@ -113,7 +113,6 @@ class Sink:
         self.index = LineIndex(text)
         self.decls, self.calls, self.assigns, self.routines, self.modules = [], [], [], [], []
         self.targets: list = []
-        self.names: set = set()
         self.motions: list = []
         self.types: dict = {}  # ALIAS and RECORD definitions: lower name -> (kind, data)
         # set by lexer callbacks, in text order: routine nesting, name, names still to skip
@@ -142,59 +141,62 @@ def end_of(x) -> int:
 
 
 # ---- the two hot-path tokens ----------------------------------------------------------
+# The runs are split in the whole program text (offsets are then the program's own),
+# between the token's start and end; each statement's pattern takes the blanks and
+# comments after it too, so the next statement starts where its match ends.
 
-_SEP = re.compile(r"(?:[ \t\r\n\f]+|![^\r\n]*)*")
+_SEP = r"(?:[ \t\r\n\f]+|![^\r\n]*)*"
+_SEP_RE = re.compile(_SEP)
 _FAST_DECL = re.compile(
     r"(?:(LOCAL|TASK)[ \t]+)?(CONST|PERS|VAR)[ \t]+([A-Za-z_][A-Za-z0-9_]*)[ \t]+"
-    r"([A-Za-z_][A-Za-z0-9_]*)[ \t]*(?:\{([^{}]*)\}[ \t]*)?:=[ \t\r\n]*(\[[^\"!;]*\])[ \t]*;",
-    re.I)
+    r"([A-Za-z_][A-Za-z0-9_]*)[ \t]*(?:\{([^{}]*)\}[ \t]*)?:=[ \t\r\n]*(\[[^\"!;]*\])[ \t]*;"
+    + _SEP, re.I)
 
-
+# a plain robtarget declaration: storage, type word, name, literal and its 17 numbers
 _FAST_ROBTARGET = re.compile(
     r"(?:(?i:LOCAL|TASK)[ \t]+)?((?i:CONST|PERS|VAR))[ \t]+((?i:robtarget))[ \t]+"
-    r"([A-Za-z_][A-Za-z0-9_]*)[ \t]*:=[ \t\r\n]*(" + ROBTARGET_PATTERN + r")[ \t]*;")
+    r"([A-Za-z_][A-Za-z0-9_]*)[ \t]*:=[ \t\r\n]*(" + ROBTARGET_PATTERN + r")[ \t]*;" + _SEP)
+_ROBTARGET_NUMBERS = range(5, 22)
 
 
 def _on_fast_decls(tok: Token) -> Token:
-    """Lexer callback: split a FAST_DECLS run. At module level a plain robtarget becomes a
-    target at once (one regex match for the whole declaration); the rest is recorded."""
-    sink = current_sink.get()
-    _split_fast_decls(tok, sink.decls, sink if sink.depth == 0 else None)
+    """Lexer callback: split a FAST_DECLS run (see _split_fast_decls)."""
+    _split_fast_decls(tok, current_sink.get())
     return tok
 
 
-def _split_fast_decls(tok: Token, out: list, direct=None) -> None:
-    """Append the declaration records of a FAST_DECLS run (anchored, in order)."""
-    text = tok.value
-    p0 = tok.start_pos
-    pos, n = 0, len(text)
-    match, skip = _FAST_DECL.match, _SEP.match
-    rt_match = _FAST_ROBTARGET.match if direct is not None else None
-    while pos < n:
-        if rt_match is not None:
-            m = rt_match(text, pos)
-            if m is not None:
-                direct.targets.append(_direct_robtarget(direct, m, p0))
-                pos = skip(text, m.end()).end()
-                continue
-        m = match(text, pos)
+def _split_fast_decls(tok: Token, sink: Sink) -> None:
+    """Record the declarations of a FAST_DECLS run (anchored, in order). At module level
+    a plain robtarget becomes a target at once (one regex match for the whole
+    declaration); the others are appended to ``sink.decls``."""
+    text, pos, end = sink.text, tok.start_pos, tok.end_pos
+    out, match = sink.decls, _FAST_DECL.match
+    module_level = sink.depth == 0
+    while pos < end:
+        if module_level:
+            pos = _direct_robtargets(sink, text, pos, end)
+            if pos >= end:
+                break
+        m = match(text, pos, end)
         dims = m.group(5)
-        out.append((m.group(1), m.group(2).upper(), m.group(3),
-                    (p0 + m.start(3), p0 + m.end(3)), m.group(4), p0 + m.start(4),
-                    dims.count(",") + 1 if dims is not None else 0,
-                    Ex(p0 + m.start(6), p0 + m.end(6), "aggregate"), p0 + m.start()))
-        pos = skip(text, m.end()).end()
+        out.append((m.group(1), m.group(2).upper(), m.group(3), m.span(3), m.group(4),
+                    m.start(4), dims.count(",") + 1 if dims is not None else 0,
+                    Ex(m.start(6), m.end(6), "aggregate"), pos))
+        pos = m.end()
 
 
-def _direct_robtarget(sink: Sink, m: re.Match, p0: int) -> CartesianTarget:
-    name = m.group(3)
-    sink.names.add(name.lower())
-    name_pos = p0 + m.start(3)
-    line, col = sink.index.line_col(name_pos)
-    return CartesianTarget(
-        name, (sink.file, line, col), m.groups()[4:],
-        tuple([r[0] + p0 for r in m.regs[5:]]), QUAT_WXYZ, (p0 + m.start(4), p0 + m.end(4)),
-        m.group(1).upper(), None, None, (p0 + m.start(2), p0 + m.end(2)))
+def _direct_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
+    """Append the plain robtarget declarations from ``pos`` on to ``sink.targets``;
+    returns the offset after them."""
+    match, targets = _FAST_ROBTARGET.match, sink.targets
+    file, line_col, numbers = sink.file, sink.index.line_col, _ROBTARGET_NUMBERS
+    while (m := match(text, pos, end)) is not None:
+        line, col = line_col(m.start(3))
+        targets.append(CartesianTarget(
+            m.group(3), (file, line, col), m.groups()[4:], tuple(map(m.start, numbers)),
+            QUAT_WXYZ, m.span(4), m.group(1).upper(), None, None, m.span(2)))
+        pos = m.end()
+    return pos
 
 
 def _enter_routine(tok: Token) -> Token:
@@ -224,10 +226,15 @@ def call_record(name: str, start: int, name_end: int, args) -> tuple:
     """The unified call record: (name, start, name_end, end, positional, opts).
 
     positional : the values in order, each an :class:`Ex` or a (start, end) span;
-    opts : the optional arguments, :class:`Opt` (value an Ex, a span or None).
+    opts : the optional arguments, :class:`Opt` (value an Ex, a span or None);
+    end : where the last argument (or the name) ends.
     """
     positional = [a.value for a in args if a.value is not None]
     opts = [o for a in args for o in a.opts]
+    return _call_record(name, start, name_end, positional, opts)
+
+
+def _call_record(name: str, start: int, name_end: int, positional, opts) -> tuple:
     end = max([name_end] + [end_of(v) for v in positional] + [o.end for o in opts])
     return (name, start, name_end, end, positional, opts)
 
@@ -279,17 +286,20 @@ def value_ex(text: str, start: int, end: int) -> Ex:
     return Ex(start, end, "num" if c != "-" else "expr")
 
 
-# MoveL/MoveJ <name or name{k}>, <speed>, <zone>, <tool>[\WObj:=<wobj>] in one match;
-# the same with an inline robtarget (as RoboDK writes them)
+# MoveL/MoveJ <name or name{k}>, <speed>, <zone>, <tool>[\WObj:=<wobj>]; in one match:
+# instruction, target (name, index), tool, wobj, () where the arguments end; the same with
+# an inline robtarget (as RoboDK writes them): instruction, literal and its 17 numbers,
+# tool, wobj, () where the arguments end
+_PLAIN = (r"(?:[A-Za-z_][A-Za-z0-9_]*+(?:\.[A-Za-z_][A-Za-z0-9_]*+)*+"
+          r"|(?:\d++\.?+\d*+|\.\d++)(?:[eE]\d++)?+)")  # a name (field chain) or a number
+_MOVE_TAIL = (r"[ \t]*,[ \t]*" + _PLAIN + r"[ \t]*,[ \t]*" + _PLAIN + r"[ \t]*,[ \t]*"
+              r"([A-Za-z_][A-Za-z0-9_]*)"
+              r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?()[ \t]*;" + _SEP)
 _SIMPLE_MOVE = re.compile(
-    r"[ \t]+([A-Za-z_][A-Za-z0-9_]*)(?:\{[ \t]*(\d+)[ \t]*\})?[ \t]*,[ \t]*[A-Za-z_0-9.]+"
-    r"[ \t]*,[ \t]*[A-Za-z_0-9.]+[ \t]*,[ \t]*([A-Za-z_][A-Za-z0-9_]*)"
-    r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?[ \t]*")
-_INLINE_MOVE = re.compile(
-    r"[ \t]+(" + ROBTARGET_PATTERN + r")[ \t]*,[ \t]*[A-Za-z_0-9.]+"
-    r"[ \t]*,[ \t]*[A-Za-z_0-9.]+[ \t]*,[ \t]*([A-Za-z_][A-Za-z0-9_]*)"
-    r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?[ \t]*")
-_SIMPLE_MOVES = {"movel", "movej"}
+    r"((?i:MoveL|MoveJ))[ \t]+(([A-Za-z_][A-Za-z0-9_]*)(?:\{[ \t]*(\d+)[ \t]*\})?)"
+    + _MOVE_TAIL)
+_INLINE_MOVE = re.compile(r"((?i:MoveL|MoveJ))[ \t]+(" + ROBTARGET_PATTERN + ")" + _MOVE_TAIL)
+_INLINE_NUMBERS = range(3, 20)
 
 
 def _on_fast_calls(tok: Token) -> Token:
@@ -307,70 +317,62 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
     again by the grammar (start symbol ``call``), which records it or raises the error;
     other calls are opaque (only plain-name arguments are kept, as references).
     """
-    s = tok.value
-    p0 = tok.start_pos
-    n = len(s)
-    pos = 0
-    out = sink.calls
-    name_match, skip = _NAME_RE.match, _SEP.match
-    simple, inline = _SIMPLE_MOVE.fullmatch, _INLINE_MOVE.fullmatch
-    while pos < n:
-        semi = s.index(";", pos)
-        ne = name_match(s, pos).end()
-        name = s[pos:ne]
-        key = name.lower()
-        if key in _SIMPLE_MOVES:
-            m = simple(s, ne, semi)
-            if m is not None:
-                sink.motions.append(_direct_move(sink, m, name, p0 + pos, p0 + ne, p0 + semi,
-                                                 p0))
-                pos = skip(s, semi + 1).end()
-                continue
-            m = inline(s, ne, semi)
-            if m is not None:
-                sink.motions.append(_direct_inline_move(sink, m, name, p0 + pos, p0 + ne,
-                                                        p0 + semi, p0))
-                pos = skip(s, semi + 1).end()
-                continue
-        seg = s[ne:semi]
-        motion = key in MOTIONS
+    text, pos, end = sink.text, tok.start_pos, tok.end_pos
+    out, inline = sink.calls, _INLINE_MOVE.match
+    name_match, skip = _NAME_RE.match, _SEP_RE.match
+    while pos < end:
+        pos = _direct_moves(sink, text, pos, end)
+        if pos >= end:
+            break
+        m = inline(text, pos, end)
+        if m is not None:
+            _direct_inline_move(sink, m)
+            pos = m.end()
+            continue
+        semi = text.index(";", pos, end)
+        ne = name_match(text, pos, end).end()
+        name = text[pos:ne]
+        seg = text[ne:semi]
         if "[" in seg or "{" in seg or "(" in seg:
-            items = _items_regex(s, ne, p0)
+            items = _items_regex(text, ne, end)
         else:
-            items = _items_split(seg, p0 + ne)
+            items = _items_split(seg, ne)
         if items is not None:
-            out.append((name, p0 + pos, p0 + ne, p0 + semi, items[0], items[1]))
-        elif motion:
-            sink.reparse(p0 + pos, p0 + semi + 1)  # the grammar reads it, or says why not
-        pos = skip(s, semi + 1).end()
+            out.append(_call_record(name, pos, ne, items[0], items[1]))
+        elif name.lower() in MOTIONS:
+            sink.reparse(pos, semi + 1)  # the grammar reads it, or says why not
+        pos = skip(text, semi + 1, end).end()
 
 
-def _location(sink: Sink, offset: int) -> tuple[str, int, int]:
-    line, col = sink.index.line_col(offset)
-    return (sink.file, line, col)
+def _direct_moves(sink: Sink, text: str, pos: int, end: int) -> int:
+    """Append the plainest MoveL/MoveJ from ``pos`` on to ``sink.motions``; returns the
+    offset after them."""
+    match, motions, routine = _SIMPLE_MOVE.match, sink.motions, sink.routine
+    file, line_col = sink.file, sink.index.line_col
+    while (m := match(text, pos, end)) is not None:
+        instruction, name, index, tool, wobj = m.group(1, 3, 4, 5, 6)
+        target_span = m.span(2)
+        line, col = line_col(target_span[0])
+        motions.append(MotionUse(
+            instruction, (file, line, col), "to", name,
+            None if index is None else (int(index),), None, None, tool, None, wobj, None,
+            False, routine, m.span(1), (pos, m.start(7)), target_span))
+        pos = m.end()
+    return pos
 
 
-def _direct_move(sink, m, name, start, name_end, end, p0) -> MotionUse:
-    a = p0 + m.start(1)
-    if m.group(2) is None:
-        index, b = None, p0 + m.end(1)
-    else:
-        index, b = (int(m.group(2)),), p0 + m.string.index("}", m.end(2)) + 1
-    return MotionUse(name, _location(sink, a), "to", m.group(1), index, None, None,
-                     m.group(3), None, m.group(4), None, False, sink.routine,
-                     (start, name_end), (start, end), (a, b))
-
-
-def _direct_inline_move(sink, m, name, start, name_end, end, p0) -> MotionUse:
-    a, b = p0 + m.start(1), p0 + m.end(1)
-    loc = _location(sink, a)
-    target = CartesianTarget(None, loc, m.groups()[1:18],
-                             tuple([r[0] + p0 for r in m.regs[2:19]]), QUAT_WXYZ, (a, b),
-                             "inline", None, sink.routine, None)
+def _direct_inline_move(sink: Sink, m: re.Match) -> None:
+    """Append the MotionUse and the inline target of an _INLINE_MOVE match."""
+    span = m.span(2)
+    line, col = sink.index.line_col(span[0])
+    source = (sink.file, line, col)
+    target = CartesianTarget(None, source, m.groups()[2:19],
+                             tuple(map(m.start, _INLINE_NUMBERS)), QUAT_WXYZ, span, "inline",
+                             None, sink.routine, None)
     sink.targets.append(target)
-    return MotionUse(name, loc, "to", None, None, target, None, m.group(19), None,
-                     m.group(20), None, False, sink.routine, (start, name_end), (start, end),
-                     (a, b))
+    sink.motions.append(MotionUse(
+        m.group(1), source, "to", None, None, target, None, m.group(20), None, m.group(21),
+        None, False, sink.routine, m.span(1), (m.start(), m.start(22)), span))
 
 
 _ARG_VAL = r"(-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|\*)"
@@ -423,38 +425,41 @@ def _items_split(seg: str, base: int):
     return positional, opts
 
 
-def _items_regex(s: str, pos: int, p0: int):
-    """(positional spans, opts) read item by item with a strict regex, or None."""
+def _items_regex(text: str, pos: int, end: int):
+    """(positional spans, opts) of the arguments from ``pos`` to the ';' (not beyond
+    ``end``), read item by item with a strict regex, or None."""
     positional: list = []
     opts: list = []
     item_match = _FAST_ITEM.match
     has_value = has_opt = False  # within the current comma-separated item
-    if s[pos] not in " \t\\":
+    if text[pos] not in " \t\\":
         return None
     while True:
-        m = item_match(s, pos)
+        m = item_match(text, pos, end)
         if m.end() == pos:
             return None
         pos = m.end()
         if m.group("opt") is not None:
             has_opt = True
-            bs = p0 + m.start("opt") - 1
+            bs = m.start("opt") - 1
             if m.group("oval") is None:
-                opts.append(Opt(m.group("opt"), None, None, bs, p0 + m.end("opt")))
+                opts.append(Opt(m.group("opt"), None, None, bs, m.end("opt")))
             elif m.group("op") == "?":
                 if not m.group("oval").isidentifier():
                     return None
                 opts.append(Opt(m.group("opt"), None, m.group("oval"), bs,
-                                p0 + m.end("oval")))
+                                m.end("oval")))
             else:
-                span = (p0 + m.start("oval"), p0 + m.end("oval"))
+                span = (m.start("oval"), m.end("oval"))
                 opts.append(Opt(m.group("opt"), span, None, bs, span[1]))
         elif m.group("val") is not None:
             if has_value or has_opt:  # two values, or a value after \opt, in one item
                 return None
             has_value = True
-            positional.append((p0 + m.start("val"), p0 + m.end("val")))
+            positional.append((m.start("val"), m.end("val")))
         sep = m.group("sep")
+        if sep is not None and not (has_value or has_opt):
+            return None  # an empty argument
         if sep == ";":
             return positional, opts
         if sep == ",":
