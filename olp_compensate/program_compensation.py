@@ -289,7 +289,7 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         solved = _solve(comp, res, job, vplus)
         ambiguous = _ambiguous(res, job, solved)
         config_after = ([solved.vplus_text.get(i, "") for i in range(n)] if vplus else
-                        [_config_text(c) for c in solved.conf.tolist()])
+                        _config_texts(solved.conf))
         ok, reason = solved.ok.tolist(), solved.reason
         shift = solved.shift_mm.tolist()
         turn, change = solved.turn_deg.tolist(), solved.change_deg.tolist()
@@ -340,7 +340,10 @@ _NOT_MOVED = "not moved to in this file: tool and work object unknown, left as w
 def _where(t) -> tuple:
     """The first fields of a report row: target, file, line, column."""
     file, line, column = t.source
-    return t.display_name, file, line, column
+    name = t.name
+    if name is None or t.array_index is not None:
+        name = t.display_name   # <inline>, p{3}, pick[3]
+    return name, file, line, column
 
 
 def _row(t, pair, status: str, note: str) -> TargetReport:
@@ -475,15 +478,23 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
         vplus_text=vplus_text)
 
 
-def _config_texts(confdata: np.ndarray, has_conf: np.ndarray) -> list[str]:
+def _config_texts(confdata: np.ndarray, has_conf: np.ndarray | None = None) -> list[str]:
     """'[cf1,cf4,cf6,cfx]' of each row of ``confdata`` (n, 4) int, '' where ``has_conf``
-    is False."""
+    is False. Programs repeat a few confdata: each distinct row is written once (rows
+    found by one 64-bit key per row when every value fits in 16 bits)."""
     if not len(confdata):
         return []
-    distinct, which = np.unique(confdata, axis=0, return_inverse=True)
-    texts = [_config_text(tuple(c)) for c in distinct.tolist()]
-    return [texts[j] if h else "" for j, h in zip(which.reshape(-1).tolist(),
-                                                   has_conf.tolist())]
+    if np.abs(confdata).max() < 1 << 15:
+        shifted = (confdata + (1 << 15)).astype(np.uint64)
+        key = (shifted[:, 0] << 48) | (shifted[:, 1] << 32) | (shifted[:, 2] << 16) | shifted[:, 3]
+        _, first, which = np.unique(key, return_index=True, return_inverse=True)
+        texts = [_config_text(tuple(c)) for c in confdata[first].tolist()]
+        out = [texts[j] for j in which.reshape(-1).tolist()]
+    else:
+        out = [_config_text(tuple(c)) for c in confdata.tolist()]
+    if has_conf is not None and not has_conf.all():
+        out = [t if h else "" for t, h in zip(out, has_conf.tolist())]
+    return out
 
 
 def _pose_or_nan(pose) -> np.ndarray:

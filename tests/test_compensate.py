@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration import nominal_calibration
-from olp_compensate.compensate import compensate_pose
+from olp_compensate.compensate import Compensator, compensate_pose, compensate_poses
 from olp_compensate.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
                                         pose_from_rotation_translation, quat_wxyz_from_matrix,
                                         rotation_angle_between, rotation_from_rotvec)
@@ -25,7 +25,7 @@ from olp_compensate.ik import branch_of, closed_form_inverse, fit_family, select
 from olp_compensate.identify import IdentificationOptions, identify
 from olp_compensate.program_compensation import compensate_program
 from olp_compensate.programs import loads, resolve
-from olp_compensate.model import build_model, forward
+from olp_compensate.model import build_model, forward, joint_frames
 from olp_compensate.registration import kabsch
 from olp_compensate.robot import load_robot
 from olp_compensate.simulate import VirtualRobot, make_virtual_robot, random_joints
@@ -459,3 +459,97 @@ def test_calibrated_tool_orientation_used_only_near_the_tooldata(turn_deg, used)
         assert "kept" not in row.note
     else:
         assert out == text and "tooldata's orientation kept" in row.note
+
+
+def test_confdata_texts_of_many_rows_match_row_by_row():
+    """The report's confdata column (distinct rows written once, via a 64-bit key) is the
+    row-by-row text, also for values beyond the key's 16 bits and rows without confdata."""
+    from olp_compensate.program_compensation import _config_texts
+
+    rng = np.random.default_rng(0)
+    for extreme in (None, 70000, -40000):
+        conf = rng.integers(-3, 4, (500, 4))
+        if extreme is not None:
+            conf[5, 2] = extreme
+        has = rng.random(500) > 0.1
+        expected = ["[" + ",".join(str(v) for v in row) + "]" if h else ""
+                    for row, h in zip(conf.tolist(), has)]
+        assert _config_texts(conf, has) == expected
+
+
+def test_stretched_targets_inside_and_beyond_the_real_arm(irb2400_world):
+    """Targets the real arm (the virtual robot) reaches with its elbow 20 to 50 mrad from
+    stretched, 0.2 to 1.4 mm inside its reach, are compensated and reached within the
+    tolerance. Targets 10 mm beyond its stretched arm (its links are off by about a
+    millimetre, its wrist axes miss each other by about as much: no configuration gains
+    10 mm) are 'unreachable', and after the first Newton steps only (the calibrated arm's
+    reach bound, no restarts)."""
+    world = irb2400_world
+    cal = world.calibration
+    comp = Compensator(cal)
+    program_tool, _, tool_rot, _ = _frames(world, 3)
+    real_true = world.real_tool(tool_rot)
+    real_cal = pose_from_rotation_translation(tool_rot, cal.tools["tcp"].xyz_m)
+    theta = np.zeros((1, 6))
+    theta[0, 2] = -np.arctan2(comp.family.a2, comp.family.c3)   # the nominal elbow straight
+    straight = comp.family.joint_angles(theta)[0, 2]
+    rng = np.random.default_rng(11)
+    n = 20
+    q = world.robot.joints_from_controller(random_joints(world.robot, 20 * n, rng, margin=0.3))
+    q[:, 2] = straight
+    q[:, 4] = np.where(q[:, 4] < 0, -1.0, 1.0) * np.maximum(np.abs(q[:, 4]), 0.3)
+    wrist = np.array([joint_frames(cal.model, cal.model.nominal, x)[4][:3, 3] for x in q])
+    # the arm reaching forward, its wrist at least 0.6 m from axis 1
+    q = q[(comp.confdata(q)[:, 3] < 4) & (np.hypot(wrist[:, 0], wrist[:, 1]) > 0.6)][:2 * n]
+    assert len(q) == 2 * n
+    q[:n, 2] += rng.choice([-1.0, 1.0], n) * rng.uniform(0.02, 0.05, n)
+    base_T_tcp = invert_pose(cal.device_T_base) @ world.real_tcp_in_device(
+        world.robot.controller_from_joints(q), real_true)
+    for i in range(n, 2 * n):
+        frames = joint_frames(cal.model, cal.model.nominal, q[i])
+        outward = frames[4][:3, 3] - frames[1][:3, 3]
+        base_T_tcp[i, :3, 3] += 0.010 * outward / np.linalg.norm(outward)
+    conf = comp.confdata(q)
+    batch = compensate_poses(comp, base_T_tcp, tool=program_tool, confdata=conf,
+                             real_tool=real_cal)
+    assert batch.status.tolist() == ["ok"] * n + ["unreachable"] * n
+    for i in range(n):
+        q_ctrl = world.controller((batch.poses[i] @ invert_pose(program_tool))[None],
+                                  batch.config[i][None])
+        reached = world.real_tcp_in_device(q_ctrl, real_true)[0]
+        intended = world.desired_in_device(base_T_tcp[i])
+        assert np.linalg.norm(reached[:3, 3] - intended[:3, 3]) < TOLERANCE_M
+    beyond = comp.solve_real(base_T_tcp[n:] @ invert_pose(real_cal), conf[n:])
+    assert set(beyond.reason) == {"unreachable"} and beyond.iterations.max() <= 8
+
+
+def test_real_arm_kinematics_are_the_calibrated_models(irb2400_world):
+    """The compensator's own pass over the calibrated chain (poses and joint Jacobian) is
+    the model's, to rounding, for the calibrated and the data-sheet parameters."""
+    cal = irb2400_world.calibration
+    comp = Compensator(cal)
+    q = np.random.default_rng(1).uniform(-np.pi, np.pi, (300, 6))
+    pose, jac = comp.real_flange_and_jacobian(q)
+    chain = forward(cal.model, cal.values, q, jacobian=True)
+    np.testing.assert_allclose(pose, chain.flange, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(jac, np.concatenate([chain.dpoint_dq, chain.drot_dq], axis=1),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(comp.nominal_flange(q),
+                               forward(cal.model, cal.model.nominal, q).flange, rtol=0,
+                               atol=1e-12)
+
+
+def test_nominal_joints_of_the_same_poses_are_the_closed_forms(irb2400_world):
+    """compensate_flanges gives the nominal controller's joints of the requested poses;
+    when they are the desired ones too, from the closed form the solve starts from: the
+    same as solve_nominal, NaN where the nominal arm cannot reach."""
+    comp = Compensator(irb2400_world.calibration)
+    q = irb2400_world.program_joints(30, seed=2)
+    flange = comp.nominal_flange(q)
+    flange[0, :3, 3] = [3.0, 0.0, 1.0]                       # beyond the nominal arm
+    conf = comp.confdata(q)
+    _, _, _, nominal = comp.compensate_flanges(flange, flange.copy(), conf)
+    expected = comp.solve_nominal(flange, conf)
+    assert np.all(np.isnan(nominal[0])) and np.all(np.isnan(expected[0]))
+    np.testing.assert_array_equal(nominal[1:], expected[1:])
+    np.testing.assert_allclose(nominal[1:], q[1:], atol=1e-9)
