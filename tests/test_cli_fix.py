@@ -129,3 +129,22 @@ def test_unknown_robot_and_missing_model_are_one_line(tmp_path, capsys):
                 "--robot", "no_such_robot"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(line.startswith("olp-fix: error:") for line in err)
+
+
+def test_a_closed_stdout_is_no_traceback_and_the_files_are_written(tmp_path, calibrations):
+    """`olp-fix ... | head`: the reader of the summary went away before it was printed."""
+    import subprocess
+    import sys
+
+    _, _, identified, _ = calibrations
+    program = tmp_path / "cell_a.mod"
+    shutil.copy(SAMPLES / "cell_a.mod", program)
+    proc = subprocess.Popen([sys.executable, "-m", "olp_compensate.cli.fix", str(program),
+                             "--model", str(identified), "--report", str(tmp_path / "r.csv")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 2 and "Traceback" not in err and "Broken pipe" not in err
+    written = load(tmp_path / "cell_a_compensated.mod")
+    assert len(written.targets) == len(load(program).targets)
+    assert (tmp_path / "r.csv").read_text().startswith("target,file,line")

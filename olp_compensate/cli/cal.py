@@ -43,3 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     return run_guarded(lambda: COMMANDS[args.command].run(args), args.verbose, "olp-cal")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from typing import Callable
 
@@ -26,6 +27,19 @@ def run_guarded(action: Callable[[], int], verbosity: int, prog: str) -> int:
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:   # `olp-cal ... | head`: the reader left; no traceback
+        silence_stdout()
+        return EXIT_BAD_INPUT
+
+
+def silence_stdout() -> None:
+    """Send what is left for stdout to the null device, after its reader went away (so
+    that the flush at exit does not fail again)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):   # not a real file (captured output)
+        pass
 
 
 def mm(value_m: float | None, digits: int = 3) -> str:

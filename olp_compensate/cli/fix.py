@@ -21,7 +21,7 @@ from ..program_compensation import EMIT_MODES, KEPT, compensate_program
 from ..programs import DIALECTS, ENCODING, dialect_for, load
 from ..programs.grammar import no_gc
 from ..robot import load_robot
-from .common import run_guarded
+from .common import run_guarded, silence_stdout
 
 SHOWN_PROBLEMS = 20
 
@@ -92,7 +92,10 @@ def _run(args) -> int:
     if args.report:
         write_text_atomic(args.report, report.to_csv())
     if not args.quiet:
-        _summary(report, out, args.report, time.perf_counter() - started)
+        try:
+            _summary(report, out, args.report, time.perf_counter() - started)
+        except BrokenPipeError:   # `olp-fix ... | head`: the files are written all the same
+            silence_stdout()
     return report.exit_code
 
 
