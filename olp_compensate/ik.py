@@ -17,6 +17,8 @@ in radians, the user's joint convention (signs and zero positions of the control
   form on the nominal family, then Newton on the (calibrated) model in the closed form's
   coordinates (two steps for most targets), :func:`refine`'s Newton from several starts
   for the rest.
+- :class:`ReachBound`: a proof, from a 6R chain's geometry, that targets lie beyond its
+  reach (near the stretched elbow): :func:`solve` does not retry those.
 
 Branch numbering. The 8 solutions of both closed forms are ordered so that the index *is*
 the configuration number: ``index = 4 * behind + 2 * elbow + wrist``, with the three bits of
@@ -40,7 +42,7 @@ __all__ = [
     "OPWParameters", "URParameters", "IKSolution", "REASONS",
     "opw_forward", "opw_inverse", "ur_forward", "ur_inverse",
     "closed_form_forward", "closed_form_inverse", "closed_form_branch", "configuration_bits", "branch_of",
-    "select_branch", "fit_family", "refine", "solve",
+    "select_branch", "fit_family", "refine", "solve", "ReachBound",
 ]
 
 REASONS = ("ok", "unreachable", "joint_limit", "singular", "branch_changed", "not_converged")
@@ -265,9 +267,9 @@ def _opw_branch(params, root_T_tip, branch, clip):
     in the root frame; NaN where unreachable. ``clip``: out-of-reach targets get the
     stretched arm instead of NaN."""
     behind, elbow, negative = branch >= 4, (branch // 2) % 2 == 1, branch % 2 == 1
-    rotation, position = root_T_tip[:, :3, :3], root_T_tip[:, :3, 3]
-    c = position - params.c4 * rotation[:, :, 2]
-    cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
+    M = np.ascontiguousarray(root_T_tip[:, :3, :].transpose(1, 2, 0))    # (3, 4, k)
+    R = M[:, :3]                                                        # R[i, j]: (k,)
+    cx, cy, cz = M[:, 3] - params.c4 * R[:, 2]
     a1, a2, b, c1, c2, c3 = params.a1, params.a2, params.b, params.c1, params.c2, params.c3
     kappa_2 = a2 * a2 + c3 * c3
     psi3 = np.arctan2(a2, c3)
@@ -286,14 +288,15 @@ def _opw_branch(params, root_T_tip, branch, clip):
     side = np.where(elbow, -1.0, 1.0)          # +1: wrist centre in front of the lower arm
     theta2 = phi - side * g2
     theta3 = side * g3 - psi3
-    # rows of r = (Rz(theta1) Ry(theta2 + theta3))^T rotation, without 3 x 3 products
-    s1, c1_ = np.sin(theta1)[:, None], np.cos(theta1)[:, None]
-    s23, c23 = np.sin(theta2 + theta3)[:, None], np.cos(theta2 + theta3)[:, None]
-    along = c1_ * rotation[:, 0] + s1 * rotation[:, 1]
-    across = c1_ * rotation[:, 1] - s1 * rotation[:, 0]
+    # rows of r = (Rz(theta1) Ry(theta2 + theta3))^T rotation, entry by entry
+    s1, c1_ = np.sin(theta1), np.cos(theta1)
+    t23 = theta2 + theta3
+    s23, c23 = np.sin(t23), np.cos(t23)
+    along = c1_ * R[0] + s1 * R[1]                                      # (3, k)
+    across = c1_ * R[1] - s1 * R[0]
+    r2 = s23 * along + c23 * R[2]
     theta4, theta5, theta6 = _spherical_wrist(
-        c23 * along - s23 * rotation[:, 2], across, s23 * along + c23 * rotation[:, 2],
-        -params.offsets[3], params.signs[4], negative)
+        c23 * along - s23 * R[2], across, r2, -params.offsets[3], params.signs[4], negative)
     theta = np.stack([theta1, theta2, theta3, theta4, theta5, theta6], 1)
     theta[np.any(np.isnan(theta), axis=1)] = np.nan
     return theta
@@ -301,17 +304,18 @@ def _opw_branch(params, root_T_tip, branch, clip):
 
 def _spherical_wrist(r0, r1, r2, free4, sign5, negative):
     """Wrist angles (theta4, theta5, theta6), each ``(k,)``, of ``r = Rz(t4) Ry(t5) Rz(t6)``
-    given by its rows ``r0, r1, r2 (k, 3)``: with ``sign5 * sin(t5) >= 0`` (positive
-    wrist), or the flipped wrist where ``negative``. At a singular wrist t4 = ``free4``."""
-    horizontal = np.hypot(r0[:, 2], r1[:, 2])
-    t5 = np.arctan2(horizontal, r2[:, 2])
-    t4 = np.arctan2(r1[:, 2], r0[:, 2])
-    t6 = np.arctan2(r2[:, 1], -r2[:, 0])
+    given by its rows ``r0, r1, r2 (3, k)`` (entry j of all k rows in ``r0[j]``): with
+    ``sign5 * sin(t5) >= 0`` (positive wrist), or the flipped wrist where ``negative``. At a
+    singular wrist t4 = ``free4``."""
+    horizontal = np.hypot(r0[2], r1[2])
+    t5 = np.arctan2(horizontal, r2[2])
+    t4 = np.arctan2(r1[2], r0[2])
+    t6 = np.arctan2(r2[1], -r2[0])
     singular = horizontal < _WRIST_EPS
     if np.any(singular):
-        upright = r2[:, 2] > 0
-        t6_up = np.arctan2(r1[:, 0], r0[:, 0]) - free4
-        t6_down = free4 - np.arctan2(-r1[:, 0], -r0[:, 0])
+        upright = r2[2] > 0
+        t6_up = np.arctan2(r1[0], r0[0]) - free4
+        t6_down = free4 - np.arctan2(-r1[0], -r0[0])
         t4 = np.where(singular, free4, t4)
         t6 = np.where(singular, np.where(upright, t6_up, t6_down), t6)
     flip = negative if sign5 > 0 else ~negative
@@ -523,12 +527,11 @@ def _select(solutions, confdata, limits, quadrant_tolerance):
 
 def _select_q(q, confdata, limits, quadrant_tolerance):
     """:func:`_select` of joints ``q (m, 6)`` already on the requested branch: each axis as
-    :func:`_shift_into` does it, all at once (axes first, so that rows are contiguous)."""
-    m = len(q)
-    q = q.copy()
-    exists = np.all(np.isfinite(q), axis=1)
+    :func:`_shift_into` does it, all at once (axes first, so that rows are contiguous).
+    Rows whose turn nearest the centre is inside the quadrant and the limits (by more than
+    a tie of the scores could tell) keep it, found (status 0), without comparing turns."""
     axes = list(_QUADRANT_AXES) + ([1, 2, 4] if limits is not None else [])
-    value = np.ascontiguousarray(q[:, axes].T)                           # (axes, m)
+    value = q[:, axes].T                                                 # (axes, m)
     lower = np.empty_like(value)
     lower[:3] = confdata[:, :3].T * (np.pi / 2)
     upper = lower + np.pi / 2
@@ -537,6 +540,18 @@ def _select_q(q, confdata, limits, quadrant_tolerance):
         lim = limits[axes]
     centre = 0.5 * (lower + upper)
     turns = np.round((centre - value) / _TWO_PI)
+    best = value + _TWO_PI * turns
+    inside = (best >= lower) & (best <= upper) & (np.abs(best - centre) < np.pi - 1e-6)
+    if limits is not None:
+        inside &= (best >= lim[:, 0, None]) & (best <= lim[:, 1, None])
+    q = q.copy()
+    q[:, axes] = best.T
+    status = np.zeros(len(q), int)
+    rest = np.flatnonzero(~np.all(inside, axis=0))
+    if len(rest) == 0:
+        return q, status
+    value, lower, upper, centre, turns = (a[:, rest] for a in (value, lower, upper, centre,
+                                                               turns))
     best = best_distance = best_score = None
     for shift in (-1.0, 0.0, 1.0):
         candidate = value + _TWO_PI * (turns + shift)
@@ -553,12 +568,15 @@ def _select_q(q, confdata, limits, quadrant_tolerance):
             best = np.where(better, candidate, best)
             best_distance = np.where(better, distance, best_distance)
             best_score = np.where(better, score, best_score)
-    q[:, axes] = best.T
+    part = q[rest]
+    part[:, axes] = best.T
+    q[rest] = part
+    exists = np.all(np.isfinite(part), axis=1)
     quadrant_ok = ~np.any(best_distance[:3] > quadrant_tolerance, axis=0)
-    within = np.ones(m, bool)
+    within = np.ones(len(rest), bool)
     if limits is not None:
-        within = np.all((q >= limits[:, 0]) & (q <= limits[:, 1]), axis=1)
-    status = np.where(~exists, 1, np.where(~within, 2, np.where(~quadrant_ok, 3, 0)))
+        within = np.all((part >= limits[:, 0]) & (part <= limits[:, 1]), axis=1)
+    status[rest] = np.where(~exists, 1, np.where(~within, 2, np.where(~quadrant_ok, 3, 0)))
     return q, status
 
 
@@ -945,14 +963,25 @@ class IKSolution:
 
 
 def _evaluate(fk_jacobian, q, target, n):
-    poses, jac = fk_jacobian(q)
+    poses, jac = _model(fk_jacobian, q, n)
     # the Jacobian is kept across calls: a copy, in case the model reuses its buffers
-    poses, jac = np.asarray(poses, dtype=float), np.array(jac, dtype=float)
+    return np.array(jac, dtype=float), _pose_error(target, poses)
+
+
+def _model(fk_jacobian, q, n):
+    """The model's poses ``(k, 4, 4)`` and Jacobian ``(k, 6, n)`` at ``q (k, n)``, checked."""
+    poses, jac = fk_jacobian(q)
+    poses, jac = np.asarray(poses, dtype=float), np.asarray(jac, dtype=float)
     if poses.shape != (len(q), 4, 4) or jac.shape != (len(q), 6, n):
         raise ModelError(f"fk_jacobian must return poses ({len(q)}, 4, 4) and a Jacobian "
                          f"({len(q)}, 6, {n}); got {poses.shape} and {jac.shape}")
-    err = _pose_error(target, poses)
-    return jac, err
+    return poses, jac
+
+
+def _joint_major(jac):
+    """``jac (k, r, n)`` as a contiguous ``(n, r, k)`` array: the columns, batch last (no
+    copy if it is one already, as a Jacobian built that way and handed out transposed)."""
+    return np.ascontiguousarray(np.transpose(jac, (2, 1, 0)))
 
 
 def _norms(err):
@@ -961,15 +990,17 @@ def _norms(err):
             np.sqrt(np.einsum("ij,ij->i", err[:, 3:], err[:, 3:])))
 
 
-def _normal_matrices(jac, rhs=None):
-    """``J^T J`` of ``jac (k, r, n)`` as ``(n, n [+ 1], k)`` (the batch last, so that the
-    elimination below works on contiguous rows), with ``J^T rhs`` appended as column n."""
-    k, _, n = jac.shape
-    jt = np.ascontiguousarray(np.moveaxis(jac, 0, -1))                     # (r, n, k)
+def _normal_matrices(jc, rhs=None):
+    """``J^T J`` of Jacobians ``jc (n, r, k)`` (columns, batch last) as ``(n, n [+ 1], k)``
+    (so that the elimination below works on contiguous rows), with ``J^T rhs`` appended as
+    column n for ``rhs (k, r)``. The upper triangle is computed, the lower copied."""
+    n, _, k = jc.shape
     A = np.empty((n, n + (rhs is not None), k))
-    A[:, :n] = np.einsum("aik,ajk->ijk", jt, jt)
+    for i in range(n):
+        np.einsum("ak,jak->jk", jc[i], jc[i:], out=A[i, i:n])
+        A[i + 1:, i] = A[i, i + 1:n]
     if rhs is not None:
-        A[:, n] = np.einsum("aik,ak->ik", jt, np.ascontiguousarray(rhs.T))
+        A[:, n] = np.einsum("iak,ak->ik", jc, np.ascontiguousarray(rhs.T))
     return A
 
 
@@ -983,10 +1014,16 @@ def _eliminate(A, n):
 
 def _gauss_newton_steps(jac, err, damping):
     """Steps ``(k, n)`` solving ``(J^T J + mu I) dq = J^T err``, ``mu = damping *
-    trace(J^T J) / n``, for a batch ``jac (k, 6, n)``. Batched by hand: LAPACK's solve pays
-    a call per 6 x 6 system. Rows without a finite solution get a zero step."""
-    n = jac.shape[2]
-    A = _normal_matrices(jac, err)
+    trace(J^T J) / n``, for a batch ``jac (k, 6, n)``; see :func:`_gauss_newton_steps_t`."""
+    return _gauss_newton_steps_t(_joint_major(jac), err, damping)
+
+
+def _gauss_newton_steps_t(jc, err, damping):
+    """:func:`_gauss_newton_steps` of Jacobians ``jc (n, 6, k)``, columns and batch last.
+    Batched by hand: LAPACK's solve pays a call per 6 x 6 system. Rows without a finite
+    solution get a zero step."""
+    n = jc.shape[0]
+    A = _normal_matrices(jc, err)
     diagonal = np.arange(n)
     A[diagonal, diagonal] += damping * np.einsum("iik->k", A[:, :n]) / n
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -1001,20 +1038,26 @@ def _gauss_newton_steps(jac, err, damping):
 
 def _singular(jac, tolerance):
     """Rows ``(k,)`` of ``jac (k, 6, n)`` whose smallest singular value is below
-    ``tolerance`` times the largest. For square ones, |det J| / |J|_F^6 <= s_min / s_max
-    clears most rows without an SVD (det(J)^2 = det(J^T J), the product of the pivots of
-    its elimination)."""
-    candidates = np.ones(len(jac), bool)
-    if jac.shape[2] == 6 and len(jac):
-        A = _normal_matrices(jac)
+    ``tolerance`` times the largest; see :func:`_singular_t`."""
+    return _singular_t(_joint_major(jac), tolerance)
+
+
+def _singular_t(jc, tolerance):
+    """:func:`_singular` of Jacobians ``jc (n, 6, k)``, columns and batch last. For square
+    ones, |det J| / |J|_F^6 <= s_min / s_max clears most rows without an SVD (det(J)^2 =
+    det(J^T J), the product of the pivots of its elimination)."""
+    k = jc.shape[2]
+    candidates = np.ones(k, bool)
+    if jc.shape[0] == 6 and k:
+        A = _normal_matrices(jc)
         frobenius_2 = np.einsum("iik->k", A)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             _eliminate(A, 6)
             det_2 = np.prod(A[np.arange(6), np.arange(6)], axis=0)
             candidates = ~(det_2 >= tolerance ** 2 * frobenius_2 ** 6)
-    singular = np.zeros(len(jac), bool)
+    singular = np.zeros(k, bool)
     if np.any(candidates):
-        sv = np.linalg.svd(jac[candidates], compute_uv=False)
+        sv = np.linalg.svd(np.transpose(jc[..., candidates], (2, 1, 0)), compute_uv=False)
         singular[candidates] = sv[:, -1] < tolerance * sv[:, 0]
     return singular
 
@@ -1164,6 +1207,7 @@ _WILD = 1.0               # _closed_form_newton: fixed-point step where |twist -
 _BLOCK = 2048             # targets per batch of _closed_form_newton
 _FIRST_STEPS = 2          # its steps in blocks, before the rows that need more go on together
 _MULTI_START_STEPS = 12   # Newton steps of the multi-start retry
+_JOINT_STEP = 1e-6        # m and rad: errors below this are stepped in the joints
 _FIXED_POINT_STEPS = 20
 _FIXED_POINT_TOL = 1e-6    # rad: the closed-form iteration hands over to Newton below this
 
@@ -1171,13 +1215,39 @@ _FIXED_POINT_TOL = 1e-6    # rad: the closed-form iteration hands over to Newton
 def _opw_jacobian(params, theta):
     """Geometric Jacobian ``(m, 6, 6)`` (root frame, at the flange origin, per model angle)
     and flange positions ``(m, 3)`` of the OPW arm."""
+    arm = _opw_axes(params, theta)
+    z = np.zeros_like(arm.y_arm)
+    z[2] = 1.0
+    axes = np.stack([z, arm.y_arm, arm.y_arm, arm.col2, arm.y4, arm.z6])   # (6, 3, m)
+    points = np.stack([np.zeros_like(z), arm.axis2, arm.axis3, arm.centre, arm.centre,
+                       arm.centre])
+    return _screw_jacobian(axes, arm.flange - points), arm.flange.T
+
+
+@dataclass(frozen=True)
+class _OPWAxes:
+    """Joint axes of an OPW arm at m configurations, root frame, each ``(3, m)``: axis 1 is
+    the root z through the origin; ``y_arm`` the direction of axes 2 and 3, through the
+    points ``axis2`` and ``axis3``; ``col2``, ``y4``, ``z6`` the directions of axes 4, 5
+    and 6, through the wrist ``centre``; ``flange`` the flange origin, m."""
+
+    y_arm: np.ndarray
+    axis2: np.ndarray
+    axis3: np.ndarray
+    col2: np.ndarray
+    y4: np.ndarray
+    z6: np.ndarray
+    centre: np.ndarray
+    flange: np.ndarray
+
+
+def _opw_axes(params, theta):
+    """:class:`_OPWAxes` of the OPW arm at model angles ``theta (m, 6)``."""
     t1, t2, t3, t4, t5, t6 = theta.T
     c1, s1 = np.cos(t1), np.sin(t1)
     zero = np.zeros_like(t1)
     x_arm = np.stack([c1, s1, zero])                                  # (3, m)
     y_arm = np.stack([-s1, c1, zero])
-    z = np.zeros((3, len(t1)))
-    z[2] = 1.0
     psi3 = np.arctan2(params.a2, params.c3)
     k = np.hypot(params.a2, params.c3)
     s2, c2 = np.sin(t2), np.cos(t2)
@@ -1185,12 +1255,16 @@ def _opw_jacobian(params, theta):
     s23, c23 = np.sin(t23), np.cos(t23)
     sk = s23 * np.cos(psi3) + c23 * np.sin(psi3)                      # sin(t23 + psi3)
     ck = c23 * np.cos(psi3) - s23 * np.sin(psi3)
-    axis2 = params.a1 * x_arm + params.c1 * z
-    axis3 = axis2 + params.c2 * (s2 * x_arm + c2 * z)
-    centre = ((params.c2 * s2 + k * sk + params.a1) * x_arm + params.b * y_arm
-              + (params.c2 * c2 + k * ck + params.c1) * z)
-    col0 = c23 * x_arm - s23 * z                                      # R0c = Rz(t1) Ry(t23)
-    col2 = s23 * x_arm + c23 * z
+    axis2 = params.a1 * x_arm
+    axis2[2] += params.c1
+    axis3 = axis2 + params.c2 * s2 * x_arm
+    axis3[2] += params.c2 * c2
+    centre = (params.c2 * s2 + k * sk + params.a1) * x_arm + params.b * y_arm
+    centre[2] += params.c2 * c2 + k * ck + params.c1
+    col0 = c23 * x_arm                                                # R0c = Rz(t1) Ry(t23)
+    col0[2] -= s23
+    col2 = s23 * x_arm
+    col2[2] += c23
     s4, c4, s5, c5 = np.sin(t4), np.cos(t4), np.sin(t5), np.cos(t5)
     x4 = c4 * col0 + s4 * y_arm                                       # R04 = R0c Rz(t4)
     y4 = c4 * y_arm - s4 * col0
@@ -1202,9 +1276,7 @@ def _opw_jacobian(params, theta):
         x5 = c5 * x4 - s5 * col2
         x6, y6 = c6 * x5 + s6 * y4, c6 * y4 - s6 * x5
         flange = flange + x6 * tip[0, 3] + y6 * tip[1, 3] + z6 * tip[2, 3]
-    axes = np.stack([z, y_arm, y_arm, col2, y4, z6])                  # (6, 3, m)
-    points = np.stack([np.zeros_like(z), axis2, axis3, centre, centre, centre])
-    return _screw_jacobian(axes, flange - points), flange.T
+    return _OPWAxes(y_arm, axis2, axis3, col2, y4, z6, centre, flange)
 
 
 def _screw_jacobian(axes, r):
@@ -1243,6 +1315,34 @@ def _nominal_jacobian(params, q):
     return jac
 
 
+def _nominal_twist(params, q, dq):
+    """``J_nominal(q) dq`` ``(m, 6)``: the flange twist (base frame) of joint steps
+    ``dq (m, 6)`` at ``q (m, 6)`` rad, without forming the Jacobian (OPW arms): with the
+    wrist's angular velocity w_w = sum of its axes times their steps,
+    ``v = dq1 z x f + dq23 y_arm x (...) + w_w x (f - centre)``."""
+    if not isinstance(params, OPWParameters):
+        return np.einsum("kij,kj->ki", _nominal_jacobian(params, q), dq)
+    arm = _opw_axes(params, params.model_angles(q))
+    w0, w1, w2, w3, w4, w5 = (dq * np.asarray(params.signs, dtype=float)).T
+    f = arm.flange
+    wrist = w3 * arm.col2 + w4 * arm.y4 + w5 * arm.z6
+    lever = w1 * (f - arm.axis2) + w2 * (f - arm.axis3)              # about y_arm
+    r = f - arm.centre
+    y = arm.y_arm
+    twist = np.empty((6, len(q)))
+    twist[0] = -w0 * f[1] + y[1] * lever[2] - y[2] * lever[1] + wrist[1] * r[2] - wrist[2] * r[1]
+    twist[1] = w0 * f[0] + y[2] * lever[0] - y[0] * lever[2] + wrist[2] * r[0] - wrist[0] * r[2]
+    twist[2] = y[0] * lever[1] - y[1] * lever[0] + wrist[0] * r[1] - wrist[1] * r[0]
+    twist[3:] = (w1 + w2) * y + wrist
+    twist[5] += w0
+    twist = twist.T
+    base = params._base()
+    if base is not None:
+        twist[:, :3] = twist[:, :3] @ base[:3, :3].T
+        twist[:, 3:] = twist[:, 3:] @ base[:3, :3].T
+    return twist
+
+
 def _rotation_from_rotvec(rotvec):
     """Rotation matrices ``(m, 3, 3)`` from rotation vectors ``(m, 3)`` (Rodrigues)."""
     angle = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
@@ -1261,7 +1361,7 @@ def _rotation_from_rotvec(rotvec):
 
 
 def _closed_form_newton(params, fk_jacobian, T, cfx, q0, position_tol, rotation_tol,
-                        max_steps, X0=None):
+                        max_steps, singular_tol, X0=None):
     """Newton on the model in the coordinates of the nominal closed form.
 
     The joints are ``q = IK_nominal(X)`` on branch ``cfx`` of a corrected target X (at first
@@ -1272,11 +1372,15 @@ def _closed_form_newton(params, fk_jacobian, T, cfx, q0, position_tol, rotation_
     in two steps where Newton in q needs many, and it stays on the nominal branch. Without
     ``J_nominal`` (taking ``J_nominal = J_model``) it is the fixed point of
     :func:`_closed_form_on_model`. ``X0``: the corrected targets to continue from (with
-    ``q0`` their solutions). Returns q, jac, err (at q), steps, converged and X, per row;
-    rows of ``q0`` with NaN are skipped."""
+    ``q0`` their solutions). Returns q, singular (converged rows whose Jacobian is singular,
+    see :func:`_singular`), err (at q), steps, converged and X (of the rows not converged),
+    per row; rows of ``q0`` with NaN are skipped. Errors below ``_JOINT_STEP`` are stepped
+    in the joints (Newton there is as good, and saves the closed form)."""
     m, n = q0.shape
     q, X = q0.copy(), (T if X0 is None else X0).copy()
-    jac = np.full((m, 6, n), np.nan)
+    forward = opw_forward if isinstance(params, OPWParameters) else ur_forward
+    stale = np.zeros(m, bool)                 # X is not the one of q (a step in the joints)
+    singular = np.zeros(m, bool)
     err = np.full((m, 6), np.nan)
     steps = np.zeros(m, int)
     converged = np.zeros(m, bool)
@@ -1285,35 +1389,56 @@ def _closed_form_newton(params, fk_jacobian, T, cfx, q0, position_tol, rotation_
     for step in range(max_steps + 1):
         if len(act) == 0:
             break
-        J, e = _evaluate(fk_jacobian, q_a, T_a, n)
+        poses, jac = _model(fk_jacobian, q_a, n)
+        e = _pose_error(T_a, poses)
+        jt = _joint_major(jac)                      # used before the model is called again
         position, rotation = _norms(e)
         done = (position <= position_tol) & (rotation <= rotation_tol)
         leave = done | (step == max_steps)
         if np.any(leave):
             rows = act[leave]
-            q[rows], jac[rows], err[rows], steps[rows] = q_a[leave], J[leave], e[leave], step
+            q[rows], err[rows], steps[rows] = q_a[leave], e[leave], step
             X[rows], converged[rows] = X_a[leave], done[leave]
+            finished = np.flatnonzero(done)
+            if len(finished):
+                singular[act[finished]] = _singular_t(jt[..., finished], singular_tol)
             keep = ~leave
             act, q_a, X_a, T_a, cfx_a = act[keep], q_a[keep], X_a[keep], T_a[keep], cfx_a[keep]
-            J, e = J[keep], e[keep]
             if len(act) == 0:
                 break
-        twist = np.einsum("kij,kj->ki", _nominal_jacobian(params, q_a),
-                          _gauss_newton_steps(J, e, _DAMPING))
+            jt, e = jt[..., keep], e[keep]
+        dq = _gauss_newton_steps_t(jt, e, _DAMPING)
+        # a step this close to the solution is as good in the joints: no closed form
+        # (the corrected target X of such a row is brought up to date if it needs one)
+        near = np.einsum("ij,ij->i", e, e) <= _JOINT_STEP ** 2
+        q_a[near] += dq[near]
+        stale[act[near]] = True
+        far = np.flatnonzero(~near)
+        if len(far) == 0:
+            continue
+        behind = far[stale[act[far]]]
+        if len(behind):
+            X_a[behind] = forward(params, q_a[behind])
+            stale[act[behind]] = False
+        q_f, X_f, e_f = q_a[far], X_a[far], e[far]
+        twist = _nominal_twist(params, q_f, dq[far])
         # J_nominal J_model^-1 is the identity but for millimetres over the distance to a
         # singularity; where it is far from it, the fixed-point step (twist = e) is safer
-        wild = (np.einsum("ij,ij->i", twist - e, twist - e)
-                > _WILD ** 2 * np.einsum("ij,ij->i", e, e))
-        twist[wild] = e[wild]
-        X_new = X_a.copy()
+        wild = (np.einsum("ij,ij->i", twist - e_f, twist - e_f)
+                > _WILD ** 2 * np.einsum("ij,ij->i", e_f, e_f))
+        twist[wild] = e_f[wild]
+        X_new = X_f.copy()
         X_new[:, :3, 3] += twist[:, :3]
-        X_new[:, :3, :3] = _rotation_from_rotvec(twist[:, 3:]) @ X_a[:, :3, :3]
-        new = _one_branch(params, X_new, cfx_a, clip=True)
-        new += _TWO_PI * np.round((q_a - new) / _TWO_PI)
+        X_new[:, :3, :3] = _rotation_from_rotvec(twist[:, 3:]) @ X_f[:, :3, :3]
+        new = _one_branch(params, X_new, cfx_a[far], clip=True)
+        new += _TWO_PI * np.round((q_f - new) / _TWO_PI)
         ok = np.all(np.isfinite(new), axis=1)
-        q_a = np.where(ok[:, None], new, q_a)
-        X_a = np.where(ok[:, None, None], X_new, X_a)
-    return q, jac, err, steps, converged, X
+        q_a[far] = np.where(ok[:, None], new, q_f)
+        X_a[far] = np.where(ok[:, None, None], X_new, X_f)
+    stale &= ~converged                       # the others' X are not used again
+    if np.any(stale):
+        X[stale] = forward(params, q[stale])
+    return q, singular, err, steps, converged, X
 
 
 def _closed_form_on_model(params, fk_jacobian, T, cfx, q):
@@ -1359,12 +1484,330 @@ def _flip_wrist(params, q):
     return _wrap(params.joint_angles(theta))
 
 
+# --------------------------------------------------------------------------- reach certificate
+
+_REACH_SPAN = 0.6         # rad: widest elbow interval (about the stretched elbow) examined
+_REACH_CELLS = 8          # first subdivision of that interval
+_REACH_ROUNDS = 14        # halvings of a cell before a target is left to the iteration
+_REACH_MARGIN = 1e-12     # m^2: rounding allowance of the final comparison
+_REACH_CONDITION = 1e-6   # an inverse cosine within this of +-1 is not trusted
+
+
+def _circle_square(c0, c1, c2, point):
+    """Bounds of ``|c0 + c1 cos t + c2 sin t - point|^2`` (a point on a circle, up to
+    rounding): ``(A, B, phase, E)`` with the square ``A + B cos(t - phase) + e(t)``,
+    ``|e(t)| <= E``, B >= 0."""
+    d0 = c0 - point
+    a = d0 @ d0 + 0.5 * (c1 @ c1 + c2 @ c2)
+    bc, bs = 2.0 * (d0 @ c1), 2.0 * (d0 @ c2)
+    error = np.hypot(0.5 * (c1 @ c1 - c2 @ c2), c1 @ c2) + 1e-15 * a
+    return a, np.hypot(bc, bs), np.arctan2(bs, bc), error
+
+
+def _circle(f):
+    """Centre and the two half-axes ``(c0, c1, c2)`` of ``f(t) = c0 + c1 cos t + c2 sin t``
+    (a point turned about an axis), from f at 0, pi/2 and pi."""
+    at0, at90, at180 = f(0.0), f(0.5 * np.pi), f(np.pi)
+    c0 = 0.5 * (at0 + at180)
+    return c0, 0.5 * (at0 - at180), at90 - c0
+
+
+def _closest_on_axes(point_a, axis_a, point_b, axis_b):
+    """Parameters (s, t) of the closest points ``point_a + s axis_a`` and ``point_b + t
+    axis_b`` of two unit axes, or None where they are (nearly) parallel."""
+    ab = axis_a @ axis_b
+    if 1.0 - ab * ab < 1e-6:
+        return None
+    w = point_b - point_a
+    s, t = np.linalg.solve(np.array([[1.0, -ab], [ab, -1.0]]), np.array([w @ axis_a, w @ axis_b]))
+    return s, t
+
+
+@dataclass(frozen=True)
+class _ReachTargets:
+    """Per-target values :meth:`ReachBound.unreachable` uses, m: W6 in frame 1 (k, 3), its
+    distance to axis 1 and to the circle of S (k,), axis 6 in frame 1 (k, 3), and the
+    wrist bit asked for (k,)."""
+
+    local: np.ndarray
+    radial: np.ndarray
+    distance: np.ndarray
+    axis6: np.ndarray
+    wrist: np.ndarray
+
+
+def _turn(v, angle):
+    """Vectors ``v (k, 3)`` turned about z by ``angle (k,)`` rad."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.empty_like(v)
+    out[:, 0] = c * v[:, 0] - s * v[:, 1]
+    out[:, 1] = s * v[:, 0] + c * v[:, 1]
+    out[:, 2] = v[:, 2]
+    return out
+
+
+class ReachBound:
+    """A sound test that targets lie beyond the reach of a 6R arm near its stretched elbow.
+
+    The arm is given by its joint frames at zero (``frames (6, 4, 4)``, base frame, z on
+    each joint axis, as just before the joint's own motion) and the flange at zero
+    (``flange (4, 4)``), m: frame k + 1 is ``frame_k Rz(q_k) K_k`` with ``K_k`` constant
+    (the structure of the calibrated model). Axes 2 and 3 need not be parallel, nor need
+    axes 4, 5 and 6 meet: only exact invariants are used. With S a point on axis 2, P4 on
+    axis 4 and W6 on axis 6 (near the wrist centre), and R4 the rotation of frame 4,
+
+    - ``|P4 - S|^2 = f3(q3)`` and ``a3(q3) = R4^T (P4 - S)`` depend on the elbow angle
+      alone, ``w(q4, q5) = R4^T (W6 - P4)`` on the wrist angles alone, so that
+      ``|W6 - S(q1)|^2 = f3 + 2 a3 . w + |w|^2`` exactly;
+    - W6 is a point of the flange: the target places it, and ``|W6 - S(q1)|`` is at least
+      its distance to the circle S turns on about axis 1;
+    - every joint of a solution follows from its elbow angle and the target: axis 1 from
+      ``(P4 - S) . u2 = n3(q3)`` (P4 in the plane of axis 2, up to a q3-dependent offset),
+      axis 2 from the direction of P4, the wrist from the rotation ``R4^T R_target``; P4 is
+      within :attr:`wrist_offset` of W6. The wrist offset w is evaluated on this arm over
+      a subdivision of the possible elbow angles, with bounds for all a cell and the
+      wrist offset can change (each shoulder and wrist solution separately).
+
+    A target is declared unreachable only when every cell's bound of ``|W6 - S|^2`` lies
+    below the squared distance; the requested wrist configuration (sign of sin(theta5), see
+    :func:`configuration_bits`) may exclude the other wrist solution. What the bounds
+    cannot settle (wrist or shoulder near singular, elbow far from stretched, a reachable
+    target) is left to the iteration: the test never rejects a reachable target.
+    ``branches``: the chain's joints are the ones the configuration is read on (False when
+    joint effects stand between them: the wrist configuration asked for is then not used).
+    """
+
+    def __init__(self, frames, flange, branches: bool = True):
+        frames = np.asarray(frames, dtype=float)
+        flange = np.asarray(flange, dtype=float)
+        if frames.shape != (6, 4, 4) or flange.shape != (4, 4):
+            raise ModelError(f"ReachBound needs 6 joint frames (6, 4, 4) and a flange (4, 4), "
+                             f"got {frames.shape} and {flange.shape}")
+        self.branches = bool(branches)
+        links = [invert_pose(frames[k]) @ frames[k + 1] for k in range(5)]
+        links.append(invert_pose(frames[5]) @ flange)
+        self.first = frames[0]
+        self.links = np.array(links)                          # K_1 .. K_6
+        origin, axis = frames[:, :3, 3], frames[:, :3, 2]
+        on45 = _closest_on_axes(origin[3], axis[3], origin[4], axis[4])
+        if on45 is None:
+            raise ModelError("ReachBound: axes 4 and 5 are parallel")
+        z4 = on45[0]                                          # P4 = (0, 0, z4) in frame 4
+        p5 = origin[4] + on45[1] * axis[4]
+        z6 = (p5 - origin[5]) @ axis[5]                       # W6 = (0, 0, z6) in frame 6
+        p4 = origin[3] + z4 * axis[3]
+        p3 = origin[2] + ((p4 - origin[2]) @ axis[2]) * axis[2]
+        z_s = (p3 - origin[1]) @ axis[1]                      # S = (0, 0, z_s) in frame 2
+        self.z4, self.z_s = z4, z_s
+        flange_inv = invert_pose(flange)
+        self.w6_flange = flange_inv[:3, :3] @ (origin[5] + z6 * axis[5]) + flange_inv[:3, 3]
+        self.axis6_flange = flange_inv[:3, :3] @ axis[5]
+        K1, K2, K3, K4, K5 = self.links[:5]
+        self.rotations = self.links[:5, :3, :3]
+        self.offsets = self.links[:5, :3, 3]
+        # the circle of S about axis 1, frame 1
+        self.s0 = K1[:3, :3] @ np.array([0.0, 0.0, z_s]) + K1[:3, 3]
+        self.u2 = K1[:3, 2]
+        self.radius_s, self.height_s = np.hypot(self.s0[0], self.s0[1]), self.s0[2]
+        # the elbow: P4 in frame 2 turned by q2 is Rz(q2) m(q3), m = K2 Rz(q3) p4_in3
+        self.p4_in3 = K3[:3, :3] @ np.array([0.0, 0.0, z4]) + K3[:3, 3]
+        s_point = np.array([0.0, 0.0, z_s])
+        self.f3 = _circle_square(*_circle(lambda t: self._m(np.array([t]))[0]), s_point)
+        if not self.f3[1] > 0:
+            raise ModelError("ReachBound: the elbow does not change the reach")
+        self.sin23 = np.linalg.norm(np.cross([0.0, 0.0, 1.0], K2[:3, 2]))
+        self.r_s3 = np.linalg.norm(np.cross(s_point - K2[:3, 3], K2[:3, 2]))   # S to axis 3
+        self.r_43 = np.hypot(self.p4_in3[0], self.p4_in3[1])                 # P4 to axis 3
+        # the wrist: axis 6 in frame 4 is Rz(q4) h(q5), h = K4 Rz(q5) g; h_z = p . Rz(q5) g
+        p, g = K4[2, :3], K5[:3, 2]
+        self.g = g
+        self.g_xy = np.hypot(g[0], g[1])
+        cc, ss = p[0] * g[0] + p[1] * g[1], p[1] * g[0] - p[0] * g[1]
+        self.a5, self.rho5, self.phase5 = p[2] * g[2], np.hypot(cc, ss), np.arctan2(ss, cc)
+        if not self.rho5 > 0:
+            raise ModelError("ReachBound: axis 5 does not turn axis 6 about axis 4")
+        # W6 in frame 4 is Rz(q4) (K4 Rz(q5) w6_in5), w6_in5 = W6 in frame 5
+        self.w6_in5 = K5[:3, :3] @ np.array([0.0, 0.0, z6]) + K5[:3, 3]
+        c0, c1, c2 = _circle(lambda t: self._w5(np.array([t]))[0])
+        a, b, _, e = _circle_square(c0, c1, c2, np.array([0.0, 0.0, z4]))
+        self.wrist_offset = np.sqrt(a + b + e) + 1e-12        # largest |W6 - P4|, m
+        self.r_w4 = (np.hypot(c0[0], c0[1])                   # largest distance W6 to axis 4
+                     + np.sqrt(c1[0] ** 2 + c1[1] ** 2 + c2[0] ** 2 + c2[1] ** 2))
+        self.r_w5 = np.hypot(self.w6_in5[0], self.w6_in5[1])  # W6 to axis 5
+
+    def _m(self, t):
+        """P4 in frame 2 at q2 = 0, ``(k, 3)``, for elbow angles ``t (k,)``."""
+        turned = _turn(np.broadcast_to(self.p4_in3, (len(t), 3)), t)
+        return turned @ self.rotations[1].T + self.offsets[1]
+
+    def _w5(self, q5):
+        """W6 in frame 4 at q4 = 0, ``(k, 3)``, for wrist angles ``q5 (k,)``."""
+        turned = _turn(np.broadcast_to(self.w6_in5, (len(q5), 3)), q5)
+        return turned @ self.rotations[3].T + self.offsets[3]
+
+    def unreachable(self, target, wrist=None, params=None, tolerance: float = 1e-9):
+        """``(k,) bool``: True where no joints put the flange on ``target (k, 4, 4)`` (m),
+        a proof; False where it is not settled. ``wrist (k,)``: the wrist bit asked for
+        (0 or 1, -1 any; None: any), read with the conventions of ``params`` (the nominal
+        family) with ``tolerance`` as in :func:`configuration_bits`."""
+        T = _as_poses(target, "target")
+        k = len(T)
+        out = np.zeros(k, bool)
+        if k == 0:
+            return out
+        first_r = self.first[:3, :3]
+        w6 = T[:, :3, :3] @ self.w6_flange + T[:, :3, 3]
+        local = (w6 - self.first[:3, 3]) @ first_r                        # frame 1
+        radial = np.hypot(local[:, 0], local[:, 1])
+        distance = np.hypot(radial - self.radius_s, local[:, 2] - self.height_s)
+        a3, b3, phase3, e3 = self.f3
+        delta = self.wrist_offset
+        shortest = distance - delta                       # |P4 - S| of any solution
+        kappa = (shortest * np.abs(shortest) - a3 - e3) / b3
+        out[kappa > 1.0] = True
+        rows = np.flatnonzero((kappa <= 1.0) & (kappa > np.cos(_REACH_SPAN)) & (shortest > 0))
+        if len(rows) == 0:
+            return out
+        if wrist is None or params is None or not self.branches:
+            wrist, params = np.full(k, -1), None
+        wrist = np.broadcast_to(np.asarray(wrist, dtype=int), (k,))
+        axis6 = (T[:, :3, :3] @ self.axis6_flange) @ first_r
+        data = _ReachTargets(local, radial, distance, axis6, wrist)
+        half = np.arccos(kappa[rows])
+        # each shoulder root whose S stays far enough from W6 whatever the elbow: settled
+        reach_max = np.sqrt(a3 + b3 + e3) + delta
+        keep_root = []
+        for s1 in (1.0, -1.0):
+            _, _, floor, bad = self._shoulder(data, rows, np.full(len(rows), s1),
+                                              np.full(len(rows), phase3), half)
+            keep_root.append(bad | ~(reach_max ** 2 < floor ** 2 - _REACH_MARGIN))
+        # cells of (row, shoulder root, wrist root, elbow interval [lo, hi])
+        row, s1, s5, lo, hi = [], [], [], [], []
+        edges = np.linspace(-1.0, 1.0, _REACH_CELLS + 1)
+        for i, root in enumerate((1.0, -1.0)):
+            for wrist_root in (1.0, -1.0):
+                r = np.flatnonzero(keep_root[i])
+                row.append(np.repeat(rows[r], _REACH_CELLS))
+                s1.append(np.full(len(r) * _REACH_CELLS, root))
+                s5.append(np.full(len(r) * _REACH_CELLS, wrist_root))
+                lo.append((phase3 + half[r, None] * edges[:-1]).ravel())
+                hi.append((phase3 + half[r, None] * edges[1:]).ravel())
+        row, s1, s5, lo, hi = map(np.concatenate, (row, s1, s5, lo, hi))
+        open_ = np.zeros(k, bool)                         # not to be settled: left to Newton
+        for round_ in range(_REACH_ROUNDS + 1):
+            settled, stuck = self._cells(data, params, tolerance, row, s1, s5, lo, hi)
+            open_[row[stuck]] = True
+            split = ~settled & ~open_[row]
+            if not np.any(split):
+                break
+            if round_ == _REACH_ROUNDS:
+                open_[row[split]] = True
+                break
+            mid = 0.5 * (lo[split] + hi[split])
+            row, s1, s5 = (np.repeat(a[split], 2) for a in (row, s1, s5))
+            lo = np.stack([lo[split], mid], 1).ravel()
+            hi = np.stack([mid, hi[split]], 1).ravel()
+        out[rows] = ~open_[rows]
+        return out
+
+    def _shoulder(self, data, r, s1, t, half):
+        """Axis 1 of the solutions on shoulder root ``s1`` with elbow angles within ``half``
+        of ``t`` (all ``(n,)``, rad): the centre's q1, a bound of |q1 - centre|, a lower
+        bound of ``|W6 - S(q1)|`` (m), and where the bound does not apply."""
+        m_z = self._m(t)[:, 2]
+        u2 = self.u2
+        x, y = data.local[r, 0], data.local[r, 1]
+        alpha, beta = u2[0] * x + u2[1] * y, u2[0] * y - u2[1] * x
+        big = np.hypot(alpha, beta)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x1 = (m_z - self.z_s + self.s0 @ u2 - u2[2] * data.local[r, 2]) / big
+            dx1 = (self.wrist_offset + self.r_43 * self.sin23 * half) / big
+            reach1 = np.abs(x1) + dx1
+            bad = ~(reach1 < 1.0 - _REACH_CONDITION)
+            dq1 = dx1 / np.sqrt(1.0 - np.minimum(reach1, 1.0 - _REACH_CONDITION) ** 2)
+        q1 = np.arctan2(beta, alpha) + s1 * np.arccos(np.clip(x1, -1.0, 1.0))
+        # |W6 - S(q1)| = |Rz(-q1) W6 - s0| in frame 1; S moves radius_s per rad of q1
+        to_s = np.linalg.norm(_turn(data.local[r], -q1) - self.s0, axis=1)
+        floor = np.maximum(data.distance[r], to_s - self.radius_s * dq1)
+        return q1, dq1, floor, bad
+
+    def _cells(self, data, params, tolerance, row, s1, s5, lo, hi):
+        """Settle cells of elbow angles [lo, hi] (rad): ``(settled, stuck)``, each
+        ``(n,) bool``. Settled: no solution on this shoulder root (``s1`` = +-1) and wrist
+        root (``s5``) has its elbow angle in the cell. Stuck: not even a cell of no width
+        at its centre would be settled (bounds that do not apply, or a reachable target)."""
+        a3, b3, phase3, e3 = self.f3
+        delta = self.wrist_offset
+        n = len(row)
+        settled = np.zeros(n, bool)
+        stuck = np.zeros(n, bool)
+        # the largest f3 in the cell; a first test without the wrist's direction
+        before, after = lo - phase3, hi - phase3
+        top = np.where((before <= 0) & (after >= 0), 1.0,
+                       np.maximum(np.cos(before), np.cos(after)))
+        f3_max = a3 + e3 + b3 * top
+        coarse = f3_max + 2.0 * np.sqrt(np.maximum(f3_max, 0.0)) * delta + delta * delta
+        settled |= coarse < data.distance[row] ** 2 - _REACH_MARGIN
+        live = np.flatnonzero(~settled)
+        if len(live) == 0:
+            return settled, stuck
+        r, t, half = row[live], 0.5 * (lo[live] + hi[live]), 0.5 * (hi[live] - lo[live])
+        K1, K2, K3, K4 = self.rotations[:4]
+        q1, _, _, _ = self._shoulder(data, r, s1[live], t, half)
+        m = self._m(t)
+        tw = (_turn(data.local[r], -q1) - self.offsets[0]) @ K1         # W6 in frame 2
+        tw_xy, m_xy = np.hypot(tw[:, 0], tw[:, 1]), np.hypot(m[:, 0], m[:, 1])
+        q2 = np.arctan2(tw[:, 1], tw[:, 0]) - np.arctan2(m[:, 1], m[:, 0])
+        # axis 6 in frame 4: R4^T a, R4 = first Rz(q1) K1 Rz(q2) K2 Rz(q3) K3
+        e = _turn(_turn(_turn(data.axis6[r], -q1) @ K1, -q2) @ K2, -t) @ K3
+        x5 = (e[:, 2] - self.a5) / self.rho5
+        q5 = self.phase5 + s5[live] * np.arccos(np.clip(x5, -1.0, 1.0))
+        e_xy = np.hypot(e[:, 0], e[:, 1])
+        h = _turn(np.broadcast_to(self.g, (len(live), 3)), q5) @ K4.T
+        q4 = np.arctan2(e[:, 1], e[:, 0]) - np.arctan2(h[:, 1], h[:, 0])
+        w = _turn(self._w5(q5), q4)
+        w[:, 2] -= self.z4                                                  # W6 - P4, frame 4
+        arm = _turn((m - np.array([0.0, 0.0, self.z_s])) @ K2, -t) @ K3     # P4 - S, frame 4
+        centre = 2.0 * np.einsum("ij,ij->i", arm, w) + np.einsum("ij,ij->i", w, w)
+        arm_norm, w_norm = np.linalg.norm(arm, axis=1), np.linalg.norm(w, axis=1)
+        f3_mid = a3 + e3 + b3 * np.cos(t - phase3)
+        results = []
+        for width, f3_top in ((half, f3_max[live]), (np.zeros_like(half), f3_mid)):
+            # how far a solution with its elbow in the cell is from the centre's joints
+            _, dq1, floor, bad = self._shoulder(data, r, s1[live], t, width)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                ratio_a = (delta + data.radial[r] * dq1) / tw_xy
+                ratio_b = self.r_43 * width / m_xy
+                dq2 = np.arcsin(np.minimum(ratio_a, 1.0)) + np.arcsin(np.minimum(ratio_b, 1.0))
+                turn = dq1 + dq2 + width                   # the angle R4 may differ by
+                reach5 = np.abs(x5) + turn / self.rho5
+                dq5 = (turn / self.rho5) / np.sqrt(
+                    1.0 - np.minimum(reach5, 1.0 - _REACH_CONDITION) ** 2)
+                ratio_c, ratio_d = turn / e_xy, self.g_xy * dq5 / e_xy
+                dq4 = np.arcsin(np.minimum(ratio_c, 1.0)) + np.arcsin(np.minimum(ratio_d, 1.0))
+                bad |= ~((ratio_a < 1.0) & (ratio_b < 1.0) & (reach5 < 1.0 - _REACH_CONDITION)
+                         & (ratio_c < 1.0) & (ratio_d < 1.0))
+                dw = self.r_w4 * dq4 + self.r_w5 * dq5          # |w - w(centre)|
+                bound = (f3_top + centre + 2.0 * self.r_s3 * width * delta
+                         + 2.0 * arm_norm * dw + dw * (2.0 * w_norm + dw))
+                below = bound < floor * floor - _REACH_MARGIN
+            if params is not None:           # the other wrist configuration than asked for
+                wanted = data.wrist[r]
+                margin = params.signs[4] * np.sin(params.signs[4] * q5 - params.offsets[4])
+                below |= (((wanted == 0) & (margin + dq5 < -tolerance))
+                          | ((wanted == 1) & (margin - dq5 >= tolerance)))
+            results.append(below & ~bad)
+        settled[live] = results[0]
+        stuck[live] = ~results[1]
+        return settled, stuck
+
+
 def solve(family_params: OPWParameters | URParameters,
           fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], target,
           confdata=None, limits=None, *, position_tol: float = 1e-9,
           rotation_tol: float = 1e-9, max_iterations: int = 100,
           quadrant_tolerance: float = np.pi / 4, boundary_tolerance: float = 1e-9,
-          singular_tol: float = 1e-7) -> IKSolution:
+          singular_tol: float = 1e-7, reach: ReachBound | None = None) -> IKSolution:
     """Joints reaching ``target (m, 4, 4)`` (m) on the model ``fk_jacobian``, per branch.
 
     1. The nominal closed form of ``family_params`` on the branch ``confdata (m, 4)`` =
@@ -1389,39 +1832,57 @@ def solve(family_params: OPWParameters | URParameters,
        inverse of the target corrected by the model's flange error, until joints move less
        than 1e-6 rad), :func:`refine`, and the starts of 4 one after the other. The reasons
        of targets that fail in the end are those of this last step.
-    ``max_iterations`` bounds the Newton steps of each of these stages.
+    ``max_iterations`` bounds the Newton steps of each of these stages. ``reach``: the
+    model's :class:`ReachBound` (its chain on the joints ``fk_jacobian`` takes); targets
+    still failed after 2. that it proves out of reach (on the requested wrist
+    configuration) are 'unreachable' at once, without 4. and 5.
     """
+    return _solve(family_params, fk_jacobian, target, confdata, limits,
+                  position_tol=position_tol, rotation_tol=rotation_tol,
+                  max_iterations=max_iterations, quadrant_tolerance=quadrant_tolerance,
+                  boundary_tolerance=boundary_tolerance, singular_tol=singular_tol,
+                  reach=reach)[0]
+
+
+def _solve(family_params, fk_jacobian, target, confdata=None, limits=None, *,
+           position_tol=1e-9, rotation_tol=1e-9, max_iterations=100,
+           quadrant_tolerance=np.pi / 4, boundary_tolerance=1e-9, singular_tol=1e-7,
+           reach=None):
+    """:func:`solve` (same arguments), and the nominal closed form's joints ``(m, 6)`` on
+    the requested branch (shifted as :func:`select_branch` does; NaN where that branch
+    cannot reach)."""
     _check_family(family_params)
     T = _as_poses(target, "target")
     m = len(T)
     limits = _as_limits(limits, 6)
     max_iterations = int(max_iterations)
     check_configuration = confdata is not None
-    solutions = np.full((m, 8, 6), np.nan)        # all nominal branches, where needed
-    have_solutions = np.zeros(m, bool)
+    solutions = None                              # all nominal branches (m, 8, 6), if needed
     if confdata is None:
-        solutions[:] = _closed_form(family_params, T, clip=False)
-        have_solutions[:] = True
+        solutions = _closed_form(family_params, T, clip=False)
         confdata = _default_confdata(solutions, limits)
     else:
         confdata = _as_confdata(confdata, m)
     start = np.full((m, 6), np.nan)               # the nominal closed form's joints
+    stretched = np.zeros(m, bool)                 # start is the stretched arm's
     status = np.ones(m, int)                      # of _select: 1 = no start at all
-    requested = np.stack([confdata[:, 3] // 4, (confdata[:, 3] // 2) % 2, confdata[:, 3] % 2], 1)
+
+    def requested(rows):
+        """The configuration bits (k, 3) asked for on ``rows``."""
+        cfx = confdata[rows, 3]
+        return np.stack([cfx // 4, (cfx // 2) % 2, cfx % 2], 1)
 
     def branches(rows):
-        need = rows[~have_solutions[rows]]
-        if len(need):
-            solutions[need] = _closed_form(family_params, T[need], clip=False)
-            have_solutions[need] = True
-        return solutions[rows]
+        if solutions is not None:
+            return solutions[rows]
+        return _closed_form(family_params, T[rows], clip=False)
 
     def verdict(q, rows):
         """Reached joints shifted to the requested turns, and 'ok', 'branch_changed' or
         'joint_limit': the checks refine was not asked to make."""
         q, check = _select_q(q, confdata[rows], limits, quadrant_tolerance)
         got = _bits(family_params, q, boundary_tolerance)
-        wrong = np.any((got >= 0) & (got != requested[rows]), axis=1) & check_configuration
+        wrong = np.any((got >= 0) & (got != requested(rows)), axis=1) & check_configuration
         reason = np.full(len(rows), "ok", dtype="<U14")
         reason[~wrong & (check == 2)] = "joint_limit"
         reason[((check == 3) & check_configuration) | wrong] = "branch_changed"
@@ -1445,10 +1906,9 @@ def solve(family_params: OPWParameters | URParameters,
         result.iterations += steps
         return check(result, rows)
 
-    def store(result, rows, q, jac, err, converged, iterations, only_success=False):
+    def store(result, rows, q, singular, err, converged, iterations, only_success=False):
         reason = np.where(converged, "ok", "not_converged").astype("<U14")
-        done = np.flatnonzero(converged)
-        reason[done[_singular(jac[done], singular_tol)]] = "singular"
+        reason[converged & singular] = "singular"
         position, rotation = _norms(err)
         part = check(IKSolution(q=q, success=converged, reason=reason, iterations=iterations,
                                 position_error_m=position, rotation_error_rad=rotation), rows)
@@ -1465,15 +1925,15 @@ def solve(family_params: OPWParameters | URParameters,
     # (in blocks: arrays of a few thousand rows stay in the processor's cache)
     # 1. and two steps of 2. in blocks (arrays of a few thousand rows stay in the processor's
     # cache), then the few rows that need more, together.
-    q_end, X_end = np.full((m, 6), np.nan), T.copy()
-    unfinished = np.zeros(m, bool)
+    unfinished = []                               # (rows, q, X) of rows to go on with
     for block in np.array_split(np.arange(m), -(-m // _BLOCK)) if m else ():
-        if have_solutions[block[0]]:
+        if solutions is not None:
             first = solutions[block, confdata[block, 3]]
         else:
             first = _one_branch(family_params, T[block], confdata[block, 3], clip=False)
         first, found = _select_q(first, confdata[block], limits, np.inf)
         missing = np.flatnonzero(found == 1)
+        stretched[block[missing]] = True
         if len(missing):
             clipped = _one_branch(family_params, T[block[missing]], confdata[block[missing], 3],
                                   clip=True)
@@ -1484,18 +1944,20 @@ def solve(family_params: OPWParameters | URParameters,
         rows = block[found != 1]
         if len(rows) == 0:
             continue
-        q, jac, err, steps, converged, X = _closed_form_newton(
+        q, singular, err, steps, converged, X = _closed_form_newton(
             family_params, fk_jacobian, T[rows], confdata[rows, 3], start[rows],
-            position_tol, rotation_tol, min(_FIRST_STEPS, max_iterations))
-        store(result, rows, q, jac, err, converged, steps)
-        q_end[rows], X_end[rows], unfinished[rows] = q, X, ~converged
-    rows = np.flatnonzero(unfinished)
+            position_tol, rotation_tol, min(_FIRST_STEPS, max_iterations), singular_tol)
+        store(result, rows, q, singular, err, converged, steps)
+        unfinished.append((rows[~converged], q[~converged], X[~converged]))
+    rows = np.concatenate([part[0] for part in unfinished]) if unfinished else np.zeros(0, int)
     if len(rows) and max_iterations > _FIRST_STEPS:
-        q, jac, err, steps, converged, _ = _closed_form_newton(
-            family_params, fk_jacobian, T[rows], confdata[rows, 3], q_end[rows], position_tol,
-            rotation_tol, min(_CLOSED_FORM_STEPS, max_iterations) - _FIRST_STEPS, X_end[rows])
+        q_end, X_end = (np.concatenate([part[i] for part in unfinished]) for i in (1, 2))
+        q, singular, err, steps, converged, _ = _closed_form_newton(
+            family_params, fk_jacobian, T[rows], confdata[rows, 3], q_end, position_tol,
+            rotation_tol, min(_CLOSED_FORM_STEPS, max_iterations) - _FIRST_STEPS,
+            singular_tol, X_end)
         result.iterations[rows] -= 1            # the first evaluation is the last one's again
-        store(result, rows, q, jac, err, converged, steps)
+        store(result, rows, q, singular, err, converged, steps)
 
     def multi_start(rows, first_starts, base, steps):
         """Newton from several starts per row at once; the first start accepted by the
@@ -1529,9 +1991,20 @@ def solve(family_params: OPWParameters | URParameters,
             0.5, accept=accept, groups=np.tile(np.arange(k), len(starts)))
         won = accepted.reshape(len(starts), k)
         chosen = (np.argmax(won, axis=0) * k + np.arange(k))[np.any(won, axis=0)]
-        store(result, owner[chosen], q[chosen], jac[chosen], err[chosen], converged[chosen],
+        singular = np.zeros(len(chosen), bool)
+        done = np.flatnonzero(converged[chosen])
+        singular[done] = _singular(jac[chosen[done]], singular_tol)
+        store(result, owner[chosen], q[chosen], singular, err[chosen], converged[chosen],
               np.zeros(len(chosen), int), only_success=True)
         result.iterations[rows] += np.max(iterations.reshape(len(starts), k), axis=0)
+
+    # 3. the failures the model's reach excludes: nothing to retry
+    if reach is not None:
+        rows = np.flatnonzero(~result.success & (status != 1))
+        if len(rows):
+            wrist = requested(rows)[:, 2] if check_configuration else None
+            beyond = rows[reach.unreachable(T[rows], wrist, family_params, boundary_tolerance)]
+            status[beyond] = 1                        # as no start at all: 'unreachable'
 
     # 4. the failures: Newton from several starts at once
     rows = np.flatnonzero(~result.success & (status != 1))
@@ -1551,4 +2024,5 @@ def solve(family_params: OPWParameters | URParameters,
             multi_start(rows, None, result.q[rows], max_iterations)
     result.reason[status == 1] = "unreachable"
     result.success[status == 1] = False
-    return result
+    start[stretched] = np.nan                     # the nominal closed form has no solution
+    return result, start

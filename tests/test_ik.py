@@ -14,7 +14,8 @@ from olp_compensate.conventions import (pose_from_rotation_translation, quat_wxy
                                         rot_x, rot_z, rotvec_from_rotation)
 from olp_compensate.errors import DataError, ModelError
 from olp_compensate import ik
-from olp_compensate.ik import (REASONS, IKSolution, OPWParameters, URParameters, branch_of,
+from olp_compensate.ik import (REASONS, IKSolution, OPWParameters, ReachBound, URParameters,
+                               branch_of,
                                closed_form_forward, closed_form_inverse, configuration_bits,
                                fit_family, opw_forward, opw_inverse, refine, solve,
                                ur_forward, ur_inverse)
@@ -569,3 +570,147 @@ def test_solve_in_blocks_near_singularities():
 def test_solve_of_no_targets():
     result = solve(IRB2400_OPW, IRB2400.fk_jacobian, np.zeros((0, 4, 4)), np.zeros((0, 4)))
     assert result.q.shape == (0, 6) and result.success.shape == (0,)
+
+
+# --------------------------------------------------------------------------- reach bound
+
+def _chain(robot):
+    """Joint frames at zero (6, 4, 4) and the flange at zero (4, 4) of a DH robot whose
+    joints turn about +z: what :class:`ReachBound` takes."""
+    frames = robot.frames(np.zeros((1, 6)))
+    return np.array([f[0] for f in frames[:6]]), (frames[6] @ robot.tool)[0]
+
+
+def _stretched_elbow(robot):
+    """Axis-3 angle (rad) of the stretched elbow: the one that puts the wrist centre
+    (frame 4's origin) farthest from axis 2 (frame 1's origin), by a scan in 0.03 mrad."""
+    t = np.linspace(-PI, PI, 200001)
+    q = np.zeros((len(t), 6))
+    q[:, 2] = t
+    frames = robot.frames(q)
+    return t[np.argmax(np.linalg.norm(frames[4][:, :3, 3] - frames[1][:, :3, 3], axis=1))]
+
+
+def _arm_forward(rng, robot, n, elbow):
+    """n joint vectors (rad) of ``robot`` with the elbow at ``elbow`` (n,), the arm
+    reaching forward (axis 2 in 0.4..1.2 rad) and the wrist away from its singularity."""
+    q = rng.uniform(-PI, PI, (n, 6))
+    q[:, 1] = rng.uniform(0.4, 1.2, n)
+    q[:, 2] = elbow
+    q[:, 4] = rng.uniform(0.3, 2.5, n) * rng.choice([-1.0, 1.0], n)
+    return q
+
+
+@pytest.mark.parametrize("seed, error", [(0, 1e-3), (1, 1e-3), (2, 5e-3)])
+def test_reach_bound_never_rejects_a_reachable_target(seed, error):
+    """Targets the arm (DH parameters off by ~1 or 5 mm and 0.1 or 0.5 deg, so axes 2 and
+    3 not parallel, axes 4, 5, 6 not meeting) reaches by construction, with the elbow
+    within 0.05 rad of stretched (a third within 5 urad), a quarter near the wrist
+    singularity: none is declared out of reach, with or without the wrist configuration
+    asked for."""
+    rng = np.random.default_rng(seed)
+    robot = IRB2400.perturbed(rng, length=error, angle=np.deg2rad(100 * error))
+    reach = ReachBound(*_chain(robot))
+    n = 3000
+    q = rng.uniform(-PI, PI, (n, 6))
+    q[:, 2] = _stretched_elbow(robot) + rng.uniform(-0.05, 0.05, n) * rng.choice(
+        [1.0, 1e-2, 1e-4], n)
+    q[: n // 4, 4] = rng.normal(0.0, 0.01, n // 4)
+    target = robot.fk(q)
+    wrist = configuration_bits(IRB2400_OPW, q)[:, 2]
+    assert not reach.unreachable(target, wrist, IRB2400_OPW).any()
+    assert not reach.unreachable(target).any()
+
+
+def test_targets_just_inside_the_stretched_reach_are_solved():
+    """Elbow 1 to 30 mrad from stretched (the wrist centre 0.5 um to 0.5 mm inside the
+    reach): every target reached to 1e-9 on the requested configuration, none rejected."""
+    rng = np.random.default_rng(5)
+    robot = IRB2400.perturbed(rng)
+    n = 2000
+    q = rng.uniform(IRB2400_LIMITS[:, 0] * 0.9, IRB2400_LIMITS[:, 1] * 0.9, (n, 6))
+    q[:, 2] = _stretched_elbow(robot) + rng.choice([-1.0, 1.0], n) * rng.uniform(1e-3, 3e-2, n)
+    target = robot.fk(q)
+    conf = abb_confdata(IRB2400_OPW, q)
+    result = solve(IRB2400_OPW, robot.fk_jacobian, target, conf,
+                   reach=ReachBound(*_chain(robot)))
+    assert result.success.all(), dict(zip(*np.unique(result.reason, return_counts=True)))
+    reached = pose_errors(robot.fk(result.q), target)
+    assert reached[0].max() <= 1e-9 and reached[1].max() <= 1e-9
+    np.testing.assert_array_equal(abb_confdata(IRB2400_OPW, result.q)[:, 3], conf[:, 3])
+
+
+def test_targets_beyond_the_exact_reach_are_unreachable_without_restarts():
+    """The data-sheet arm has a spherical wrist: its centre is at most c2 + hypot(a2, c3)
+    from the circle axis 2 turns on (triangle inequality), so wrist centres 10 um beyond
+    are out of reach; 10 um inside (elbow bent to match) they are reached. The rejected
+    ones take the first Newton steps only, the restarts none."""
+    rng = np.random.default_rng(6)
+    c2, k = 0.705, np.hypot(0.135, 0.755)
+    n = 200
+    bend = np.arccos(((c2 + k - 1e-5) ** 2 - c2 ** 2 - k ** 2) / (2 * c2 * k))
+    elbow = _stretched_elbow(IRB2400)
+    inside = _arm_forward(rng, IRB2400, n, elbow + rng.choice([-1.0, 1.0], n) * bend)
+    stretched = _arm_forward(rng, IRB2400, n, elbow)
+    beyond = IRB2400.fk(stretched)
+    centre = beyond[:, :3, 3] - 0.085 * beyond[:, :3, 2]
+    shoulder = 0.1 * centre[:, :2] / np.linalg.norm(centre[:, :2], axis=1)[:, None]
+    outward = centre - np.column_stack([shoulder, np.full(n, 0.615)])
+    distance = np.linalg.norm(outward, axis=1)
+    beyond[:, :3, 3] += (c2 + k + 1e-5 - distance)[:, None] * outward / distance[:, None]
+    target = np.concatenate([IRB2400.fk(inside), beyond])
+    conf = abb_confdata(IRB2400_OPW, np.concatenate([inside, stretched]))
+    reach = ReachBound(*_chain(IRB2400))
+    assert reach.unreachable(target).tolist() == [False] * n + [True] * n
+    result = solve(IRB2400_OPW, IRB2400.fk_jacobian, target, conf, reach=reach)
+    assert result.success[:n].all() and not result.success[n:].any()
+    assert set(result.reason[n:]) == {"unreachable"}
+    assert result.iterations[n:].max() <= ik._CLOSED_FORM_STEPS
+    reached = pose_errors(IRB2400.fk(result.q[:n]), target[:n])
+    assert reached[0].max() <= 1e-9 and reached[1].max() <= 1e-9
+    without = solve(IRB2400_OPW, IRB2400.fk_jacobian, target[n:], conf[n:])
+    assert set(without.reason) == {"unreachable"} and without.iterations.min() > 20
+
+
+def test_targets_just_beyond_a_calibrated_arms_reach_are_proven_unreachable():
+    """On an arm off by ~1 mm per link, whose wrist axes miss each other, targets 0.1 to
+    0.3 mm beyond a stretched arm: nearly all proven out of reach on the requested wrist
+    configuration, and rejected after the first Newton steps. An independent search (Newton
+    from the 8 nominal solutions, 30 random starts and 20 near the stretched arm) finds no
+    solution with that wrist for any of them."""
+    rng = np.random.default_rng(5)
+    robot = IRB2400.perturbed(rng)
+    reach = ReachBound(*_chain(robot))
+    n = 300
+    q = _arm_forward(rng, robot, n, _stretched_elbow(robot))
+    frames = robot.frames(q)
+    outward = frames[4][:, :3, 3] - frames[1][:, :3, 3]
+    target = robot.fk(q)
+    push = rng.uniform(1e-4, 3e-4, n) / np.linalg.norm(outward, axis=1)
+    target[:, :3, 3] += push[:, None] * outward
+    wrist = configuration_bits(IRB2400_OPW, q)[:, 2]
+    proven = reach.unreachable(target, wrist, IRB2400_OPW)
+    assert proven.mean() > 0.95
+    result = solve(IRB2400_OPW, robot.fk_jacobian, target, abb_confdata(IRB2400_OPW, q),
+                   reach=reach)
+    assert set(result.reason[proven]) == {"unreachable"}
+    assert result.iterations[proven].max() <= ik._CLOSED_FORM_STEPS
+    for i in np.flatnonzero(proven)[:20]:
+        starts = closed_form_inverse(IRB2400_OPW, target[i:i + 1])[0]
+        starts = np.concatenate([starts[np.all(np.isfinite(starts), axis=1)],
+                                 rng.uniform(-PI, PI, (30, 6)),
+                                 q[i] + rng.normal(0.0, 0.05, (20, 6))])
+        found = refine(robot.fk_jacobian, starts, np.repeat(target[i:i + 1], len(starts), 0))
+        same_wrist = configuration_bits(IRB2400_OPW, found.q)[:, 2] == wrist[i]
+        assert not np.any(found.success & same_wrist), i
+
+
+def test_reach_bound_rejects_malformed_chains():
+    with pytest.raises(ModelError, match="6 joint frames"):
+        ReachBound(np.zeros((5, 4, 4)), np.eye(4))
+    frames, flange = _chain(IRB2400)
+    parallel = frames.copy()
+    parallel[4] = parallel[3]                      # axis 5 on axis 4
+    with pytest.raises(ModelError, match="axes 4 and 5"):
+        ReachBound(parallel, flange)
+    assert not ReachBound(frames, flange).unreachable(np.zeros((0, 4, 4))).any()
