@@ -26,7 +26,7 @@ from .errors import DataError, ModelError
 from .effects import joint_effects
 from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, _as_confdata, _select_q,
                  _solve, branch_of, closed_form_branch, closed_form_inverse, fit_family, solve)
-from .model import forward, joint_frames
+from .model import FixedChain, fixed_chain, forward
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
            "compensate_poses", "COMPENSATED"]
@@ -94,8 +94,8 @@ class Compensator:
         if self.robot.n_joints != 6:
             raise ModelError(f"{self.robot.name}: compensation needs a 6-axis arm, this one "
                              f"has {self.robot.n_joints} axes")
-        self._chain = _Chain.of(self.model, calibration.values)
-        self._nominal_chain = _Chain.of(self.model, self.model.nominal)
+        self._chain = fixed_chain(self.model, calibration.values)
+        self._nominal_chain = fixed_chain(self.model, self.model.nominal)
         family = fit_family(self.nominal_flange)
         if family is None:
             raise ModelError(f"{self.robot.name}: no closed-form family (spherical-wrist OPW "
@@ -196,94 +196,7 @@ class Compensator:
         return q, flange, solution, nominal
 
 
-_CHAIN_BLOCK = 4096   # poses per pass of _Chain.flange
-
-
-@dataclass(frozen=True)
-class _Chain:
-    """A 6R arm as turns about z: joint k's frame (z on its axis, before its motion) is
-    ``first`` for k = 1, else the previous frame times ``Rz(q) links[k - 2]``; the flange is
-    the last frame times ``Rz(q6) links[5]``. ``first`` (4, 4), ``links`` (6, 4, 4), m."""
-
-    first: np.ndarray
-    links: np.ndarray
-
-    def flange_and_jacobian(self, q: np.ndarray):
-        """Flange poses (m, 4, 4) for joints q (m, 6) rad, and the geometric Jacobian
-        (m, 6, 6) (flange-origin velocity, then angular velocity, base frame). Both are
-        built with the batch last and handed out as transposed views."""
-        return self._pass(q, jacobian=True)
-
-    def flange(self, q: np.ndarray) -> np.ndarray:
-        """Flange poses (m, 4, 4) for joints q (m, 6) rad, in blocks of a few thousand (the
-        arrays of a block stay in the processor's cache)."""
-        out = np.empty((len(q), 4, 4))
-        for start in range(0, len(q), _CHAIN_BLOCK):
-            out[start:start + _CHAIN_BLOCK] = self._pass(q[start:start + _CHAIN_BLOCK])[0]
-        return out
-
-    def _pass(self, q: np.ndarray, jacobian: bool = False):
-        """Flange poses, and with ``jacobian`` the Jacobian, as transposed views of arrays
-        with the batch last: (4, 4, m) and (joint, twist row, m)."""
-        m = len(q)
-        angle = np.ascontiguousarray(q.T)
-        c, s = np.cos(angle), np.sin(angle)
-        frame = np.empty((4, 3, m))                  # rows: x, y, z axes and the origin
-        frame[:] = self.first[:3, :, None].transpose(1, 0, 2)
-        turned = np.empty((4, 3, m))                 # the frame turned about its z axis
-        scratch = np.empty((3, m))
-        if jacobian:
-            jac = np.empty((6, 6, m))                # (joint, twist row, pose)
-            points = np.empty((6, 3, m))
-        for k in range(6):
-            if jacobian:
-                jac[k, 3:], points[k] = frame[2], frame[3]
-            np.multiply(c[k], frame[0], out=turned[0])
-            turned[0] += np.multiply(s[k], frame[1], out=scratch)
-            np.multiply(c[k], frame[1], out=turned[1])
-            turned[1] -= np.multiply(s[k], frame[0], out=scratch)
-            turned[2:] = frame[2:]
-            np.matmul(self.links[k].T, turned.reshape(4, -1), out=frame.reshape(4, -1))
-        flange = np.zeros((4, 4, m))
-        flange[:3] = frame.transpose(1, 0, 2)
-        flange[3, 3] = 1.0
-        if not jacobian:
-            return flange.transpose(2, 0, 1), None
-        r = frame[3] - points                         # flange origin from each axis
-        w = jac[:, 3:]
-        jac[:, 0] = w[:, 1] * r[:, 2] - w[:, 2] * r[:, 1]
-        jac[:, 1] = w[:, 2] * r[:, 0] - w[:, 0] * r[:, 2]
-        jac[:, 2] = w[:, 0] * r[:, 1] - w[:, 1] * r[:, 0]
-        return flange.transpose(2, 0, 1), jac.transpose(2, 1, 0)
-
-    @staticmethod
-    def of(model, values) -> "_Chain | None":
-        """The chain of the model with parameter ``values``, or None unless the model is six
-        revolute joints each turning its frame about z (checked at a few joint vectors)."""
-        if model.joint_kinds != ("revolute",) * 6:
-            return None
-        frames = joint_frames(model, values, np.zeros(6))
-        flange = forward(model, values, np.zeros((1, 6))).flange[0]
-        links = [invert_pose(frames[k]) @ frames[k + 1] for k in range(5)]
-        chain = _Chain(frames[0], np.array(links + [invert_pose(frames[5]) @ flange]))
-        q = np.random.default_rng(0).uniform(-np.pi, np.pi, (8, 6))
-        pose, jac = chain.flange_and_jacobian(q)
-        expected = forward(model, values, q, jacobian=True)
-        expected_jac = np.concatenate([expected.dpoint_dq, expected.drot_dq], axis=1)
-        if not (np.allclose(pose, expected.flange, rtol=0.0, atol=1e-12)
-                and np.allclose(jac, expected_jac, rtol=0.0, atol=1e-12)):
-            return None
-        return chain
-
-    def frames(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint frames at zero (6, 4, 4) and the flange at zero (4, 4), base frame, m."""
-        frames = [self.first]
-        for link in self.links[:5]:
-            frames.append(frames[-1] @ link)
-        return np.array(frames), frames[-1] @ self.links[5]
-
-
-def _reach_bound(chain: _Chain | None, calibration: Calibration) -> ReachBound | None:
+def _reach_bound(chain: FixedChain | None, calibration: Calibration) -> ReachBound | None:
     """The calibrated arm's :class:`~olp_compensate.ik.ReachBound` (None without a chain)."""
     if chain is None:
         return None

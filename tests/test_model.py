@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from olp_compensate.model import build_model, forward
+from olp_compensate.model import build_model, fixed_chain, forward, joint_frames
 from olp_compensate.robot import bundled_robot_names, load_robot
 from olp_compensate.simulate import random_joints
 from urdf_factory import IRB2400_DH, dh_urdf
@@ -135,3 +135,29 @@ def test_derivatives_are_not_overwritten_by_later_evaluations():
     again = forward(model, model.nominal, q, jacobian=True)
     for name, value in expected.items():
         np.testing.assert_array_equal(getattr(again, name), value)
+
+
+@pytest.mark.parametrize("name", bundled_robot_names())
+def test_fixed_chain_is_the_model_at_fixed_values(name):
+    """The fused per-joint chain (used by inverse kinematics) gives the poses and joint
+    Jacobian of forward(), at the nominal values and at perturbed ones (a calibrated arm),
+    and knows its joint frames at zero."""
+    robot = load_robot(name)
+    model = build_model(robot)
+    rng = np.random.default_rng(5)
+    q = random_joints(robot, 500, rng)
+    for values in (model.nominal, model.nominal + rng.normal(0, 1e-3, model.n_parameters)):
+        chain = fixed_chain(model, values)
+        assert chain is not None   # every bundled arm is six revolute joints
+        pose, jac = chain.flange_and_jacobian(q)
+        ref = forward(model, values, q, jacobian=True)
+        np.testing.assert_allclose(pose, ref.flange, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(jac, np.concatenate([ref.dpoint_dq, ref.drot_dq], axis=1),
+                                   rtol=0, atol=1e-12)
+        many = np.concatenate([q] * 9)[:4100]   # more than one block of FixedChain.flange
+        np.testing.assert_allclose(chain.flange(many), np.concatenate([ref.flange] * 9)[:4100],
+                                   rtol=0, atol=1e-12)
+        frames, flange = chain.frames()
+        np.testing.assert_allclose(frames, joint_frames(model, values, np.zeros(6)), atol=1e-12)
+        np.testing.assert_allclose(flange, forward(model, values, np.zeros((1, 6))).flange[0],
+                                   atol=1e-12)
