@@ -268,18 +268,16 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
     rows: list = [None] * m
     job: list[int] = []
     known = np.isfinite(res.base_T_flange[:, 0, 0]).tolist()
+    skip_unused = unused == "skip"
     for k, t in enumerate(targets):
-        if known[k]:
-            if unused == "skip" and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
-                rows[k] = _row(t, pairs[pair_of[k]], "unused", _NOT_MOVED)
-            else:
-                job.append(k)
-        elif type(t) is JointTarget:
+        if type(t) is JointTarget:
             pair = pairs[pair_of[k]]
             rows[k] = TargetReport(*_where(t), "joint_target", pair.tool_name, pair.wobj_name,
                                    joints=tuple(t.joints_deg()), note="joints kept as written")
-        elif unused == "skip" and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
+        elif skip_unused and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
             rows[k] = _row(t, pairs[pair_of[k]], "unused", _NOT_MOVED)
+        elif known[k]:
+            job.append(k)
         else:
             rows[k] = _row(t, pairs[pair_of[k]], "unresolved", "; ".join(res.entry_notes[k]))
 
