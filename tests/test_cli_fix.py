@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import os
 import re
 import shutil
 from pathlib import Path
@@ -129,6 +130,31 @@ def test_unknown_robot_and_missing_model_are_one_line(tmp_path, capsys):
                 "--robot", "no_such_robot"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(line.startswith("olp-fix: error:") for line in err)
+
+
+def test_the_command_flushes_its_summary_and_exits_with_the_run_code(tmp_path, calibrations):
+    """The console entry point leaves without interpreter teardown: what it printed must
+    still arrive whole, the files must be complete, and the exit code must be the run's."""
+    import subprocess
+    import sys
+
+    _, _, identified, _ = calibrations
+    program = tmp_path / "cell_a.mod"
+    shutil.copy(SAMPLES / "cell_a.mod", program)
+    args = [str(program), "--model", str(identified), "--report", str(tmp_path / "r.csv")]
+    buffered = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    done = subprocess.run([sys.executable, "-m", "olp_compensate.cli.fix", *args],
+                          capture_output=True, text=True, env=buffered)
+    in_process = tmp_path / "in_process"
+    in_process.mkdir()
+    code = fix([str(program), "--model", str(identified), "-o",
+                str(in_process / "out.mod"), "--report", str(in_process / "r.csv"), "-q"])
+    assert done.returncode == code == 2
+    assert done.stdout.startswith("olp-fix: ")
+    assert done.stdout.rstrip().splitlines()[-1].endswith("r.csv")   # the last line arrived
+    assert ((tmp_path / "cell_a_compensated.mod").read_bytes()
+            == (in_process / "out.mod").read_bytes())
+    assert (tmp_path / "r.csv").read_text() == (in_process / "r.csv").read_text()
 
 
 def test_a_closed_stdout_is_no_traceback_and_the_files_are_written(tmp_path, calibrations):

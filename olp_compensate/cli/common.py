@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
-from typing import Callable
+from typing import Callable, NoReturn
 
 from ..errors import OlpError
 
@@ -40,6 +40,22 @@ def silence_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError):   # not a real file (captured output)
         pass
+
+
+def exit_now(code: int) -> NoReturn:
+    """End the process with ``code`` once the standard streams are flushed, without the
+    interpreter's teardown: a big run's millions of small objects are not freed one by one
+    (0.25 s after a 100,000-target olp-fix). Only for a command's entry point: every file
+    it writes must be closed already."""
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except BrokenPipeError:
+            silence_stdout()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
 
 
 def mm(value_m: float | None, digits: int = 3) -> str:
