@@ -20,6 +20,7 @@ robhold) is None with the reason in ``notes``.
 from __future__ import annotations
 
 import functools
+import operator
 from dataclasses import dataclass
 from itertools import chain
 
@@ -33,6 +34,7 @@ from .targets import (QUAT_WXYZ, CartesianTarget, JointTarget, MotionUse, Progra
 
 IDENTITY = np.eye(4)
 IDENTITY.flags.writeable = False
+_SPAN = operator.attrgetter("span")   # text order (spans of two targets never overlap)
 
 
 @dataclass(eq=False, slots=True)   # not frozen: frozen __init__ costs 4 us a target
@@ -149,14 +151,19 @@ class _Scope:
     ``get`` gives every item of a name (all elements of an array), ``element`` one."""
 
     def __init__(self, items):
-        self.table: dict = {}
-        self.elements: dict = {}
+        self.table: dict = {}      # (lower name, routine) -> items
+        self.elements: dict = {}   # (lower name, routine, array index) -> item
+        table, elements = self.table, self.elements
         for it in items:
             name = it.name
             if name is not None:
                 key = (name.lower(), it.routine)
-                self.table.setdefault(key, []).append(it)
-                self.elements[key + (getattr(it, "array_index", None),)] = it
+                found = table.get(key)
+                if found is None:
+                    table[key] = [it]
+                else:
+                    found.append(it)
+                elements[(*key, getattr(it, "array_index", None))] = it
 
     def get(self, name: str, routine):
         key = name.lower()
@@ -185,21 +192,27 @@ def _resolve(program: Program) -> Resolution:
     warnings: list[str] = []
     unresolved: list[tuple[MotionUse, str]] = []
     frame_names: set[str] = set()
-    groups: dict = {}  # id(target) -> {pair key: [uses]}
+    groups: dict = {}  # id(target) -> [(pair key, use), ...] in text order
     pair_info: dict = {}
 
     def add(target, use, key, info):
-        groups.setdefault(id(target), {}).setdefault(key, []).append(use)
+        found = groups.get(id(target))
+        if found is None:
+            groups[id(target)] = [(key, use)]
+        else:
+            found.append((key, use))
         pair_info[key] = info
 
     # -- tools and work objects of every use (memoized: a program has few of them)
     memo: dict = {}
 
     def frames_of(use: MotionUse):
+        """((tool key, wobj key), (tool info, wobj info)) of a use."""
         k = (use.tool, use.wobj, use.routine, id(use.tool_inline), id(use.wobj_inline))
         got = memo.get(k)
         if got is None:
-            got = memo[k] = (tool_of(use), wobj_of(use))
+            (tk, tinfo), (wk, winfo) = tool_of(use), wobj_of(use)
+            got = memo[k] = ((tk, wk), (tinfo, winfo))
         return got
 
     def tool_of(use: MotionUse):
@@ -231,26 +244,40 @@ def _resolve(program: Program) -> Resolution:
         return ("w", name.lower()), (name, found[0] if found else "unknown")
 
     indirect: dict = {}  # target id -> uses through Offs()/RelTool() (runtime base name)
+    plain_memo: dict = {}   # (tool, wobj, routine) -> frames_of() of uses without literals
+    table, elements = targets.table, targets.elements
     for use in program.motions:
-        (tk, tinfo), (wk, winfo) = frames_of(use)
-        key = (tk, wk)
-        if use.inline is not None:
-            add(use.inline, use, key, (tinfo, winfo))
+        (_, _, _, name, index, inline, runtime, tool, tool_inline, wobj, wobj_inline, _,
+         routine, _, _, _) = use
+        if tool_inline is None and wobj_inline is None:
+            k = (tool, wobj, routine)
+            got = plain_memo.get(k)
+            if got is None:
+                got = plain_memo[k] = frames_of(use)
+            key, info = got
+        else:
+            key, info = frames_of(use)
+        if inline is not None:
+            add(inline, use, key, info)
             continue
-        if use.runtime is not None:
-            base = use.runtime.base_name
-            found = targets.get(base, use.routine) if base else None
+        if runtime is not None:
+            base = runtime.base_name
+            found = targets.get(base, routine) if base else None
             if found:
                 for t in found:
-                    indirect.setdefault(id(t), []).append((use, key, (tinfo, winfo)))
-            unresolved.append((use, use.runtime.reason))
+                    indirect.setdefault(id(t), []).append((use, key, info))
+            unresolved.append((use, runtime.reason))
             continue
-        name = use.target_name
-        index = use.target_index
-        if not isinstance(index, str):
-            one = targets.element(name, use.routine, index)
+        if name is not None and not isinstance(index, str):
+            low = name.lower()   # targets.element(), inline
+            one = elements.get((low, routine if (low, routine) in table else None, index))
             if one is not None:
-                add(one, use, key, (tinfo, winfo))
+                found = groups.get(id(one))
+                if found is None:
+                    groups[id(one)] = [(key, use)]
+                else:
+                    found.append((key, use))
+                pair_info[key] = info
                 continue
         found = targets.get(name, use.routine) if name else None
         if not found:
@@ -273,7 +300,7 @@ def _resolve(program: Program) -> Resolution:
             unresolved.append((use, f"no element {index} in {name}"))
             continue
         for t in chosen:
-            add(t, use, key, (tinfo, winfo))
+            add(t, use, key, info)
 
     refs: dict = {}
     for r in program.references:
@@ -287,20 +314,28 @@ def _resolve(program: Program) -> Resolution:
 
     entries: list = []  # (target, uses, pair key, notes)
     shared: list = []
-    all_targets = sorted(program.targets + program.joint_targets, key=lambda t: t.span[0])
+    all_targets = sorted(program.targets + program.joint_targets, key=_SPAN)
     default_key = (("tool0",), ("wobj0",))
     default_info = (("NULL" if vplus else "tool0", None), ("base" if vplus else "wobj0", None))
+    no_notes = ()
     for t in all_targets:
         tid = id(t)
-        pairs = groups.get(tid)
+        used = groups.get(tid)
         if vplus and t.name and t.name.lower() in frame_names:
-            if pairs is None:
+            if used is None:
                 continue  # a tool or frame, not a target
             warnings.append(f"{t.location}: {t.display_name} is used both as a target and as "
                             f"a tool or frame")
+        if used is not None and len(used) == 1 and tid not in changed:   # the common case
+            key, use = used[0]
+            entries.append((t, (use,), key, no_notes))
+            continue
         notes: list[str] = [f"changed at run time by {r.expression!r} (line "
                             f"{r.location.line}): the literal is only its first value"
                             for r in changed.get(tid, ())]
+        pairs: dict = {}   # pair key -> uses, in order of first use
+        for key, use in used or ():
+            pairs.setdefault(key, []).append(use)
         if not pairs:
             via = indirect.get(tid)
             if via:
