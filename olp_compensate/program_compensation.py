@@ -117,10 +117,11 @@ class CompensationReport:
     def to_csv(self) -> str:
         """The report as CSV text (one row per target use; units in the column names)."""
         buf = io.StringIO()
-        joints = [f"q{k + 1}_deg" for k in range(self.n_joints)]
+        joint_columns = [f"q{k + 1}_deg" for k in range(self.n_joints)]
         csv.writer(buf, lineterminator="\n").writerow(
             ["target", "file", "line", "column", "status", "tool", "wobj", "dx_mm", "dy_mm",
-             "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after", *joints, "note"])
+             "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after",
+             *joint_columns, "note"])
         # one %-format per row (100k-target programs); a row with a missing number takes
         # the per-field path. Fields repeated across rows are quoted once.
         nj = self.n_joints
@@ -289,29 +290,33 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
         config_after = ([solved.vplus_text.get(i, "") for i in range(n)] if vplus else
                         _config_texts(solved.conf))
         ok, reason = solved.ok.tolist(), solved.reason
-        shift = solved.shift_mm.tolist()
+        shift = list(map(tuple, solved.shift_mm.tolist()))
         turn, change = solved.turn_deg.tolist(), solved.change_deg.tolist()
-        joints = solved.joints_deg.tolist()
-        for i, k in enumerate(job):
+        joints = list(map(tuple, solved.joints_deg.tolist()))
+        entry_notes, tool_note = res.entry_notes, solved.tool_note
+        for i, (k, before) in enumerate(zip(job, solved.config_before)):
             t = targets[k]
             pair = pairs[pair_of[k]]
-            before = solved.config_before[i]
-            note = _note(res.entry_notes[k], solved.tool_note[i])
-            name, file, line, column = _where(t)
+            notes = entry_notes[k]
+            note = _note(notes, tool_note[i]) if notes else tool_note[i]
+            file, line, column = t.source      # _where(t), inline: once per target
+            name = t.name
+            if name is None or t.array_index is not None:
+                name = t.display_name
             if not ok[i]:
                 rows[k] = TargetReport(name, file, line, column, reason[i], pair.tool_name,
                                        pair.wobj_name, config_before=before, note=note)
             elif k in ambiguous:
                 rows[k] = TargetReport(name, file, line, column, "ambiguous", pair.tool_name,
                                        pair.wobj_name, config_before=before,
-                                       joints=tuple(joints[i]),
+                                       joints=joints[i],
                                        note="used with several tools/work objects needing "
                                             "different corrections; left as written")
             else:
                 write[id(t)] = i
                 rows[k] = TargetReport(name, file, line, column, reason[i], pair.tool_name,
-                                       pair.wobj_name, tuple(shift[i]), turn[i], change[i],
-                                       before, config_after[i], tuple(joints[i]), note)
+                                       pair.wobj_name, shift[i], turn[i], change[i],
+                                       before, config_after[i], joints[i], note)
     for use, why in res.unresolved:
         where = use.location
         name = (use.runtime.expression if use.runtime is not None
