@@ -11,7 +11,7 @@ microradian), or more when the original had more.
 from __future__ import annotations
 
 import math
-from itertools import chain
+from itertools import chain, repeat
 import re
 from collections.abc import Iterable, Mapping
 
@@ -138,6 +138,7 @@ def _span_edits(texts, starts, lo: int, new_values, decimals: int, out: list) ->
 
 
 _edit = Edit._make
+_JOIN = "\x00"   # joins the texts of many targets formatted by one %: no number has it
 
 
 def _floats(name: str, values) -> list[float]:
@@ -278,25 +279,53 @@ class _FastRun:
         tol = 0.5 * 10.0 ** -np.array(self.decimals, float)
         return np.where(np.abs(new) < tol, 0.0, new).tolist()
 
-    def edit(self, target, values: list[float]) -> Edit | None:
-        """The edit writing ``values`` into ``target`` (every column changes), or None when
-        the target is not of the plain form."""
-        starts, texts, last = target.starts, target.texts, self.last
-        if len(texts) <= last:
-            return None
-        begin = starts[self.first]
-        end = starts[last] + len(texts[last])
-        match = self.pattern.fullmatch(self.text, begin, end)
-        if match is None:
-            return None
-        separators = match.groups()[1::2]
+    def template(self, separators: tuple[str, ...]) -> str:
+        """The ``%`` template of the columns with these separators between them."""
         template = self.templates.get(separators)
         if template is None:
             pieces = ["%%.%df" % self.decimals[0]]
             for sep, d in zip(separators, self.decimals[1:]):
                 pieces += [sep.replace("%", "%%"), "%%.%df" % d]
             template = self.templates[separators] = "".join(pieces)
-        return _edit((begin, end, template % tuple(values)))
+        return template
+
+    def edits(self, targets, new: list[list[float]], whole: list[bool]) -> list[Edit | None]:
+        """The edit writing ``new[i]`` into ``targets[i]`` where ``whole[i]`` (every column
+        changes) and the target is of the plain form; None elsewhere. The spans are
+        matched in one ``map``, and the targets of one template are formatted together
+        by one ``%`` (the per-target Python steps were most of the time)."""
+        first, last = self.first, self.last
+        rows, begins, ends = [], [], []
+        for i, (t, w) in enumerate(zip(targets, whole)):
+            if w:
+                texts = t.texts
+                if len(texts) > last:
+                    starts = t.starts
+                    rows.append(i)
+                    begins.append(starts[first])
+                    ends.append(starts[last] + len(texts[last]))
+        by_template: dict[str, list[int]] = {}   # template -> indices into rows
+        previous, members = None, None
+        for j, match in enumerate(map(self.pattern.fullmatch, repeat(self.text), begins,
+                                      ends)):
+            if match is None:
+                continue
+            separators = match.groups()[1::2]
+            if separators != previous:
+                previous = separators
+                members = by_template.setdefault(self.template(separators), [])
+            members.append(j)
+        out: list[Edit | None] = [None] * len(targets)
+        for template, js in by_template.items():
+            values = [new[rows[j]] for j in js]
+            if _JOIN in template:   # cannot be split after the joint format
+                texts = [template % tuple(v) for v in values]
+            else:
+                texts = (_JOIN.join([template] * len(js))
+                         % tuple(chain.from_iterable(values))).split(_JOIN)
+            for j, replacement in zip(js, texts):
+                out[rows[j]] = _edit((begins[j], ends[j], replacement))
+        return out
 
 
 def edits_for_targets(program: Program, position_mm=None, orientation=None, config=None,
@@ -374,9 +403,10 @@ def edits_for_targets(program: Program, position_mm=None, orientation=None, conf
             fast = None
         out: list[Edit] = []
         fmt = _format
+        fast_edits = fast.edits(targets, new_fast, whole) if fast is not None else None
         for i, t in enumerate(targets):
-            if fast is not None and whole[i]:
-                edit = fast.edit(t, new_fast[i])
+            if fast_edits is not None:
+                edit = fast_edits[i]
                 if edit is not None:
                     out.append(edit)
                     if config is not None:
