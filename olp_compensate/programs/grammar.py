@@ -123,28 +123,41 @@ class LineIndex:
     """Offsets to 1-based (line, column).
 
     An offset at or after the previous one (the parse callbacks ask in text order) is
-    answered by counting the line breaks in between; an earlier one by bisection over the
-    line starts, listed on first need.
+    answered by counting the line breaks in between; an earlier one by counting from the
+    start of the text while that has cost less than one pass over it (a big program asks
+    for a few early offsets, its header declarations), then by bisection over the line
+    starts, listed on first such need.
+
+    Callers that walk a run of offsets in text order themselves (the fast paths) take the
+    previous answer with :meth:`position` and hand their last one back with :meth:`moved`,
+    so the index answers as if it had been asked each offset in turn.
     """
 
-    __slots__ = ("text", "_starts", "_offset", "_line", "_line_start")
+    __slots__ = ("text", "_starts", "_offset", "_line", "_line_start", "_budget")
 
     def __init__(self, text: str):
         self.text = text
         self._starts: list[int] | None = None
         self._offset, self._line, self._line_start = 0, 1, 0  # the previous answer
+        self._budget = len(text)  # characters left to count from the start
 
     @property
     def starts(self) -> list[int]:
         """The offsets where lines start."""
         if self._starts is None:
-            self._starts = [0]
-            self._starts.extend(m.end() for m in re.finditer("\n", self.text))
+            starts = [0]
+            starts.extend(map(re.Match.end, re.finditer("\n", self.text)))
+            self._starts = starts
         return self._starts
 
     def line_col(self, offset: int) -> tuple[int, int]:
         last = self._offset
         if offset < last:
+            if self._starts is None and 0 <= offset <= self._budget:
+                self._budget -= offset
+                text = self.text
+                return (text.count("\n", 0, offset) + 1,
+                        offset - text.rfind("\n", 0, offset))
             starts = self.starts
             line = bisect.bisect_right(starts, offset)
             return line, offset - starts[line - 1] + 1
@@ -155,6 +168,15 @@ class LineIndex:
             self._line_start = text.rfind("\n", last, offset) + 1
         self._offset = offset
         return self._line, offset - self._line_start + 1
+
+    def position(self) -> tuple[int, int, int]:
+        """The previous answer in text order: (offset, line, where that line starts)."""
+        return self._offset, self._line, self._line_start
+
+    def moved(self, offset: int, line: int, line_start: int) -> None:
+        """Take (offset, line, line start) as the previous answer: a caller answered the
+        offsets from :meth:`position` on, in text order, up to ``offset``."""
+        self._offset, self._line, self._line_start = offset, line, line_start
 
 
 class PositionedBuilder:
