@@ -148,7 +148,8 @@ class Resolution:
 
 class _Scope:
     """Name lookup with RAPID rules: routine-local first, then module level; no case.
-    ``get`` gives every item of a name (all elements of an array), ``element`` one."""
+    ``get`` gives every item of a name (all elements of an array); ``elements`` holds each
+    one under (lower name, routine, array index)."""
 
     def __init__(self, items):
         self.table: dict = {}      # (lower name, routine) -> items
@@ -168,12 +169,6 @@ class _Scope:
     def get(self, name: str, routine):
         key = name.lower()
         return self.table.get((key, routine)) or self.table.get((key, None))
-
-    def element(self, name: str, routine, index):
-        key = name.lower()
-        if (key, routine) in self.table:
-            return self.elements.get((key, routine, index))
-        return self.elements.get((key, None, index))
 
 
 def resolve(program: Program) -> Resolution:
@@ -269,7 +264,7 @@ def _resolve(program: Program) -> Resolution:
             unresolved.append((use, runtime.reason))
             continue
         if name is not None and not isinstance(index, str):
-            low = name.lower()   # targets.element(), inline
+            low = name.lower()   # one element: routine-local first, then module level
             one = elements.get((low, routine if (low, routine) in table else None, index))
             if one is not None:
                 found = groups.get(id(one))
