@@ -267,12 +267,7 @@ def _resolve(program: Program) -> Resolution:
             low = name.lower()   # one element: routine-local first, then module level
             one = elements.get((low, routine if (low, routine) in table else None, index))
             if one is not None:
-                found = groups.get(id(one))
-                if found is None:
-                    groups[id(one)] = [(key, use)]
-                else:
-                    found.append((key, use))
-                pair_info[key] = info
+                add(one, use, key, info)
                 continue
         found = targets.get(name, use.routine) if name else None
         if not found:
