@@ -24,8 +24,9 @@ from .calibration import Calibration
 from .conventions import invert_pose, rotation_angle_between
 from .errors import DataError, ModelError
 from .effects import joint_effects
-from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, _as_confdata, _select_q,
-                 _solve, branch_of, closed_form_branch, closed_form_inverse, fit_family, solve)
+from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, branch_of,
+                 closed_form_inverse, fit_family, nominal_joints_on_branch, solve,
+                 solve_with_nominal)
 from .model import FixedChain, fixed_chain, forward
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
@@ -140,9 +141,7 @@ class Compensator:
         the closed form on the requested branch (NaN where unreachable)."""
         if confdata is not None:
             confdata = np.asarray(confdata, dtype=int).reshape(-1, 4)
-            confdata = _as_confdata(confdata, len(confdata))
-            q = closed_form_branch(self.family, base_T_flange, confdata[:, 3])
-            return _select_q(q, confdata, self.limits, np.pi / 4)[0]
+            return nominal_joints_on_branch(self.family, base_T_flange, confdata, self.limits)
         solutions = closed_form_inverse(self.family, base_T_flange)
         # each branch turned by 2 pi towards zero, then the one inside the limits
         # nearest zero
@@ -176,9 +175,9 @@ class Compensator:
                 and np.shape(requested_flange) == np.shape(desired_real_flange)
                 and np.array_equal(requested_flange, desired_real_flange)):
             # the same poses: the nominal joints are the closed form solve starts from
-            solution, nominal = _solve(self.family, self.real_flange_and_jacobian,
-                                       desired_real_flange, confdata, self.limits,
-                                       reach=self.reach)
+            solution, nominal = solve_with_nominal(
+                self.family, self.real_flange_and_jacobian, desired_real_flange, confdata,
+                self.limits, reach=self.reach)
         else:
             solution = self.solve_real(desired_real_flange, confdata)
             nominal = None

@@ -42,7 +42,8 @@ __all__ = [
     "OPWParameters", "URParameters", "IKSolution", "REASONS",
     "opw_forward", "opw_inverse", "ur_forward", "ur_inverse",
     "closed_form_forward", "closed_form_inverse", "closed_form_branch", "configuration_bits", "branch_of",
-    "select_branch", "fit_family", "refine", "solve", "ReachBound",
+    "select_branch", "nominal_joints_on_branch", "fit_family", "refine", "solve",
+    "solve_with_nominal", "ReachBound",
 ]
 
 REASONS = ("ok", "unreachable", "joint_limit", "singular", "branch_changed", "not_converged")
@@ -609,6 +610,20 @@ def select_branch(solutions, confdata, limits=None, quadrant_tolerance: float = 
     confdata = _as_confdata(confdata, len(solutions))
     q, status = _select(solutions, confdata, _as_limits(limits, 6), quadrant_tolerance)
     return q, status == 0
+
+
+def nominal_joints_on_branch(family_params: OPWParameters | URParameters, base_T_flange,
+                             confdata, limits=None,
+                             quadrant_tolerance: float = np.pi / 4) -> np.ndarray:
+    """Joints ``(m, 6)`` rad the nominal controller takes for ``base_T_flange (m, 4, 4)``
+    on ABB-style ``confdata (m, 4)``: the closed form of that branch, shifted as
+    :func:`select_branch` does; NaN where the branch cannot reach. Only branch cfx is
+    solved (not all eight)."""
+    _check_family(family_params)
+    T = _as_poses(base_T_flange, "base_T_flange")
+    confdata = _as_confdata(confdata, len(T))
+    q = closed_form_branch(family_params, T, confdata[:, 3])
+    return _select_q(q, confdata, _as_limits(limits, 6), quadrant_tolerance)[0]
 
 
 # --------------------------------------------------------------------------- family fit
@@ -1842,6 +1857,16 @@ def solve(family_params: OPWParameters | URParameters,
                   max_iterations=max_iterations, quadrant_tolerance=quadrant_tolerance,
                   boundary_tolerance=boundary_tolerance, singular_tol=singular_tol,
                   reach=reach)[0]
+
+
+def solve_with_nominal(family_params: OPWParameters | URParameters,
+                       fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+                       target, confdata=None, limits=None, **options
+                       ) -> tuple[IKSolution, np.ndarray]:
+    """:func:`solve` (same arguments), and the joints ``(m, 6)`` rad of the nominal closed
+    form on the requested branch it starts from (as :func:`nominal_joints_on_branch`
+    gives them), at no extra cost: what the nominal controller does with ``target``."""
+    return _solve(family_params, fk_jacobian, target, confdata, limits, **options)
 
 
 def _solve(family_params, fk_jacobian, target, confdata=None, limits=None, *,

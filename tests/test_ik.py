@@ -273,6 +273,42 @@ def test_select_branch_reports_limits_and_missing_branches():
         select_branch(solutions, [[0, 0, 0, 9]])
 
 
+def test_nominal_joints_on_branch_are_the_selected_branch():
+    """The one-branch closed form gives the joints select_branch picks among all eight,
+    and NaN where that branch is missing."""
+    rng = np.random.default_rng(3)
+    q = rng.uniform(IRB2400_LIMITS[:, 0], IRB2400_LIMITS[:, 1], (500, 6))
+    q = q[np.abs(np.sin(q[:, 4])) > 1e-3]
+    T = opw_forward(IRB2400_OPW, q)
+    conf = abb_confdata(IRB2400_OPW, q)
+    got = ik.nominal_joints_on_branch(IRB2400_OPW, T, conf, IRB2400_LIMITS)
+    chosen, found = select_branch(opw_inverse(IRB2400_OPW, T), conf, IRB2400_LIMITS)
+    assert found.all()
+    np.testing.assert_allclose(got, chosen, atol=1e-12)
+    np.testing.assert_allclose(got, q, atol=1e-9)
+    far = T[:1].copy()
+    far[0, :3, 3] = [5.0, 0.0, 0.5]          # 5 m away: no branch reaches it
+    assert np.isnan(ik.nominal_joints_on_branch(IRB2400_OPW, far, conf[:1])).all()
+
+
+def test_solve_with_nominal_gives_the_controller_joints_of_the_target():
+    """On the nominal model itself, the solution and the nominal joints coincide; on a
+    perturbed model the nominal joints are still the nominal controller's."""
+    rng = np.random.default_rng(4)
+    q = rng.uniform(IRB2400_LIMITS[:, 0], IRB2400_LIMITS[:, 1], (200, 6))
+    q = q[np.abs(np.sin(q[:, 4])) > 0.1]
+    T = opw_forward(IRB2400_OPW, q)
+    conf = abb_confdata(IRB2400_OPW, q)
+    real = IRB2400.perturbed(rng)
+    solution, nominal = ik.solve_with_nominal(IRB2400_OPW, real.fk_jacobian, T, conf,
+                                              IRB2400_LIMITS)
+    np.testing.assert_allclose(nominal, q, atol=1e-9)
+    reached = solution.success
+    assert reached.mean() > 0.95
+    np.testing.assert_allclose(real.fk(solution.q[reached]), T[reached], atol=1e-8)
+    assert np.abs(solution.q[reached] - q[reached]).max() > 1e-4   # the model differs
+
+
 @pytest.mark.parametrize("name", ["ur5e", "puma560"])
 def test_confdata_round_trip_other_families(name):
     params = fit_family(ROBOTS[name].fk)
