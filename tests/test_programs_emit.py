@@ -221,3 +221,79 @@ def test_batch_fast_path_writes_what_the_general_path_writes():
         single += target_edits(t, position_mm=p, orientation=o)
     assert batch == dumps(program, single)
     assert not re.search(r"-0\.0+(?![0-9])", batch) and "[[0.000,0.000,0.000]" in batch
+
+
+def test_batch_edits_agree_with_target_edits_across_span_forms():
+    """Every target's edit from edits_for_targets writes what target_edits writes, in a
+    module whose many tight targets are checked all at once while the others (blanks or a
+    comment inside, a long or non-Latin-1 comment, exponents, more decimals than the new
+    value gets, a sign or point the plain form lacks, part of a target unchanged) are
+    matched one by one or take the general path."""
+    rng = np.random.default_rng(7)
+    tight = [f"[[{x:.2f},{y:.1f},{z:.0f}],[0.5,-0.5,0.5,-0.5]" for x, y, z in
+             rng.uniform(-2000, 2000, (40, 3))]
+    odd = ["[[1E2,2.5e-01,3],[1,0,0,0]",                  # first target: not plain
+           "[ [1, 2 ,3] ,\r\n [0.5,0.5,-0.5,0.5]", "[[1,2,3], ! pick\n [0.5,0.5,-0.5,0.5]",
+           "[[1,2,3], ! " + "long " * 250 + "\n [0.5,0.5,-0.5,0.5]",
+           "[[1,2,3], ! Schweißpunkt \u20ac\n [0.5,0.5,-0.5,0.5]",
+           "[[1,2,3], ! 5,6\n [1,0,0,0]", "[[1.12345,2,3],[1,0,0,0]",
+           "[[1.1234,2.5,3],[0.5,0.5,-0.5,0.5]", "[[1,2,3],[0.5,0.5,-0.5,0.5000001]",
+           "[[-.5,1,2],[0.5,0.5,-0.5,0.5]", "[[1,2,3],[-.5,0.5,-0.5,0.5]",
+           "[[1,2,3],[0.70710678,0.70710678,0,0]", "[[+1.5,.5,-.5],[1,0,0,0]",
+           "[[5.,-0,3],[0,0,2,0]", "[[1,2,3],[1,0,0,0]"]
+    styles = [odd[0]] + tight[:20] + odd[1:] + tight[20:]
+    lines = ["MODULE M"]
+    for k, s in enumerate(styles):
+        lines.append(f"  CONST robtarget p{k}:={s},[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    lines.append("ENDMODULE")
+    program = loads("\n".join(lines), "rapid")
+    targets = program.targets
+    pos = np.array([t.position_mm() for t in targets]) + rng.normal(0, 0.5, (len(targets), 3))
+    ori = np.array([t.orientation_values() for t in targets], float)
+    ori = ori / np.linalg.norm(ori, axis=1, keepdims=True) + rng.normal(0, 1e-3, ori.shape)
+    pos[3] = targets[3].position_mm()                      # orientation only
+    ori[5] = targets[5].orientation_values()               # position only
+    pos[7], ori[7] = targets[7].position_mm(), targets[7].orientation_values()  # unchanged
+    batch = iter(edits_for_targets(program, pos, ori))
+    for t, p, o in zip(targets, pos, ori):
+        single = target_edits(t, position_mm=p, orientation=o)
+        if single:
+            assert splice(program.text, [next(batch)]) == splice(program.text, single), \
+                t.display_name
+    assert next(batch, None) is None
+
+
+def test_plain_span_automaton_accepts_what_the_pattern_matches():
+    """The batch check of spans accepts exactly the spans the plain-form pattern
+    fullmatches with its separators, for numbers and separators of every kind."""
+    from olp_compensate.programs.emit import _char_codes, _FastRun, _PlainSpans
+    numbers = ["0", "12", "-3.5", "0.123456", "1.1234567", "7.125", "1.1234", "5.", "+1",
+               ".5", "-.5", "1e3", "1E-2", "-", "1.2.3", "--1", "", "123456789"]
+    separators = [",", "],[", ", ", "],\n[", "", "ß", "\u20ac", ",,", "]", "%"]
+    decimals = [3, 3, 3, 6, 6, 6, 6]
+    common = (",", ",", "],[", ",", ",", ",")
+    rng = np.random.default_rng(11)
+    spans = []
+    for _ in range(3000):   # tight spans, tight ones with one part changed, any spans
+        kind = rng.integers(3)
+        count = 7 if kind < 2 else rng.integers(6, 9)
+        parts = [str(rng.choice(numbers[:8] if kind < 2 else numbers))]
+        for k in range(1, count):
+            parts.append(common[k - 1] if kind < 2 and k < 7 else str(rng.choice(separators)))
+            parts.append(str(rng.choice(numbers[:8] if kind < 2 else numbers)))
+        if kind == 1:
+            k = rng.integers(len(parts))
+            parts[k] = str(rng.choice(separators if k % 2 else numbers))
+        spans.append("".join(parts))
+    for text_spans in (spans, spans + ["\u2192"]):   # Latin-1 text, and a wider one
+        text = "\n".join(text_spans)
+        begins = np.cumsum([0] + [len(s) + 1 for s in text_spans[:-1]]).tolist()
+        ends = [b + len(s) for b, s in zip(begins, text_spans)]
+        pattern = _FastRun(list(range(7)), decimals, text).pattern
+        expected = []
+        for b, e in zip(begins, ends):
+            match = pattern.fullmatch(text, b, e)
+            expected.append(match is not None and match.groups()[1::2] == common)
+        accepted = _PlainSpans(common, decimals).accepts(_char_codes(text), begins, ends)
+        assert accepted.tolist() == expected
+        assert 100 < sum(expected) < len(expected) - 100
