@@ -7,8 +7,10 @@ from __future__ import annotations
 import random
 import re
 
+from olp_compensate.errors import ParseError
 from olp_compensate.programs import loads, rapid_fast
 from olp_compensate.programs.grammar import LineIndex
+from olp_compensate.programs.literals import NUMBER_RE
 
 LITERAL = "[[1.5,-2,3E2],[1,0,0,0],[0,-1,2,1],[9E9,9E9,9E9,9E9,9E9,9E9]]"
 SPACED = "[ [1.5, -2,3E2],[1,0,0,0] ,[0,-1,2,1],\r\n  [9E9,9E9,9E9,9E9,9E9,9E9] ]"
@@ -98,3 +100,100 @@ def test_the_tight_robtarget_regex_changes_nothing(monkeypatch):
     monkeypatch.setattr(rapid_fast, "_TIGHT_ROBTARGET", rapid_fast._FAST_ROBTARGET)
     general = [loads(text, "rapid", "m.mod") for text in texts]
     assert tight == general
+
+
+# ---- the ASCII tight regex and unusual numbers ------------------------------------------
+# _TIGHT_ROBTARGET is compiled with re.ASCII (\d is [0-9], keywords fold ASCII case only):
+# it may refuse what the general regex reads (non-ASCII digits, 'ſ' for 's'), which then
+# reads it; where it matches, it must give the very same match.
+
+VALID_UNUSUAL = ["9E+09", "9e-9", ".5", "-0.", "+1", "1.e5", "1.10307E-06", "0", "007"]
+MALFORMED = ["1.2.3", "1e", "--1", "+-", "e5", ".", "-.", "+", "1e+", "1e5.", "1..2",
+             "1e5e5", ".e5", "1-2", "x", "1 2"]
+NOT_ONE_ITEM = ["1,2", "", "[1]"]  # the literal's shape is wrong: a ParseError
+NON_ASCII = ["\u0663", "1\u06637.5", "9E\u0669"]  # Unicode digits, which \d reads
+SLOTS = (0, 3, 6, 11, 16)  # x, q1, q4, cfx, eax_f
+
+
+def _with_number(token: str, slot: int) -> str:
+    """A run of three plain declarations; number ``slot`` of p1 written as ``token``."""
+    numbers = ["1.5", "-2", "3E2", "1", "0", "0", "0", "0", "-1", "2", "1"] + ["9E9"] * 6
+    numbers[slot] = token
+    groups = [numbers[0:3], numbers[3:7], numbers[7:11], numbers[11:17]]
+    literal = "[" + ",".join("[" + ",".join(g) + "]" for g in groups) + "]"
+    return (f"MODULE M\n  CONST robtarget p0:={LITERAL};\n  CONST robtarget p1:={literal};\n"
+            f"  CONST robtarget p2:={LITERAL};\n  PROC main()\n    MoveL p1,v500,z10,tool0;\n"
+            "    MoveL p2,v500,z10,tool0;\n  ENDPROC\nENDMODULE\n")
+
+
+def _outcome(text: str):
+    """The Program, or the ParseError's message, file, line, column and context."""
+    try:
+        return loads(text, "rapid", "m.mod")
+    except ParseError as exc:
+        return (exc.message, exc.file, exc.line, exc.column, exc.context)
+
+
+def test_unusual_numbers_in_a_run_are_read_as_the_strict_pattern_says(monkeypatch):
+    cases = [(token, slot) for token in VALID_UNUSUAL + MALFORMED + NOT_ONE_ITEM + NON_ASCII
+             for slot in SLOTS]
+    with monkeypatch.context() as patch:
+        patch.setattr(rapid_fast, "_TIGHT_ROBTARGET", rapid_fast._FAST_ROBTARGET)
+        general = {case: _outcome(_with_number(*case)) for case in cases}
+    for token, slot in cases:
+        text = _with_number(token, slot)
+        got = _outcome(text)
+        assert got == general[token, slot], (token, slot)
+        name = text.index("p1:=")
+        literal = name + 4
+        where = _reference(text, name)
+        if NUMBER_RE.fullmatch(token):  # the strict pattern's verdict: one number
+            (p1,) = [t for t in got.targets if t.name == "p1"]
+            assert p1.texts[slot] == token and p1.source == ("m.mod", *where)
+            assert [text[a:a + len(x)] for a, x in zip(p1.starts, p1.texts)] == list(p1.texts)
+            assert p1.span == (literal, text.index(";", literal))
+        elif isinstance(got, tuple):  # the literal reader's error, inside the literal
+            assert got[2] == where[0] and got[3] > _reference(text, literal)[1], (token, got)
+        else:  # not a number: a target computed at run time, located at its name
+            assert "p1" not in [t.name for t in got.targets]
+            (runtime,) = got.runtime
+            assert (runtime.base_name, tuple(runtime.location)[1:]) == ("p1", where), token
+
+
+def _declarations(seed: int, n: int = 400):
+    """Declaration texts: mostly plain robtargets, some with an odd number, non-ASCII
+    letters or digits, blanks, another type or a wrong shape."""
+    rng = random.Random(seed)
+    valid, odd = VALID_UNUSUAL + ["1.5", "-2", "9E9"] * 3, MALFORMED[:-2] + NON_ASCII
+    heads = ["CONST", "PERS", "var", "LOCAL CONST", "task pers", "CON\u017fT", "\u212aONST",
+             "LOCAL\tVAR"]
+    types = ["robtarget", "ROBTARGET"] * 4 + ["robtarge\u0442", "jointtarget"]
+    for _ in range(n):
+        numbers = [rng.choice(valid) for _ in range(17)]
+        if rng.random() < 0.4:
+            numbers[rng.randrange(17)] = rng.choice(odd)
+        if rng.random() < 0.1:
+            del numbers[-1]
+        groups = [numbers[0:3], numbers[3:7], numbers[7:11], numbers[11:]]
+        literal = "[" + ",".join("[" + ",".join(g) + "]" for g in groups) + "]"
+        if rng.random() < 0.2:
+            literal = literal.replace(",", rng.choice([", ", " ,", ",\r\n  "]), 1)
+        blank = rng.choice(["", " ", "\t", " \r\n  "])
+        yield (f"{rng.choice(heads)} {rng.choice(types)} p{rng.randrange(99)}{blank}:={blank}"
+               f"{literal}{rng.choice(['', ' '])};"
+               + rng.choice(["", "\n", "\r\n  ", " ! [1.2.3]\n  ", "\n\n\f"]))
+
+
+def test_the_ascii_tight_regex_matches_as_the_general_one():
+    tight_hits = 0
+    for seed in range(5):
+        for text in _declarations(seed):
+            tight = rapid_fast._TIGHT_ROBTARGET.match(text)
+            general = rapid_fast._FAST_ROBTARGET.match(text)
+            if tight is not None:
+                tight_hits += 1
+                assert general is not None and tight.regs == general.regs, text
+            elif general is not None:  # refused only for blanks in the literal or non-ASCII
+                literal = general.group(4)
+                assert not text.isascii() or any(c in literal for c in " \t\n"), text
+    assert tight_hits > 100
