@@ -131,17 +131,19 @@ class CompensationReport:
         quoted = _Quoted()
         field_text = _csv_field
         lines = []
+        isfinite = math.isfinite
         for r in self.rows:
-            numbers = (*r.correction_mm, r.correction_deg, r.joint_change, *r.joints)
-            try:
-                whole = len(numbers) == 5 + nj and math.isfinite(sum(numbers))
+            c, q = r.correction_mm, r.joints
+            try:   # one sum: NaN or inf anywhere makes it non-finite
+                whole = (len(c) == 3 and len(q) == nj and isfinite(
+                    c[0] + c[1] + c[2] + r.correction_deg + r.joint_change + sum(q)))
             except TypeError:   # a None
                 whole = False
             if whole:
                 lines.append(row_format % (
                     field_text(r.target), quoted[r.file], r.line, r.column, quoted[r.status],
-                    quoted[r.tool], quoted[r.wobj], *numbers[:5], quoted[r.config_before],
-                    quoted[r.config_after], *numbers[5:], quoted[r.note]))
+                    quoted[r.tool], quoted[r.wobj], *c, r.correction_deg, r.joint_change,
+                    quoted[r.config_before], quoted[r.config_after], *q, quoted[r.note]))
                 continue
             q = r.joints
             joint_text = ",".join(_num(v, 6) for v in q) if q else empty_joints
