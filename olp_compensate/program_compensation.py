@@ -145,7 +145,6 @@ class CompensationReport:
                     quoted[r.tool], quoted[r.wobj], *c, r.correction_deg, r.joint_change,
                     quoted[r.config_before], quoted[r.config_after], *q, quoted[r.note]))
                 continue
-            q = r.joints
             joint_text = ",".join(_num(v, 6) for v in q) if q else empty_joints
             lines.append(",".join((
                 field_text(r.target), quoted[r.file], str(r.line), str(r.column),
