@@ -193,6 +193,25 @@ def test_unnormalized_quaternion_kept_when_unchanged_and_rewritten_whole_when_no
         np.testing.assert_allclose([n.value for n in numbers], turned, atol=1e-6)
 
 
+def _module_of(styles: list[str]):
+    """A RAPID module of robtargets p0, p1... whose position and orientation are written
+    as ``styles[k]`` (the literal up to the confdata)."""
+    lines = ["MODULE M"]
+    for k, s in enumerate(styles):
+        lines.append(f"  CONST robtarget p{k}:={s},[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    lines.append("ENDMODULE")
+    return loads("\n".join(lines), "rapid")
+
+
+def _moved_a_little(targets, rng):
+    """New positions (mm, ~0.5 off) and orientations (quaternions, ~1e-3 off, not
+    normalized) for ``targets``."""
+    pos = np.array([t.position_mm() for t in targets]) + rng.normal(0, 0.5, (len(targets), 3))
+    ori = np.array([t.orientation_values() for t in targets], float)
+    ori = ori / np.linalg.norm(ori, axis=1, keepdims=True) + rng.normal(0, 1e-3, ori.shape)
+    return pos, ori
+
+
 def test_batch_fast_path_writes_what_the_general_path_writes():
     """The one-format-per-target path of edits_for_targets gives the same text as the
     number-by-number path, for plain numbers and for every style it must leave to it."""
@@ -203,17 +222,10 @@ def test_batch_fast_path_writes_what_the_general_path_writes():
               "[[1,2,3], ! pick - top.\n [1,0,0,0]", "[[1,2,3], ! pick\n [1,0,0,0]",
               "[[1,2,3], ! 50% s\n [1,0,0,0]", "[[1,2,3], ! pick\n [1,0,0,0]",
               "[[1,2,3],[1,0,0,0]"]
-    lines = ["MODULE M"]
-    for k, s in enumerate(styles):
-        lines.append(f"  CONST robtarget p{k}:={s},[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];")
-    lines.append("ENDMODULE")
-    program = loads("\n".join(lines), "rapid")
+    program = _module_of(styles)
     targets = program.targets
-    rng = np.random.default_rng(3)
-    pos = np.array([t.position_mm() for t in targets]) + rng.normal(0, 0.5, (len(targets), 3))
+    pos, ori = _moved_a_little(targets, np.random.default_rng(3))
     pos[0] = [-0.0001, 0.0004, -0.00049]    # round to zero: never "-0.000"
-    ori = np.array([t.orientation_values() for t in targets], float)
-    ori = ori / np.linalg.norm(ori, axis=1, keepdims=True) + rng.normal(0, 1e-3, ori.shape)
     ori[6] = [np.sqrt(1 - 3e-14), -1e-7, 1e-7, -1e-7]
     batch = dumps(program, edits_for_targets(program, pos, ori))
     single = []
@@ -242,15 +254,9 @@ def test_batch_edits_agree_with_target_edits_across_span_forms():
            "[[1,2,3],[0.70710678,0.70710678,0,0]", "[[+1.5,.5,-.5],[1,0,0,0]",
            "[[5.,-0,3],[0,0,2,0]", "[[1,2,3],[1,0,0,0]"]
     styles = [odd[0]] + tight[:20] + odd[1:] + tight[20:]
-    lines = ["MODULE M"]
-    for k, s in enumerate(styles):
-        lines.append(f"  CONST robtarget p{k}:={s},[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];")
-    lines.append("ENDMODULE")
-    program = loads("\n".join(lines), "rapid")
+    program = _module_of(styles)
     targets = program.targets
-    pos = np.array([t.position_mm() for t in targets]) + rng.normal(0, 0.5, (len(targets), 3))
-    ori = np.array([t.orientation_values() for t in targets], float)
-    ori = ori / np.linalg.norm(ori, axis=1, keepdims=True) + rng.normal(0, 1e-3, ori.shape)
+    pos, ori = _moved_a_little(targets, rng)
     pos[3] = targets[3].position_mm()                      # orientation only
     ori[5] = targets[5].orientation_values()               # position only
     pos[7], ori[7] = targets[7].position_mm(), targets[7].orientation_values()  # unchanged
