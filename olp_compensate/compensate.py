@@ -75,6 +75,9 @@ class PoseCompensation:
     status: str
     correction_mm: np.ndarray
     correction_deg: float
+    note: str = ""
+    """Why the target was not compensated (axis, value and range; configurations; distance
+    out of reach), empty when it was."""
 
     @property
     def success(self) -> bool:
@@ -104,6 +107,9 @@ class Compensator:
                              f"chosen")
         self.family: OPWParameters | URParameters = family
         self.limits = np.stack([self.robot.lower_limits, self.robot.upper_limits], 1)
+        """(n, 2) URDF joint limits, rad: what the IK checks."""
+        self.axis_ranges = self.robot.controller_ranges
+        """(n, 2) the controller's axis ranges, rad, controller axes: checked after solving."""
         self.reach = _reach_bound(self._chain, calibration)
 
     # -- kinematics, URDF axes ------------------------------------------------------------
@@ -132,9 +138,45 @@ class Compensator:
     def solve_real(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> IKSolution:
         """Joints (URDF axes) at which the calibrated arm reaches ``base_T_flange``
         (m, 4, 4), on ``confdata`` (m, 4) (None: nearest to zero, any configuration), to
-        1e-9 m and 1e-9 rad."""
-        return solve(self.family, self.real_flange_and_jacobian, base_T_flange, confdata,
-                     self.limits, reach=self.reach)
+        1e-9 m and 1e-9 rad, inside the URDF limits and the controller's axis ranges
+        (:meth:`check_axis_ranges`)."""
+        return self.check_axis_ranges(solve(self.family, self.real_flange_and_jacobian,
+                                            base_T_flange, confdata, self.limits,
+                                            reach=self.reach))
+
+    def check_axis_ranges(self, solution: IKSolution) -> IKSolution:
+        """``solution`` with every reached row whose controller axes lie outside the
+        controller's ranges marked 'joint_limit' (its joints kept: the best found)."""
+        rows = np.flatnonzero(solution.success)
+        if not len(rows):
+            return solution
+        q_ctrl = self.robot.controller_from_joints(solution.q[rows])
+        outside = self.robot.outside_ranges(q_ctrl).any(axis=1)
+        if np.any(outside):
+            # another turn of an arm axis (2, 3 or 5; 1, 4 and 6 follow the confdata's
+            # quadrants) gives the same pose: a coupled axis 3 may be in range one turn on
+            turned = self._turn_into_ranges(q_ctrl[outside])
+            now_inside = ~self.robot.outside_ranges(turned).any(axis=1)
+            fixed = rows[outside][now_inside]
+            solution.q[fixed] = self.robot.joints_from_controller(turned[now_inside])
+            outside[np.flatnonzero(outside)[now_inside]] = False
+        solution.reason[rows[outside]] = "joint_limit"
+        solution.success[rows[outside]] = False
+        return solution
+
+    def _turn_into_ranges(self, q_ctrl: np.ndarray) -> np.ndarray:
+        """``q_ctrl (k, n)`` with revolute axes 2, 3 and 5 turned by whole turns into the
+        controller's ranges where one turn lands inside."""
+        q = q_ctrl.copy()
+        ranges = self.axis_ranges
+        for a in (1, 2, 4):
+            if self.robot.joints[a].kind != "revolute" or not np.all(np.isfinite(ranges[a])):
+                continue
+            lo, hi = ranges[a]
+            turns = np.ceil((lo - q[:, a]) / (2 * np.pi) - 1e-12)
+            candidate = q[:, a] + 2 * np.pi * turns
+            q[:, a] = np.where(candidate <= hi, candidate, q[:, a])
+        return q
 
     def solve_nominal(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> np.ndarray:
         """Joints (m, n) (URDF axes) the nominal controller takes for ``base_T_flange``:
@@ -149,7 +191,9 @@ class Compensator:
         lower, upper = self.limits[:, 0], self.limits[:, 1]
         turned = np.where(turned < lower, turned + 2 * np.pi, turned)
         turned = np.where(turned > upper, turned - 2 * np.pi, turned)
-        inside = np.all((turned >= lower) & (turned <= upper), axis=2)
+        m, branches, n = turned.shape
+        ctrl = self.robot.controller_from_joints(turned.reshape(-1, n))
+        inside = ~self.robot.outside_ranges(ctrl).any(axis=1).reshape(m, branches)
         norm = np.where(inside, np.sum(turned ** 2, axis=2), np.inf)
         pick = np.argmin(norm, axis=1)
         q = turned[np.arange(len(turned)), pick]
@@ -178,6 +222,7 @@ class Compensator:
             solution, nominal = solve_with_nominal(
                 self.family, self.real_flange_and_jacobian, desired_real_flange, confdata,
                 self.limits, reach=self.reach)
+            solution = self.check_axis_ranges(solution)
         else:
             solution = self.solve_real(desired_real_flange, confdata)
             nominal = None
@@ -266,17 +311,182 @@ def compensate_pose(calibration: Calibration | Compensator, pose, tool=None, wob
     Returns the target to write (same frame as ``pose``), the joints the real robot will
     take (controller axes, rad) and a status; a failure is a status, not an exception.
     """
-    batch = compensate_poses(calibration, np.asarray(pose, dtype=float)[None], tool, wobj,
+    comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
+    batch = compensate_poses(comp, np.asarray(pose, dtype=float)[None], tool, wobj,
                              None if config is None else [config], real_tool)
     original = np.asarray(pose, dtype=float)
     new = batch.poses[0]
+    note, joints, conf = "", batch.joints[0], tuple(int(c) for c in batch.config[0])
     if batch.success[0]:
         correction_mm = (new[:3, 3] - original[:3, 3]) * 1e3
         correction_deg = float(np.degrees(rotation_angle_between(new[:3, :3], original[:3, :3])))
     else:
         new = original.copy()
         correction_mm, correction_deg = np.zeros(3), 0.0
-    return PoseCompensation(pose=new, joints=batch.joints[0],
-                            config=tuple(int(c) for c in batch.config[0]),
+        failure = _explain_one(comp, original, tool, wobj, config, real_tool)
+        if failure is not None:
+            note, joints = failure.note, failure.joints
+            conf = failure.config if failure.config is not None else conf
+    return PoseCompensation(pose=new, joints=joints, config=conf,
                             status=str(batch.status[0]), correction_mm=correction_mm,
-                            correction_deg=correction_deg)
+                            correction_deg=correction_deg, note=note)
+
+
+def _explain_one(comp: Compensator, pose, tool, wobj, config, real_tool) -> FailureReport | None:
+    """The :class:`FailureReport` of one pose that :func:`compensate_pose` could not
+    compensate (solved again: failures are rare and the batch keeps no solution)."""
+    tool = np.eye(4) if tool is None else np.asarray(tool, dtype=float)
+    wobj = np.eye(4) if wobj is None else np.asarray(wobj, dtype=float)
+    real = tool if real_tool is None else np.asarray(real_tool, dtype=float)
+    desired = (wobj @ pose @ invert_pose(real))[None]
+    confdata = None if config is None else np.asarray(config, dtype=int).reshape(1, 4)
+    solution = comp.solve_real(desired, confdata)
+    return explain_failures(comp, solution, desired, confdata)[0]
+
+
+@dataclass(frozen=True)
+class FailureReport:
+    """Why one target was not compensated, for a user to act on.
+
+    note : the reason in words and numbers (axis, value, limit; configurations asked for
+        and found; distance out of reach).
+    joints : (n,) controller axes of the best solution found, rad/m (NaN if none).
+    config : ABB confdata (cf1, cf4, cf6, cfx) of ``joints`` (None if none).
+    """
+
+    note: str
+    joints: np.ndarray
+    config: tuple[int, int, int, int] | None
+
+
+def _config_words(conf) -> str:
+    return "[" + ",".join(str(int(c)) for c in conf) + "]"
+
+
+def _range_words(robot, q_ctrl: np.ndarray) -> list[str]:
+    """Each axis of ``q_ctrl (n,)`` outside the controller's range, and each URDF joint
+    outside its limits, as words with values in deg (mm)."""
+    ranges = robot.controller_ranges
+    edge = robot.to_degrees_or_mm(q_ctrl[None])[0]
+    lo, hi = (robot.to_degrees_or_mm(ranges[:, k][None])[0] for k in (0, 1))
+    unit = ["deg" if j.kind == "revolute" else "mm" for j in robot.joints]
+    words = []
+    listed = np.flatnonzero((q_ctrl < ranges[:, 0] - 1e-9) | (q_ctrl > ranges[:, 1] + 1e-9))
+    for a in listed:
+        past = lo[a] - edge[a] if edge[a] < lo[a] else edge[a] - hi[a]
+        side = "below" if edge[a] < lo[a] else "above"
+        words.append(f"axis {a + 1} = {edge[a]:.2f} {unit[a]} is {past:.2f} {unit[a]} {side} "
+                     f"the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
+    joints = robot.joints_from_controller(q_ctrl[None])[0]
+    jl, jh = robot.lower_limits, robot.upper_limits
+    joint_edge = robot.to_degrees_or_mm(joints[None])[0]
+    jlo, jhi = robot.to_degrees_or_mm(jl[None])[0], robot.to_degrees_or_mm(jh[None])[0]
+    for j in np.flatnonzero((joints < jl - 1e-9) | (joints > jh + 1e-9)):
+        if j in listed:            # the same axis, already named
+            continue
+        words.append(f"URDF {robot.joints[j].name} = {joint_edge[j]:.2f} {unit[j]} is outside "
+                     f"its limits {jlo[j]:.2f}..{jhi[j]:.2f} {unit[j]}")
+    return words
+
+
+def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np.ndarray,
+                     confdata: np.ndarray | None) -> list[FailureReport | None]:
+    """A :class:`FailureReport` for each row of ``solution`` that failed (None for the
+    others): ``desired_flange (m, 4, 4)`` the real flange poses solved for, ``confdata
+    (m, 4)`` the configurations asked for (None: any).
+
+    - 'joint_limit': which axis, its value, how far past which range; and a configuration
+      on which the calibrated arm reaches the target inside every range, if one exists
+      (the program's configuration is never changed: that is the user's call);
+    - 'branch_changed': the configuration asked for and the one the solution has;
+    - 'unreachable' / 'not_converged': the closest approach of the calibrated arm found
+      by damped Newton from the nominal solutions, in mm and degrees.
+    """
+    robot = comp.robot
+    failed = np.flatnonzero(~solution.success)
+    out: list[FailureReport | None] = [None] * len(solution.success)
+    if not len(failed):
+        return out
+    q_best = solution.q[failed].copy()
+    missing = ~np.all(np.isfinite(q_best), axis=1)
+    closest = None
+    if np.any(missing) or np.any(np.isin(solution.reason[failed], ("unreachable", "not_converged"))):
+        closest = _closest_approach(comp, desired_flange[failed])
+        q_best[missing] = closest.q[missing]
+    alternatives = _in_range_configurations(comp, desired_flange[failed],
+                                            solution.reason[failed] == "joint_limit")
+    for i, row in enumerate(failed.tolist()):
+        reason = str(solution.reason[row])
+        q = q_best[i]
+        has_q = bool(np.all(np.isfinite(q)))
+        q_ctrl = robot.controller_from_joints(q[None])[0] if has_q else np.full(robot.n_joints, np.nan)
+        config = tuple(int(c) for c in comp.confdata(q[None])[0]) if has_q else None
+        asked = None if confdata is None else _config_words(confdata[row])
+        if reason == "joint_limit":
+            words = _range_words(robot, q_ctrl) if has_q else []
+            note = "; ".join(words) or "outside the joint limits"
+            if asked is not None:
+                note += f" (on the configuration asked for, {asked})"
+            alt = alternatives.get(i)
+            note += (f"; in range on configuration {_config_words(alt)}" if alt is not None
+                     else "; no configuration reaches it inside the ranges")
+        elif reason == "branch_changed":
+            found = _config_words(config) if config is not None else "another one"
+            note = (f"asked for configuration {asked}, the calibrated arm reaches the target "
+                    f"only on {found}")
+        else:
+            dist_mm = float(closest.position_error_m[i] * 1e3) if closest is not None else np.nan
+            dist_deg = float(np.degrees(closest.rotation_error_rad[i])) if closest is not None else np.nan
+            what = "out of reach" if reason == "unreachable" else "not solved"
+            note = (f"{what}: the calibrated arm comes no closer than {dist_mm:.2f} mm and "
+                    f"{dist_deg:.3f} deg")
+            if asked is not None:
+                note += f" on configuration {asked}"
+        out[row] = FailureReport(note=note, joints=q_ctrl, config=config)
+    return out
+
+
+def _closest_approach(comp: Compensator, desired_flange: np.ndarray) -> IKSolution:
+    """Damped Newton of the calibrated arm towards ``desired_flange (k, 4, 4)`` from the
+    nominal closed form of every branch (stretched where out of reach); for each row the
+    start that ends closest (position error in m, then rotation)."""
+    from .ik import refine  # noqa: PLC0415 (used only for failures)
+
+    k = len(desired_flange)
+    stretched = closed_form_inverse(comp.family, desired_flange, clip=True)      # (k, 8, 6)
+    branches = stretched.shape[1]
+    starts = np.nan_to_num(stretched.reshape(-1, 6))
+    targets = np.repeat(desired_flange, branches, axis=0)
+    result = refine(comp.real_flange_and_jacobian, starts, targets, None, 1e-9, 1e-9, 60)
+    score = (result.position_error_m + 0.1 * result.rotation_error_rad).reshape(k, branches)
+    score = np.where(np.isfinite(score), score, np.inf)
+    pick = np.argmin(score, axis=1) + np.arange(k) * branches
+    return IKSolution(q=result.q[pick], success=result.success[pick],
+                      reason=result.reason[pick], iterations=result.iterations[pick],
+                      position_error_m=result.position_error_m[pick],
+                      rotation_error_rad=result.rotation_error_rad[pick])
+
+
+def _in_range_configurations(comp: Compensator, desired_flange: np.ndarray,
+                             which: np.ndarray) -> dict[int, tuple[int, int, int, int]]:
+    """For the rows ``which`` of ``desired_flange (k, 4, 4)``: a configuration on which the
+    calibrated arm reaches the pose inside every range (row -> confdata), tried in the
+    order of the nominal branches nearest zero."""
+    rows = np.flatnonzero(which)
+    if not len(rows):
+        return {}
+    nominal = closed_form_inverse(comp.family, desired_flange[rows])              # (r, 8, 6)
+    r, branches, n = nominal.shape
+    flat = nominal.reshape(-1, n)
+    ok = np.all(np.isfinite(flat), axis=1)
+    conf = np.full((len(flat), 4), 0, int)
+    conf[ok] = comp.confdata(flat[ok])
+    owner = np.repeat(np.arange(r), branches)
+    trial = comp.solve_real(np.repeat(desired_flange[rows], branches, axis=0)[ok], conf[ok])
+    found: dict[int, tuple[int, int, int, int]] = {}
+    norm = np.sum(np.nan_to_num(flat[ok], nan=1e9) ** 2, axis=1)
+    for j in np.argsort(norm, kind="stable").tolist():
+        i = int(rows[owner[ok][j]])
+        if trial.success[j] and i not in found:
+            found[i] = tuple(int(c) for c in comp.confdata(trial.q[j][None])[0])
+    return found

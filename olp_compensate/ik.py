@@ -443,9 +443,15 @@ def closed_form_forward(params: OPWParameters | URParameters, q) -> np.ndarray:
     return (opw_forward if isinstance(params, OPWParameters) else ur_forward)(params, q)
 
 
-def closed_form_inverse(params: OPWParameters | URParameters, base_T_flange) -> np.ndarray:
-    """:func:`opw_inverse` or :func:`ur_inverse`, whichever family ``params`` is."""
+def closed_form_inverse(params: OPWParameters | URParameters, base_T_flange,
+                        clip: bool = False) -> np.ndarray:
+    """:func:`opw_inverse` or :func:`ur_inverse`, whichever family ``params`` is.
+
+    ``clip``: poses out of reach get the joints of the stretched arm towards them instead
+    of NaN (a start for a closest-approach search)."""
     _check_family(params)
+    if clip:
+        return _closed_form(params, _as_poses(base_T_flange, "base_T_flange"), clip=True)
     return (opw_inverse if isinstance(params, OPWParameters) else ur_inverse)(params,
                                                                             base_T_flange)
 

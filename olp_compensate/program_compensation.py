@@ -22,13 +22,14 @@ from __future__ import annotations
 import csv
 import io
 import math
+import dataclasses
 import operator
 from dataclasses import dataclass
 
 import numpy as np
 
 from .calibration import Calibration
-from .compensate import COMPENSATED, Compensator
+from .compensate import COMPENSATED, Compensator, explain_failures
 from .confdata import vplus_configuration
 from .conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
                           quat_wxyz_from_matrix, rotation_angle_between)
@@ -305,8 +306,10 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
             if name is None or t.array_index is not None:
                 name = t.display_name
             if not ok[i]:
-                rows[k] = TargetReport(name, file, line, column, reason[i], pair.tool_name,
-                                       pair.wobj_name, config_before=before, note=note)
+                rows[k] = _failure_row(TargetReport(name, file, line, column, reason[i],
+                                                    pair.tool_name, pair.wobj_name,
+                                                    config_before=before, note=note),
+                                       solved.failures[i], robot, vplus)
             elif k in ambiguous:
                 rows[k] = TargetReport(name, file, line, column, "ambiguous", pair.tool_name,
                                        pair.wobj_name, config_before=before,
@@ -357,6 +360,19 @@ def _row(t, pair, status: str, note: str) -> TargetReport:
                         config_before=_config_text(config), note=note)
 
 
+def _failure_row(row: TargetReport, failure, robot, vplus: bool) -> TargetReport:
+    """``row`` of a target not compensated, with why (in words and numbers), the best
+    joints found and their configuration."""
+    if failure is None:
+        return row
+    note = failure.note if not row.note else f"{failure.note}; {row.note}"
+    joints = ()
+    if np.all(np.isfinite(failure.joints)):
+        joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
+    config = _config_text(failure.config) if failure.config is not None and not vplus else ""
+    return dataclasses.replace(row, note=note, joints=joints, config_after=config)
+
+
 def _note(notes: tuple[str, ...], tool_note: str) -> str:
     """The report note of a solved entry: its resolution notes and the real-tool note."""
     if not notes:
@@ -391,6 +407,7 @@ class _Solved:
     joints_deg: np.ndarray
     tool_note: list
     vplus_text: dict
+    failures: list
 
 
 def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
@@ -434,12 +451,16 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
             conf_all = np.concatenate([conf_all, comp.confdata(q_nominal[reachable])])
         without = [i for i, r in zip(without, reachable) if not r]
         with_conf = with_conf + implied
+    failures: list = [None] * n
     for idx, conf in ((with_conf, conf_all), (without, None)):
         if not idx:
             continue
         qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
         q[idx], flange[idx], nominal[idx] = qi, fi, nomi
         reason[idx] = sol.reason
+        if not sol.success.all():
+            for i, failure in zip(idx, explain_failures(comp, sol, desired[idx], conf)):
+                failures[i] = failure
     reason = reason.tolist()
     ok = np.fromiter((r in COMPENSATED for r in reason), bool, n)
     pair_wobj = np.array([_pose_or_nan(p.base_T_wobj) for p in res.pairs])
@@ -479,7 +500,7 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
         turn_deg=np.degrees(rotation_angle_between(new_targets[:, :3, :3],
                                                    original[:, :3, :3])),
         change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
-        vplus_text=vplus_text)
+        vplus_text=vplus_text, failures=failures)
 
 
 def _config_texts(confdata: np.ndarray, has_conf: np.ndarray | None = None) -> list[str]:

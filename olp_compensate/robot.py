@@ -62,6 +62,9 @@ class Robot:
     urdf_from_controller: np.ndarray | None = None
     """(n, n) map from controller axis values to URDF joints (ABB parallel linkage: joint 3
     = q3 - q2); None means the identity. Every public joint array is in controller axes."""
+    axis_ranges: np.ndarray | None = field(default=None, compare=False)
+    """(n, 2) the controller's axis ranges (data sheet), rad or m, in controller axes; None:
+    the URDF limits of the joints that are controller axes as they are."""
 
     @property
     def n_joints(self) -> int:
@@ -76,6 +79,33 @@ class Robot:
     def upper_limits(self) -> np.ndarray:
         """Upper joint limits, shape (n,), rad or m."""
         return np.array([j.upper for j in self.joints])
+
+    @property
+    def controller_ranges(self) -> np.ndarray:
+        """(n, 2) lower and upper range of each controller axis, rad or m.
+
+        The data sheet's ranges when the robot file gives them; otherwise the URDF limits of
+        the joints that are controller axes unchanged, and no bound (inf) on the axes a
+        coupling mixes (their limits then apply to the URDF joints only).
+        """
+        if self.axis_ranges is not None:
+            return self.axis_ranges
+        ranges = np.stack([self.lower_limits, self.upper_limits], 1)
+        if self.urdf_from_controller is not None:
+            plain = np.all(np.isclose(self.urdf_from_controller, np.eye(self.n_joints)), axis=1)
+            ranges[~plain] = (-np.inf, np.inf)
+        return ranges
+
+    def outside_ranges(self, q_controller: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
+        """(m, n) bool: where controller axes ``q_controller (m, n)`` (rad, m) lie outside the
+        controller's axis ranges or put a URDF joint outside its limits (``tolerance`` in
+        rad or m)."""
+        q = np.atleast_2d(np.asarray(q_controller, dtype=float))
+        ranges = self.controller_ranges
+        outside = (q < ranges[:, 0] - tolerance) | (q > ranges[:, 1] + tolerance)
+        joints = self.joints_from_controller(q)
+        outside |= (joints < self.lower_limits - tolerance) | (joints > self.upper_limits + tolerance)
+        return outside
 
     @cached_property
     def fingerprint(self) -> str:
@@ -151,7 +181,8 @@ class Robot:
 
 def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
                          flange_link: str = FLANGE_LINK,
-                         urdf_from_controller: np.ndarray | None = None) -> Robot:
+                         urdf_from_controller: np.ndarray | None = None,
+                         axis_ranges: np.ndarray | None = None) -> Robot:
     """Read the serial chain root -> ``flange_link`` from URDF text.
 
     Raises :class:`ModelError` when the text is not a URDF, has no flange link, or the chain
@@ -205,19 +236,63 @@ def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
         if coupling.shape != (len(joints), len(joints)) or abs(np.linalg.det(coupling)) < 1e-9:
             raise ModelError(f"{where}: urdf_from_controller must be an invertible "
                              f"{len(joints)}x{len(joints)} matrix")
+    ranges = None
+    if axis_ranges is not None:
+        ranges = np.asarray(axis_ranges, dtype=float)
+        if (ranges.shape != (len(joints), 2) or np.any(np.isnan(ranges))
+                or np.any(ranges[:, 0] > ranges[:, 1])):
+            raise ModelError(f"{where}: axis ranges must be (lower, upper) for each of the "
+                             f"{len(joints)} axes, lower <= upper")
     return Robot(name=name or robot.name, urdf_text=text, joints=tuple(joints),
                  last_T_flange=pending, base_link=base_link, flange_link=flange_link,
-                 source=source, urdf_from_controller=coupling)
+                 source=source, urdf_from_controller=coupling, axis_ranges=ranges)
 
 
-def _controller_map(text: str | None, where: str) -> np.ndarray | None:
-    """The ``urdf_from_controller`` matrix of a ``NAME.controller.json`` sidecar, if any."""
-    if text is None:
-        return None
+@dataclass(frozen=True)
+class ControllerFile:
+    """What a ``NAME.controller.json`` sidecar says of the robot's controller.
+
+    urdf_from_controller : (n, n) controller axes -> URDF joints, or None (identity).
+    axis_ranges : (n, 2) the data sheet's axis ranges in rad/m (the file holds degrees for
+        revolute axes, ``axis_ranges_deg``), or None.
+    """
+
+    urdf_from_controller: np.ndarray | None = None
+    axis_ranges_deg: np.ndarray | None = None
+
+
+def read_controller_file(path: Path, where: str) -> ControllerFile:
+    """The sidecar at ``path`` (an empty :class:`ControllerFile` when there is none)."""
+    if not path.is_file():
+        return ControllerFile()
     try:
-        return np.array(json.loads(text)["urdf_from_controller"], dtype=float)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ModelError(f"{where}: not a valid controller map ({exc})") from None
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        coupling = doc.get("urdf_from_controller")
+        ranges = doc.get("axis_ranges_deg")
+        return ControllerFile(
+            urdf_from_controller=None if coupling is None else np.array(coupling, dtype=float),
+            axis_ranges_deg=None if ranges is None else np.array(ranges, dtype=float))
+    except (OSError, ValueError, TypeError, AttributeError) as exc:
+        raise ModelError(f"{where}: not a valid controller file ({exc})") from None
+
+
+def _with_controller(text: str, name: str, source: str, controller: ControllerFile) -> Robot:
+    robot = robot_from_urdf_text(text, name=name, source=source,
+                                 urdf_from_controller=controller.urdf_from_controller)
+    if controller.axis_ranges_deg is None:
+        return robot
+    return robot_from_urdf_text(text, name=name, source=source,
+                                urdf_from_controller=controller.urdf_from_controller,
+                                axis_ranges=ranges_from_edge_units(robot, controller.axis_ranges_deg))
+
+
+def ranges_from_edge_units(robot: Robot, ranges) -> np.ndarray:
+    """Axis ranges (n, 2) in deg/mm (files) -> rad/m."""
+    ranges = np.asarray(ranges, dtype=float)
+    if ranges.shape != (robot.n_joints, 2):
+        raise ModelError(f"{robot.source or robot.name}: axis ranges must be (lower, upper) "
+                         f"for each of the {robot.n_joints} axes")
+    return robot.to_radians_or_metres(ranges.T).T
 
 
 def bundled_robot_names() -> list[str]:
@@ -237,15 +312,12 @@ def load_robot(name_or_path: str) -> Robot:
         except (OSError, UnicodeDecodeError) as exc:
             raise ModelError(f"{name_or_path}: cannot read URDF ({exc})") from None
         sidecar = path.with_suffix(".controller.json")
-        coupling = _controller_map(sidecar.read_text() if sidecar.is_file() else None, str(sidecar))
-        return robot_from_urdf_text(text, name=path.stem, source=str(path),
-                                    urdf_from_controller=coupling)
+        return _with_controller(text, path.stem, str(path), read_controller_file(sidecar, str(sidecar)))
     resource = data_folder("robots") / f"{name_or_path}.urdf"
     if not resource.is_file():
         names = ", ".join(bundled_robot_names()) or "none"
         raise ModelError(f"unknown robot '{name_or_path}' (bundled: {names}; or give a path to a .urdf)")
     sidecar = data_folder("robots") / f"{name_or_path}.controller.json"
-    coupling = _controller_map(sidecar.read_text() if sidecar.is_file() else None,
-                               f"robots/{name_or_path}.controller.json")
-    return robot_from_urdf_text(resource.read_text(encoding="utf-8"), name=name_or_path,
-                                source=f"robots/{name_or_path}.urdf", urdf_from_controller=coupling)
+    controller = read_controller_file(sidecar, f"robots/{name_or_path}.controller.json")
+    return _with_controller(resource.read_text(encoding="utf-8"), name_or_path,
+                            f"robots/{name_or_path}.urdf", controller)

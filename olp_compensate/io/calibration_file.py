@@ -27,7 +27,8 @@ from ..conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from ..effects import effect_from_dict
 from ..errors import ModelError
 from ..model import build_model
-from ..robot import Robot, robot_from_urdf_text
+from ..robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
+                     robot_from_urdf_text)
 from .atomic import write_text_atomic
 
 FORMAT = "olp-compensate calibration"
@@ -89,7 +90,10 @@ def calibration_to_dict(cal: Calibration) -> dict:
         "robot": {"name": cal.robot.name, "fingerprint": cal.robot.fingerprint,
                   "joints": cal.robot.n_joints, "urdf": cal.robot.urdf_text,
                   "urdf_from_controller": None if cal.robot.urdf_from_controller is None
-                  else cal.robot.urdf_from_controller.tolist()},
+                  else cal.robot.urdf_from_controller.tolist(),
+                  **({} if cal.robot.axis_ranges is None else {
+                      "axis_ranges_deg": cal.robot.to_degrees_or_mm(
+                          cal.robot.axis_ranges.T).T.tolist()})},
         "model": {"convention": cal.model.convention,
                   "links": list(cal.model.conventions), "parameters": params},
         "device_T_base": {"xyz_mm": (cal.device_T_base[:3, 3] * 1e3).tolist(),
@@ -133,6 +137,7 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
         raise ModelError(f"{source}: this calibration is for robot '{embedded.name}' "
                          f"({embedded.fingerprint[:19]}...), not for '{robot.name}' "
                          f"({robot.fingerprint[:19]}...)")
+    embedded = _with_axis_ranges(embedded, doc["robot"].get("axis_ranges_deg"), robot, source)
     model = build_model(embedded, doc["model"]["convention"])
     by_name = {p["name"]: p for p in doc["model"]["parameters"]}
     values = model.nominal.copy()
@@ -171,6 +176,24 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
                        effects=tuple(effect_from_dict(e, embedded.n_joints, source)
                                      for e in doc["effects"]),
                        validation=validation)
+
+
+def _with_axis_ranges(embedded: Robot, ranges_deg, robot: Robot | None, source: str) -> Robot:
+    """The embedded robot with the controller's axis ranges: the file's, else those of the
+    robot given, else those of the bundled robot of that name and fingerprint (files
+    written before the ranges were stored)."""
+    if ranges_deg is None:
+        known = robot
+        if known is None and embedded.name in bundled_robot_names():
+            known = load_robot(embedded.name)
+        if known is None or known.fingerprint != embedded.fingerprint or known.axis_ranges is None:
+            return embedded
+        ranges = known.axis_ranges
+    else:
+        ranges = ranges_from_edge_units(embedded, ranges_deg)
+    return robot_from_urdf_text(embedded.urdf_text, name=embedded.name, source=embedded.source,
+                                urdf_from_controller=embedded.urdf_from_controller,
+                                axis_ranges=ranges)
 
 
 def read_calibration(path: str | Path, robot: Robot | None = None) -> Calibration:
