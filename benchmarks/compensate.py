@@ -31,15 +31,15 @@ from pathlib import Path
 
 import numpy as np
 
-from olp_compensate.calibration import nominal_calibration
-from olp_compensate.compensate import Compensator
-from olp_compensate.conventions import MM, invert_pose, quat_wxyz_from_matrix
-from olp_compensate.identify import IdentificationOptions, identify
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.compensation.pose import Compensator
+from olp_compensate.kinematics.conventions import MM, invert_pose, quat_wxyz_from_matrix
+from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.io.calibration_file import write_calibration
-from olp_compensate.program_compensation import compensate_program
+from olp_compensate.compensation.program import compensate_program
 from olp_compensate.programs import load, resolve
-from olp_compensate.robot import load_robot
-from olp_compensate.simulate import make_virtual_robot, random_joints
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 
 TOOL = "[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],[2.5,[0,0,80],[1,0,0,0],0,0,0]]"
 WOBJ = "[FALSE,TRUE,\"\",[[700,-300,300],[1,0,0,0]],[[0,0,0],[1,0,0,0]]]"

@@ -7,7 +7,7 @@ placement, the poses, the temperatures (18-30 deg C, so thermal expansion is alw
 candidate), and one hidden effect: its kind (cycling through the five kinds), joint,
 harmonic order and phase, and its size, 3x to 6x the per-axis noise as the RMS of how far
 the effect alone moves the measured point. The truth is computed by the virtual robot
-(pinocchio on the perturbed URDF), independently of olp_compensate.effects. Effect-free
+(pinocchio on the perturbed URDF), independently of olp_compensate.calibration.effects. Effect-free
 cases draw the same without an effect.
 
 Prints (targets from DESIGN.md / issue 4):
@@ -30,9 +30,9 @@ from dataclasses import replace  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from olp_compensate.diagnose import diagnose  # noqa: E402
-from olp_compensate.robot import load_robot  # noqa: E402
-from olp_compensate.simulate import (HIDDEN_KINDS, make_virtual_robot,  # noqa: E402
+from olp_compensate.calibration.diagnose import diagnose  # noqa: E402
+from olp_compensate.kinematics.robot import load_robot  # noqa: E402
+from olp_compensate.calibration.simulate import (HIDDEN_KINDS, make_virtual_robot,  # noqa: E402
                                      random_hidden_effect, random_joints, scaled_effect)
 
 NOISE = 0.05e-3

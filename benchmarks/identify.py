@@ -5,7 +5,7 @@ Run: python benchmarks/identify.py   (one core: OMP_NUM_THREADS=1 is set below)
 Prints, for noise 0.05 mm per axis on an ABB IRB 2400:
 1. RMS error of the identified model against the truth at 1,000 new poses, for 15, 30, 50
    and 100 measured poses (targets: <= 2x the noise at 15, <= 1x at 50); for 15, 30 and 50
-   also with planned poses (olp_compensate.pose_planning: I-optimal, the default, and
+   also with planned poses (olp_compensate.calibration.pose_planning: I-optimal, the default, and
    D-optimal, chosen among 5,000 random candidates at the nominal model, never the truth;
    the same robots, noise and test poses), with the planner's own prediction and its time;
 2. the time to identify from 100 and 1,000 poses next to scipy.optimize.least_squares with a
@@ -28,11 +28,11 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
-from olp_compensate.identify import (IdentificationOptions, IdentificationProblem,  # noqa: E402
+from olp_compensate.calibration.identify import (IdentificationOptions, IdentificationProblem,  # noqa: E402
                                      _fit, identify)
-from olp_compensate.pose_planning import plan_poses, planning_space  # noqa: E402
-from olp_compensate.robot import load_robot  # noqa: E402
-from olp_compensate.simulate import make_virtual_robot, random_joints  # noqa: E402
+from olp_compensate.calibration.pose_planning import plan_poses, planning_space  # noqa: E402
+from olp_compensate.kinematics.robot import load_robot  # noqa: E402
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints  # noqa: E402
 
 NOISE = 0.05e-3
 ROBOT = load_robot("abb_irb2400")
@@ -86,8 +86,8 @@ def speed(poses: int) -> None:
     meas_urdf = meas.subset(np.arange(meas.n_rows))
     from dataclasses import replace
     meas_urdf = replace(meas_urdf, joints=ROBOT.joints_from_controller(meas.joints))
-    from olp_compensate.registration import register_device
-    from olp_compensate.model import forward
+    from olp_compensate.calibration.registration import register_device
+    from olp_compensate.kinematics.model import forward
     flange = forward(cal.model, cal.model.nominal, meas_urdf.joints).flange
     pose0, tools0 = register_device(flange, meas.points, np.zeros(meas.n_rows, int), 1)
     problem = IdentificationProblem(cal.model, meas_urdf, cal.model.nominal, free, ["tcp"], pose0)

@@ -17,10 +17,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from olp_compensate.conventions import rotation_angle_between  # noqa: E402
-from olp_compensate.identify import IdentificationOptions, identify  # noqa: E402
-from olp_compensate.robot import load_robot  # noqa: E402
-from olp_compensate.simulate import make_virtual_robot, random_joints  # noqa: E402
+from olp_compensate.kinematics.conventions import rotation_angle_between  # noqa: E402
+from olp_compensate.calibration.identify import IdentificationOptions, identify  # noqa: E402
+from olp_compensate.kinematics.robot import load_robot  # noqa: E402
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints  # noqa: E402
 
 NOISE = 0.05e-3
 ORIENTATION_NOISE = np.radians(0.01)

@@ -81,7 +81,7 @@ def test_unknown_robot(tmp_path, capsys):
 def test_calibration_for_another_robot_or_version_is_refused(tmp_path, measured):
     from olp_compensate.errors import ModelError
     from olp_compensate.io.calibration_file import read_calibration
-    from olp_compensate.robot import load_robot
+    from olp_compensate.kinematics.robot import load_robot
 
     out = tmp_path / "nominal.json"
     assert main(["nominal", "--robot", "ur5e", "-o", str(out)]) == 0

@@ -14,10 +14,11 @@ from mcap.reader import make_reader
 
 from olp_compensate.cli.cal import main
 from olp_compensate.io.calibration_file import read_calibration
-from olp_compensate.io.measurements import read_measurements, read_measurements_any
+from olp_compensate.io.measurements import read_measurements
+from olp_compensate.io.session import read_measurements_any
 from olp_compensate.io.session import read_session
-from olp_compensate.robot import load_robot
-from olp_compensate.simulate import make_virtual_robot, random_joints
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 
 ROBOT = "abb_irb2400"
 NOISE_M = 0.05e-3

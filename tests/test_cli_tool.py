@@ -19,12 +19,12 @@ import pytest
 from scipy.optimize import least_squares
 
 from olp_compensate import programs
-from olp_compensate.calibration import nominal_calibration
+from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.cli.cal import main
-from olp_compensate.conventions import MM, rotation_from_rotvec
+from olp_compensate.kinematics.conventions import MM, rotation_from_rotvec
 from olp_compensate.io.calibration_file import read_calibration
 from olp_compensate.programs.targets import Edit
-from olp_compensate.robot import load_robot
+from olp_compensate.kinematics.robot import load_robot
 
 ROBOT = "abb_irb2400"
 TOOL_M = np.array([12.345, -45.678, 234.567]) * MM  # the changed tool, model flange frame

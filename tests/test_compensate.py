@@ -16,19 +16,19 @@ import re
 import numpy as np
 import pytest
 
-from olp_compensate.calibration import nominal_calibration
-from olp_compensate.compensate import Compensator, compensate_pose, compensate_poses
-from olp_compensate.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.compensation.pose import Compensator, compensate_pose, compensate_poses
+from olp_compensate.kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
                                         pose_from_rotation_translation, quat_wxyz_from_matrix,
                                         rotation_angle_between, rotation_from_rotvec)
-from olp_compensate.ik import branch_of, closed_form_inverse, fit_family, select_branch
-from olp_compensate.identify import IdentificationOptions, identify
-from olp_compensate.program_compensation import compensate_program
+from olp_compensate.compensation.ik import branch_of, closed_form_inverse, fit_family, select_branch
+from olp_compensate.calibration.identify import IdentificationOptions, identify
+from olp_compensate.compensation.program import compensate_program
 from olp_compensate.programs import loads, resolve
-from olp_compensate.model import build_model, forward, joint_frames
-from olp_compensate.registration import kabsch
-from olp_compensate.robot import load_robot
-from olp_compensate.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.kinematics.model import build_model, forward, joint_frames
+from olp_compensate.calibration.registration import kabsch
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
 
 NOISE_M = 0.01e-3
 TOLERANCE_M = 0.05e-3
@@ -218,7 +218,7 @@ def puma_world():
 
 @pytest.mark.parametrize("emit", ["pose", "joints"])
 def test_compensated_vplus_locations_reach_the_targets(puma_world, emit):
-    from olp_compensate.conventions import euler_zyz_from_matrix
+    from olp_compensate.kinematics.conventions import euler_zyz_from_matrix
 
     world = puma_world
     q = world.program_joints(10, seed=8)
@@ -353,8 +353,8 @@ def test_compliance_found_by_diagnose_is_compensated_too():
     diagnose finds brings the program within tolerance, the geometric one does not."""
     from dataclasses import replace
 
-    from olp_compensate.diagnose import DiagnoseOptions, diagnose
-    from olp_compensate.simulate import HiddenEffect
+    from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose
+    from olp_compensate.calibration.simulate import HiddenEffect
 
     world = World.__new__(World)
     world.robot = load_robot("abb_irb2400")
@@ -411,7 +411,7 @@ def test_report_csv_reads_back_field_for_field():
     import io
     import math
 
-    from olp_compensate.program_compensation import CompensationReport, TargetReport
+    from olp_compensate.compensation.program import CompensationReport, TargetReport
 
     rows = (TargetReport("p1", "a,b.mod", 3, 5, "ok", "tool \"x\"", "wobj0",
                          (1.0, -2.5, 0.00004), 0.25, 1.5, "[0,0,0,0]", "[0,-1,0,0]",
@@ -438,7 +438,7 @@ def test_calibrated_tool_orientation_used_only_near_the_tooldata(turn_deg, used)
     from the tooldata when far (the frame of a measuring probe, not the tool's axes)."""
     import dataclasses
 
-    from olp_compensate.calibration import ToolPoint
+    from olp_compensate.calibration.calibration import ToolPoint
 
     robot = load_robot("abb_irb2400")
     program_rotation = matrix_from_quat_wxyz([0.92388, 0, 0.382683, 0])
@@ -464,7 +464,7 @@ def test_calibrated_tool_orientation_used_only_near_the_tooldata(turn_deg, used)
 def test_confdata_texts_of_many_rows_match_row_by_row():
     """The report's confdata column (distinct rows written once, via a 64-bit key) is the
     row-by-row text, also for values beyond the key's 16 bits and rows without confdata."""
-    from olp_compensate.program_compensation import _config_texts
+    from olp_compensate.compensation.program import _config_texts
 
     rng = np.random.default_rng(0)
     for extreme in (None, 70000, -40000):

@@ -3,8 +3,8 @@
 Each case draws the robot's geometric errors, the poses, the hidden effect's joint, order,
 phase and size (3x to 6x the per-axis noise, as the RMS of how far the effect alone moves
 the measured point) from its seed; the truth is computed by the virtual robot
-(:mod:`olp_compensate.simulate`, pinocchio on the perturbed URDF), independently of
-:mod:`olp_compensate.effects`. benchmarks/diagnose.py runs the same on more cases.
+(:mod:`olp_compensate.calibration.simulate`, pinocchio on the perturbed URDF), independently of
+:mod:`olp_compensate.calibration.effects`. benchmarks/diagnose.py runs the same on more cases.
 """
 
 import json
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from olp_compensate.cli.cal import main
-from olp_compensate.diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict
+from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict
 from olp_compensate.errors import DataError
 from olp_compensate.io.calibration_file import read_calibration
-from olp_compensate.robot import load_robot
-from olp_compensate.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.calibration.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
                                      random_joints, scaled_effect)
 
 NOISE = 0.05e-3

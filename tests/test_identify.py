@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from olp_compensate.conventions import rotation_from_rotvec
+from olp_compensate.kinematics.conventions import rotation_from_rotvec
 from olp_compensate.errors import DataError
-from olp_compensate.identify import IdentificationOptions, identify
-from olp_compensate.robot import load_robot
-from olp_compensate.simulate import make_virtual_robot, random_joints
+from olp_compensate.calibration.identify import IdentificationOptions, identify
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 
 NOISE = 0.05e-3
 

@@ -8,13 +8,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from olp_compensate.confdata import (abb_confdata, select_branch, vplus_branch,
+from olp_compensate.compensation.confdata import (abb_confdata, select_branch, vplus_branch,
                                      vplus_configuration)
-from olp_compensate.conventions import (pose_from_rotation_translation, quat_wxyz_from_matrix,
+from olp_compensate.kinematics.conventions import (pose_from_rotation_translation, quat_wxyz_from_matrix,
                                         rot_x, rot_z, rotvec_from_rotation)
 from olp_compensate.errors import DataError, ModelError
-from olp_compensate import ik
-from olp_compensate.ik import (REASONS, IKSolution, OPWParameters, ReachBound, URParameters,
+from olp_compensate.compensation import ik
+from olp_compensate.compensation.ik import (REASONS, IKSolution, OPWParameters, ReachBound, URParameters,
                                branch_of,
                                closed_form_forward, closed_form_inverse, configuration_bits,
                                fit_family, opw_forward, opw_inverse, refine, solve,

@@ -1,9 +1,9 @@
-"""Levenberg-Marquardt (olp_compensate.lm) on small problems with known minima."""
+"""Levenberg-Marquardt (olp_compensate.calibration.lm) on small problems with known minima."""
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from olp_compensate.lm import levenberg_marquardt
+from olp_compensate.calibration.lm import levenberg_marquardt
 
 
 def _rosenbrock(x):

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from olp_compensate.model import build_model, fixed_chain, forward, joint_frames
-from olp_compensate.robot import bundled_robot_names, load_robot
-from olp_compensate.simulate import random_joints
+from olp_compensate.kinematics.model import build_model, fixed_chain, forward, joint_frames
+from olp_compensate.kinematics.robot import bundled_robot_names, load_robot
+from olp_compensate.calibration.simulate import random_joints
 from urdf_factory import IRB2400_DH, dh_urdf
-from olp_compensate.robot import robot_from_urdf_text
+from olp_compensate.kinematics.robot import robot_from_urdf_text
 
 
 @pytest.mark.parametrize("name", bundled_robot_names())

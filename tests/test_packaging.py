@@ -26,7 +26,7 @@ def test_wheel_ships_robots_and_grammars(tmp_path):
         "assert 'site-packages' in olp_compensate.__file__, olp_compensate.__file__\n"
         "robots = sorted(p.name for p in resources.files('olp_compensate.robots').iterdir())\n"
         "grammars = sorted(p.name for p in resources.files('olp_compensate.grammars').iterdir())\n"
-        "from olp_compensate.robot import load_robot\n"
+        "from olp_compensate.kinematics.robot import load_robot\n"
         "print(load_robot('abb_irb2400').n_joints, robots, grammars)\n")
     out = subprocess.run([str(python), "-c", probe], check=True, capture_output=True, text=True,
                          cwd=tmp_path).stdout

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from olp_compensate.conventions import matrix_from_euler_zyz
+from olp_compensate.kinematics.conventions import matrix_from_euler_zyz
 from olp_compensate.errors import DataError
 from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like,
                                      joint_emit_edits, joint_target_edits, load, loads,

@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from olp_compensate.conventions import MM, rotation_from_rotvec
+from olp_compensate.kinematics.conventions import MM, rotation_from_rotvec
 from olp_compensate.errors import DataError
-from olp_compensate.tool import (COND_LIMIT, PoorlyDeterminedTool, ToolRequest, calibrate_tool,
-                                 format_marks_csv, rapid_tooldata, read_marks_csv,
-                                 tool_from_fixed_point, tool_from_known_marks, write_tool_json)
+from olp_compensate.calibration.tool import (COND_LIMIT, PoorlyDeterminedTool, ToolRequest,
+                                             calibrate_tool, rapid_tooldata,
+                                             tool_from_fixed_point, tool_from_known_marks)
+from olp_compensate.io.tool_marks import format_marks_csv, read_marks_csv, write_tool_json
 
 DH_A = np.array([0.1, 0.705, 0.135, 0.0, 0.0, 0.0])
 DH_ALPHA = np.array([-np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0])

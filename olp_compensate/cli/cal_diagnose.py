@@ -1,17 +1,17 @@
 """``olp-cal diagnose``: what the geometric model gets wrong, its cause, the extended model
-and the gain on held-out data (see :mod:`olp_compensate.diagnose`)."""
+and the gain on held-out data (see :mod:`olp_compensate.calibration.diagnose`)."""
 
 from __future__ import annotations
 
 import json
 
-from ..diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict, summary
-from ..effects import EFFECT_KINDS
+from ..calibration.diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict, summary
+from ..calibration.effects import EFFECT_KINDS
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import write_calibration
 from ..io.measurements import read_measurements
-from ..robot import load_robot
+from ..kinematics.robot import load_robot
 
 HELP = ("name the non-geometric effects (compliance, gear error, backlash, heat, scale) in "
         "the measurements, fit them and measure the gain on held-out poses")
@@ -63,7 +63,7 @@ def run(args) -> int:
         write_text_atomic(args.json, json.dumps(diagnosis_to_dict(result), indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.html or args.png_dir:
-        from ..report_html import write_html, write_pngs
+        from ..report.html import write_html, write_pngs
 
         if args.html:
             write_html(result, args.html)

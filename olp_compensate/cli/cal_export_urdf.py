@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import read_calibration
-from ..urdf_export import calibrated_urdf
+from ..io.urdf_export import calibrated_urdf
 
 HELP = "write a URDF whose joint origins carry the identified geometry"
 

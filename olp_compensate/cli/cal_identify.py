@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identify import IdentificationOptions, identify
+from ..calibration.identify import IdentificationOptions, identify
 from ..io.calibration_file import write_calibration
-from ..io.measurements import read_measurements_any
-from ..robot import load_robot
+from ..io.session import read_measurements_any
+from ..kinematics.robot import load_robot
 from .common import mm
 
 HELP = ("identify the robot's geometry from a measurement CSV (or an MCAP session with the "

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from ..calibration import nominal_calibration
+from ..calibration.calibration import nominal_calibration
 from ..io.calibration_file import write_calibration
-from ..robot import load_robot
+from ..kinematics.robot import load_robot
 
 HELP = "write a calibration that is exactly the nominal robot (device frame = base frame)"
 

@@ -6,9 +6,9 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.poses import check_within_limits, read_poses, write_poses
-from ..pose_planning import (CRITERIA, DEFAULT_CANDIDATES, DEFAULT_CRITERION, DEFAULT_TOOL_M,
+from ..calibration.pose_planning import (CRITERIA, DEFAULT_CANDIDATES, DEFAULT_CRITERION, DEFAULT_TOOL_M,
                              RANDOM_DRAWS, plan_poses, planning_space)
-from ..robot import load_robot
+from ..kinematics.robot import load_robot
 
 HELP = ("plan the poses to measure (I- or D-optimal for the identification, among random or "
         "given candidate poses) and write them as a joint CSV")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..effects import Conditions, ThermalExpansion
+from ..calibration.effects import Conditions, ThermalExpansion
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import read_calibration

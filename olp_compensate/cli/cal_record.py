@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..errors import DataError, ModelError
 from ..io.rtde_source import RtdeJointSource, TypedJointSource, console_ask, console_say
 from ..io.session import record_session
-from ..robot import load_robot
+from ..kinematics.robot import load_robot
 
 HELP = ("record the joints at each measured pose into an MCAP session (live from a UR "
         "controller with --ur, else typed on stdin)")

@@ -10,8 +10,8 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.measurements import write_measurements
 from ..io.poses import check_within_limits, read_poses
-from ..robot import load_robot
-from ..simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
+from ..kinematics.robot import load_robot
+from ..calibration.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
                         random_joints, scaled_effect)
 
 HELP = "write measurements of a virtual robot (random geometric errors) and its truth file"

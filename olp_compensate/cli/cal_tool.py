@@ -19,16 +19,17 @@ from pathlib import Path
 import numpy as np
 
 from .. import programs
-from ..calibration import Calibration, ToolPoint, nominal_calibration
-from ..conventions import MM
+from ..calibration.calibration import Calibration, ToolPoint, nominal_calibration
+from ..kinematics.conventions import MM
 from ..errors import DataError, ModelError
 from ..io.atomic import write_bytes_atomic, write_text_atomic
 from ..io.calibration_file import read_calibration, write_calibration
 from ..io.rtde_source import RtdeJointSource, console_ask, console_say
-from ..robot import load_robot
-from ..tool import (ToolCalibration, ToolRequest, calibrate_tool, format_marks_csv,
-                    rapid_tooldata, read_marks_csv, tool_report)
-from ..wizard import BAD_POINT_MM, run_wizard
+from ..kinematics.robot import load_robot
+from ..calibration.tool import (ToolCalibration, ToolRequest, calibrate_tool, rapid_tooldata,
+                                tool_report)
+from ..io.tool_marks import format_marks_csv, read_marks_csv
+from .tool_wizard import BAD_POINT_MM, run_wizard
 
 HELP = "recalibrate a tool's TCP from touched marks (--marks) or with the interactive wizard"
 

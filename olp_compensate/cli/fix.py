@@ -17,11 +17,11 @@ from .. import __version__
 from ..errors import DataError, ParseError
 from ..io.atomic import write_bytes_atomic, write_text_atomic
 from ..io.calibration_file import read_calibration
-from ..compensate import COMPENSATED
-from ..program_compensation import EMIT_MODES, KEPT, compensate_program
+from ..compensation.pose import COMPENSATED
+from ..compensation.program import EMIT_MODES, KEPT, compensate_program
 from ..programs import DIALECTS, ENCODING, dialect_for, load
 from ..programs.grammar import no_gc
-from ..robot import load_robot
+from ..kinematics.robot import load_robot
 from .common import exit_now, run_guarded, silence_stdout
 
 SHOWN_PROBLEMS = 20

@@ -3,7 +3,7 @@
 The file embeds the robot's URDF and its kinematic fingerprint, so a calibration is
 self-contained and is never applied to another robot model. Non-geometric effects are a
 list of ``{"kind", "joint" (1-based controller axis, null for arm-wide), "parameters",
-"std", "unit"}`` (SI; see :mod:`olp_compensate.effects`), plus ``"order"`` for a gear
+"std", "unit"}`` (SI; see :mod:`olp_compensate.calibration.effects`), plus ``"order"`` for a gear
 harmonic and ``"reference_temperature_c"`` for thermal expansion; files whose list is empty
 (every file written before effects existed) read as before.
 
@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration import Calibration, ToolPoint, Validation
-from ..conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
-from ..effects import effect_from_dict
+from ..calibration.calibration import Calibration, ToolPoint, Validation
+from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
+from ..calibration.effects import effect_from_dict
 from ..errors import ModelError
-from ..model import build_model
-from ..robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
+from ..kinematics.model import build_model
+from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
                      robot_from_urdf_text)
 from .atomic import write_text_atomic
 

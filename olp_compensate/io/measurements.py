@@ -12,7 +12,7 @@ point's own frame (a laser tracker's 6-DoF probe, a camera's marker), as a quate
 first, normalized on input. That frame is the flange frame (``tool0``) turned by a constant
 rotation of the tool, the same for every row of one ``point`` and unknown (the probe may be
 mounted any way round): identification finds it with the geometry
-(:mod:`olp_compensate.identify`). A file has all four columns or none; in a file that has
+(:mod:`olp_compensate.calibration.identify`). A file has all four columns or none; in a file that has
 them, a row whose four cells are all empty is a position-only row (NaN in
 ``Measurements.orientation``); three cells filled and one empty, a zero-length or non-finite
 quaternion are errors naming file, line and column.
@@ -23,11 +23,11 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..calibration.measurements import Measurements
 from ..errors import DataError
 from .atomic import write_text_atomic
 
@@ -35,52 +35,6 @@ FORMAT_LINE = "# olp-compensate measurements v1"
 ORIENTATION_COLUMNS = ("qw", "qx", "qy", "qz")
 KNOWN_OPTIONAL = ("pose", "point", "qw", "qx", "qy", "qz", "payload_kg", "temperature_c",
                   "time_s")
-
-
-@dataclass(frozen=True)
-class Measurements:
-    """Measured points, one row each, in the units of the file converted to SI.
-
-    ``joints``: (m, n) rad (m for prismatic); ``points``: (m, 3) device frame, m;
-    ``pose_ids`` and ``point_names``: (m,) strings; ``orientation``: (m, 4) unit quaternion
-    (w, x, y, z) of the measured point's frame in the device frame (module docstring), NaN
-    on position-only rows, or None; optional per-row columns (m,) or None; ``extra``: unknown columns,
-    kept as text; ``rows``: (m,) 1-based line numbers in the file (for messages).
-    """
-
-    joints: np.ndarray
-    points: np.ndarray
-    pose_ids: np.ndarray
-    point_names: np.ndarray
-    orientation: np.ndarray | None = None
-    payload_kg: np.ndarray | None = None
-    temperature_c: np.ndarray | None = None
-    time_s: np.ndarray | None = None
-    directions: np.ndarray | None = None
-    extra: dict[str, list[str]] = field(default_factory=dict)
-    metadata: list[str] = field(default_factory=list)
-    rows: np.ndarray | None = None
-    source: str = "<measurements>"
-
-    @property
-    def n_rows(self) -> int:
-        return len(self.points)
-
-    @property
-    def n_poses(self) -> int:
-        return len(np.unique(self.pose_ids))
-
-    def subset(self, mask: np.ndarray) -> "Measurements":
-        """The rows selected by a boolean mask or index array."""
-        def pick(a):
-            return None if a is None else a[mask]
-        return Measurements(
-            joints=self.joints[mask], points=self.points[mask], pose_ids=self.pose_ids[mask],
-            point_names=self.point_names[mask], orientation=pick(self.orientation),
-            payload_kg=pick(self.payload_kg), temperature_c=pick(self.temperature_c),
-            time_s=pick(self.time_s), directions=pick(self.directions),
-            extra={k: list(np.asarray(v, dtype=object)[mask]) for k, v in self.extra.items()},
-            metadata=self.metadata, rows=pick(self.rows), source=self.source)
 
 
 def joint_columns(joint_units: list[str]) -> list[str]:
@@ -225,43 +179,13 @@ def read_csv_text(path: str | Path, expected: str) -> str:
     return raw.decode("utf-8", errors="replace")
 
 
-def read_measurements(path: str | Path, joint_units: list[str]) -> Measurements:
-    """Read a measurement CSV file (see :func:`parse_measurements`)."""
-    return parse_measurements(read_csv_text(path, "a measurement CSV"), joint_units, str(path))
-
-
-def read_measurements_any(path: str | Path, joint_units: list[str], points=None,
-                          by: str = "order", tolerance_s: float = 0.5,
-                          time_offset_s: float = 0.0) -> Measurements:
-    """Measurements from a measurement CSV, or from an MCAP session plus the device's points.
-
-    ``path``: a measurement CSV (version 1), or an MCAP session written by ``olp-cal record``
-    (recognized by its magic bytes, whatever the extension). A session holds joints only, so
-    ``points`` (the device's CSV: ``x_mm, y_mm, z_mm`` [, ``time_s``, ``point``, ``pose``])
-    is required with it and is joined on the fly ``by`` 'order' or 'time' (see
-    :func:`olp_compensate.io.session.merged_measurements`; ``tolerance_s``, ``time_offset_s``
-    in s). ``joint_units``: the robot's, 'deg' per joint for a session. Row numbers in
-    messages then refer to the points file.
-    """
-    from .session import is_mcap, merged_measurements
-
-    if not is_mcap(path):
-        if points is not None:
-            raise DataError(f"{path}: device points (--points) go with an MCAP session, and "
-                            f"this is not one; a measurement CSV already holds its points")
-        return read_measurements(path, joint_units)
-    if points is None:
-        raise DataError(f"{path}: an MCAP session holds the joints only; give the measuring "
-                        f"device's points with --points points.csv (or merge them first with "
-                        f"olp-cal merge)")
-    if any(u != "deg" for u in joint_units):
-        raise DataError(f"{path}: sessions hold joints in degrees; this robot has joints in "
-                        f"{', '.join(joint_units)}: merge to a CSV and fix the units there")
-    meas, metadata = merged_measurements(path, points, by, tolerance_s, time_offset_s)
-    if meas.joints.shape[1] != len(joint_units):
-        raise DataError(f"{path}: the session has {meas.joints.shape[1]} joints but the robot "
-                        f"has {len(joint_units)}")
-    return replace(meas, metadata=metadata)
+def read_measurements(path: str | Path, robot_or_units) -> Measurements:
+    """Read a measurement CSV file (see :func:`parse_measurements`) for a robot (a
+    :class:`~olp_compensate.kinematics.robot.Robot`, whose joints give the columns' units) or
+    for a list of joint units ('deg' or 'mm' per joint). Joints in SI, controller axes."""
+    joints = getattr(robot_or_units, "joints", None)
+    units = [j.unit for j in joints] if joints is not None else list(robot_or_units)
+    return parse_measurements(read_csv_text(path, "a measurement CSV"), units, str(path))
 
 
 def format_measurements(meas: Measurements, joint_units: list[str],

@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration.measurements import Measurements
 from ..errors import DataError, OlpError
-from .measurements import Measurements, data_records, write_measurements
+from .measurements import data_records, read_measurements, write_measurements
 from .rtde_source import Ask, JointSource, Say
 
 FORMAT = "olp-compensate session v1"
@@ -317,3 +318,35 @@ def is_mcap(path) -> bool:
             return stream.read(len(MCAP_MAGIC)) == MCAP_MAGIC
     except OSError:
         return False
+
+
+def read_measurements_any(path: str | Path, joint_units: list[str], points=None,
+                          by: str = "order", tolerance_s: float = 0.5,
+                          time_offset_s: float = 0.0) -> Measurements:
+    """Measurements from a measurement CSV, or from an MCAP session plus the device's points.
+
+    ``path``: a measurement CSV (version 1), or an MCAP session written by ``olp-cal record``
+    (recognized by its magic bytes, whatever the extension). A session holds joints only, so
+    ``points`` (the device's CSV: ``x_mm, y_mm, z_mm`` [, ``time_s``, ``point``, ``pose``])
+    is required with it and is joined on the fly ``by`` 'order' or 'time' (see
+    :func:`olp_compensate.io.session.merged_measurements`; ``tolerance_s``, ``time_offset_s``
+    in s). ``joint_units``: the robot's, 'deg' per joint for a session. Row numbers in
+    messages then refer to the points file.
+    """
+    if not is_mcap(path):
+        if points is not None:
+            raise DataError(f"{path}: device points (--points) go with an MCAP session, and "
+                            f"this is not one; a measurement CSV already holds its points")
+        return read_measurements(path, joint_units)
+    if points is None:
+        raise DataError(f"{path}: an MCAP session holds the joints only; give the measuring "
+                        f"device's points with --points points.csv (or merge them first with "
+                        f"olp-cal merge)")
+    if any(u != "deg" for u in joint_units):
+        raise DataError(f"{path}: sessions hold joints in degrees; this robot has joints in "
+                        f"{', '.join(joint_units)}: merge to a CSV and fix the units there")
+    meas, metadata = merged_measurements(path, points, by, tolerance_s, time_offset_s)
+    if meas.joints.shape[1] != len(joint_units):
+        raise DataError(f"{path}: the session has {meas.joints.shape[1]} joints but the robot "
+                        f"has {len(joint_units)}")
+    return replace(meas, metadata=metadata)

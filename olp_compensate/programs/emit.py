@@ -19,7 +19,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from ..conventions import euler_zyz_from_matrix, matrix_from_euler_zyz
+from ..kinematics.conventions import euler_zyz_from_matrix, matrix_from_euler_zyz
 from ..errors import DataError
 from .grammar import no_gc
 from .targets import (QUAT_WXYZ, CartesianTarget, Edit, JointTarget, MotionUse, Program,

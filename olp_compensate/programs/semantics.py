@@ -26,7 +26,7 @@ from itertools import chain
 
 import numpy as np
 
-from ..conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
+from ..kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
                            pose_from_rotation_translation)
 from .grammar import no_gc
 from .targets import (QUAT_WXYZ, CartesianTarget, JointTarget, MotionUse, Program, ToolData,

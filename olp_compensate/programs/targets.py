@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..conventions import (MM, matrix_from_euler_zyz, matrix_from_quat_wxyz,
+from ..kinematics.conventions import (MM, matrix_from_euler_zyz, matrix_from_quat_wxyz,
                            pose_from_rotation_translation)
 
 QUAT_WXYZ = "quat_wxyz"

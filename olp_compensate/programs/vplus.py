@@ -6,7 +6,7 @@ orientation of a transformation is yaw, pitch, roll, "figured as ZYZ' Euler valu
 
 - a transformation is ``x y z`` in mm and ``yaw pitch roll`` in degrees with
   R = Rz(yaw) Ry(pitch) Rz(roll) (rotations about the moving axes), as
-  :func:`olp_compensate.conventions.matrix_from_euler_zyz`;
+  :func:`olp_compensate.kinematics.conventions.matrix_from_euler_zyz`;
 - a precision point ``#name`` holds joint values, degrees (mm for a prismatic joint);
 - V+ names are case-insensitive and may contain ``.`` and ``_``; ``#name`` and ``name``
   are different variables.

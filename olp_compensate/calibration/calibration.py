@@ -7,13 +7,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .conventions import matrix_from_quat_wxyz
+from ..kinematics.conventions import matrix_from_quat_wxyz
 from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
                       geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
                       length_scale, needs_torque)
-from .errors import DataError
-from .model import KinematicModel, build_model, forward
-from .robot import Robot
+from ..errors import DataError
+from ..kinematics.model import KinematicModel, build_model, forward
+from ..kinematics.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,7 @@ class Calibration:
     ``values`` and ``std`` are (P,) in SI (std is NaN for frozen parameters, whose reasons
     are in ``frozen``); ``device_T_base`` places the robot base in the measuring device's
     frame (4, 4), m; ``tools`` maps point names to :class:`ToolPoint`; ``effects`` are the
-    fitted non-geometric terms (:mod:`olp_compensate.effects`).
+    fitted non-geometric terms (:mod:`olp_compensate.calibration.effects`).
     """
 
     robot: Robot
@@ -75,7 +75,7 @@ class Calibration:
 
         This is the single hook through which non-geometric joint effects (compliance,
         gear error, backlash, scale) reach prediction and compensation. The effects act on
-        the controller axes (:mod:`olp_compensate.effects`); ``conditions`` default to no
+        the controller axes (:mod:`olp_compensate.calibration.effects`); ``conditions`` default to no
         payload and gravity-closed backlash (what is known when compensating a program)."""
         q_urdf = np.asarray(q_urdf, dtype=float)
         effects = joint_effects(self.effects)

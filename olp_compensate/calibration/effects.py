@@ -19,7 +19,7 @@ backlash            ``(w / 2) * sign(tau_j)``, or ``-(w / 2) * d_j`` where  w, r
 joint_scale         ``s * q_j``                                            s, rad/rad
 ==================  =====================================================  =============
 
-``tau_j`` is the *gravity load torque* about axis j (N.m, see :mod:`olp_compensate.gravity`):
+``tau_j`` is the *gravity load torque* about axis j (N.m, see :mod:`olp_compensate.calibration.gravity`):
 the torque gravity exerts, ``-g(q)`` with pinocchio's ``g``, from the URDF inertials plus
 ``payload_kg`` at the measured point. With this sign a real joint has ``c > 0`` (it sags the
 way gravity pulls) and a real gap ``w > 0``: gravity closes the gap in its own direction
@@ -43,9 +43,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from .errors import DataError, ModelError
+from ..errors import DataError, ModelError
 from .gravity import gravity_model
-from .robot import Robot
+from ..kinematics.robot import Robot
 
 TORQUE_SIGN_TOLERANCE = 1e-6
 """Load torques below this (N.m) count as zero for the sign in the backlash term."""

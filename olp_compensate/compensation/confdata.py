@@ -21,14 +21,14 @@ Instructions, Functions and Data types*, data type ``confdata``; the same text a
       6    behind                   behind                      positive
       7    behind                   behind                      negative
 
-  Made precise here (:func:`olp_compensate.ik.configuration_bits`): "in front of axis 1"
+  Made precise here (:func:`olp_compensate.compensation.ik.configuration_bits`): "in front of axis 1"
   means the wrist centre's coordinate along the arm's forward direction (axis 1 turned by
   q1) is >= 0; "in front of the lower arm" means the wrist centre lies on the forward side
   of the line through axes 2 and 3 (for the ABB home pose both hold, cfx = 0); "axis 5
   positive" means ``sign5 * sin(theta5) >= 0`` (q5 in [0, 180] deg when axis 5 has no zero
-  offset). The closed forms of :mod:`olp_compensate.ik` return branch k = cfx k.
+  offset). The closed forms of :mod:`olp_compensate.compensation.ik` return branch k = cfx k.
   UR arms have no ABB cfx; the same function gives the analogous bits (shoulder, elbow,
-  wrist) of :func:`olp_compensate.ik.configuration_bits`.
+  wrist) of :func:`olp_compensate.compensation.ik.configuration_bits`.
 
 V+ (Adept, Staubli CS7) and similar PUMA-style flags (RIGHTY/LEFTY, ABOVE/BELOW,
 FLIP/NOFLIP); FLIP means joint 5 negative (Servotronix softMC wiki, ``robot.WRISTCMD`` for
@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import DataError, ModelError
+from ..errors import DataError, ModelError
 from .ik import (OPWParameters, URParameters, _as_joints, _check_family, _margins,
                  branch_of, select_branch)
 
@@ -75,7 +75,7 @@ def vplus_configuration(params: OPWParameters, q) -> np.ndarray:
 def vplus_branch(params: OPWParameters, solutions, righty, above, flip):
     """The solution with the given V+ flags, each (m,) bool or a scalar.
 
-    ``solutions (m, 8, 6)`` from :func:`olp_compensate.ik.opw_inverse`. Returns ``q (m, 6)``
+    ``solutions (m, 8, 6)`` from :func:`olp_compensate.compensation.ik.opw_inverse`. Returns ``q (m, 6)``
     rad (NaN where none) and ``found (m,)`` bool.
     """
     solutions = np.asarray(solutions, dtype=float)

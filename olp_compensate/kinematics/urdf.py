@@ -4,7 +4,7 @@ Only ``<robot name>``, ``<link name>`` and each ``<joint>``'s type, parent, chil
 ``<origin xyz rpy>`` (metres; fixed-axis roll, pitch, yaw in radians: R = Rz(y) Ry(p) Rx(r)),
 ``<axis xyz>``, ``<limit lower upper velocity effort>`` and ``<mimic>`` are read, as the URDF
 specification defines them (wiki.ros.org/urdf/XML/joint). Reading a URDF must not cost a
-command's start-up the import of a mesh library; :mod:`olp_compensate.urdf_export` writes
+command's start-up the import of a mesh library; :mod:`olp_compensate.io.urdf_export` writes
 URDFs with yourdfpy.
 """
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ModelError
+from ..errors import ModelError
 
 
 @dataclass(frozen=True)

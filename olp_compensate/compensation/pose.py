@@ -6,7 +6,7 @@ arm is the calibrated model. For a desired tool pose we therefore
 
 1. solve the joints ``q`` at which the *calibrated* arm (its effects included) puts its real
    tool on the desired pose, on the configuration the program asks for
-   (:func:`olp_compensate.ik.solve`: the nominal closed form, then Newton on the model);
+   (:func:`olp_compensate.compensation.ik.solve`: the nominal closed form, then Newton on the model);
 2. write the target the *nominal* controller maps to exactly those joints: the nominal
    forward kinematics of ``q``, through the program's own tool and work object, with the
    configuration (ABB ``confdata``) of ``q``.
@@ -20,14 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .calibration import Calibration
-from .conventions import invert_pose, rotation_angle_between
-from .errors import DataError, ModelError
-from .effects import joint_effects
+from ..calibration.calibration import Calibration
+from ..kinematics.conventions import invert_pose, rotation_angle_between
+from ..errors import DataError, ModelError
+from ..calibration.effects import joint_effects
 from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, branch_of,
                  closed_form_inverse, fit_family, nominal_joints_on_branch, solve,
                  solve_with_nominal)
-from .model import FixedChain, fixed_chain, forward
+from ..kinematics.model import FixedChain, fixed_chain, forward
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
            "compensate_poses", "COMPENSATED"]
@@ -45,7 +45,7 @@ class BatchCompensation:
     nominal_joints : (m, n) controller axes the nominal controller gives the original
         targets, rad/m (NaN where the nominal arm cannot reach them).
     config : (m, 4) int, ABB confdata (cf1, cf4, cf6, cfx) of ``joints``.
-    status : (m,) str, the reasons of :data:`olp_compensate.ik.REASONS`.
+    status : (m,) str, the reasons of :data:`olp_compensate.compensation.ik.REASONS`.
     position_error_m, rotation_error_rad : (m,) how closely the calibrated model reaches.
     """
 
@@ -241,7 +241,7 @@ class Compensator:
 
 
 def _reach_bound(chain: FixedChain | None, calibration: Calibration) -> ReachBound | None:
-    """The calibrated arm's :class:`~olp_compensate.ik.ReachBound` (None without a chain)."""
+    """The calibrated arm's :class:`~olp_compensate.compensation.ik.ReachBound` (None without a chain)."""
     if chain is None:
         return None
     try:

@@ -1,11 +1,11 @@
 """Pose planning: which joint vectors to measure, so that few poses identify the model well.
 
 The identification is linearized at the nominal model (never at a fitted or true one): the
-unknowns are exactly those :func:`olp_compensate.identify.identify` will fit -- device
+unknowns are exactly those :func:`olp_compensate.calibration.identify.identify` will fit -- device
 registration (6), the geometric parameters left free by the same structural freezing
 (and by the rank test on the candidate set), and 3 per measured tool point. Each candidate
 pose contributes a block ``J_k`` (3 rows per tool point) of the column-scaled identification
-Jacobian (:class:`olp_compensate.identify.IdentificationProblem`, device frame = base
+Jacobian (:class:`olp_compensate.calibration.identify.IdentificationProblem`, device frame = base
 frame; the information is invariant to where the device stands). A design (a set of
 poses) has the information matrix ``M = sum_k J_k^T J_k``; with noise sigma per axis the
 covariance of the unknowns is ``sigma^2 M^-1``.
@@ -54,11 +54,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import qr
 
-from .errors import DataError
+from ..errors import DataError
 from .identify import RANK_TOLERANCE, IdentificationProblem, structural_freeze
-from .io.measurements import Measurements
-from .model import build_model
-from .robot import Robot
+from .measurements import Measurements
+from ..kinematics.model import build_model
+from ..kinematics.robot import Robot
 from .simulate import random_joints
 
 CRITERIA = ("d", "i")

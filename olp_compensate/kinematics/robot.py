@@ -1,8 +1,8 @@
 """A robot description: the serial chain of a URDF, from its root link to the flange.
 
-The URDF is read by :mod:`olp_compensate.urdf`; dynamics (gravity torques) are computed with pinocchio from
+The URDF is read by :mod:`olp_compensate.kinematics.urdf`; dynamics (gravity torques) are computed with pinocchio from
 the same text. Joint frames, axes and limits are kept exactly as the URDF gives them (metres,
-radians); the calibration model (:mod:`olp_compensate.model`) is built from them.
+radians); the calibration model (:mod:`olp_compensate.kinematics.model`) is built from them.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import data_folder
-from .errors import ModelError
+from ..data import data_folder
+from ..errors import ModelError
 from .urdf import read_urdf_chain
 
 FLANGE_LINK = "tool0"

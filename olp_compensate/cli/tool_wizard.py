@@ -2,7 +2,7 @@
 
 Every question goes through one injected ``ask(prompt) -> str`` and every message through
 ``say(text)``, so tests drive the wizard with a script. The wizard builds the same
-:class:`~olp_compensate.tool.ToolRequest` the library call :func:`calibrate_tool` takes.
+:class:`~olp_compensate.calibration.tool.ToolRequest` the library call :func:`calibrate_tool` takes.
 Typing ``q`` at any prompt cancels (nothing is written).
 """
 
@@ -14,13 +14,13 @@ from typing import Callable
 
 import numpy as np
 
-from .conventions import MM
-from .errors import DataError
-from .io.atomic import write_text_atomic
-from .io.rtde_source import Ask, JointSource, Say, TypedJointSource
-from .tool import (MIN_MARKS, FlangePose, PoorlyDeterminedTool, ToolCalibration, ToolRequest,
-                   calibrate_tool, format_marks_csv, rapid_tooldata, tool_report,
-                   write_tool_json)
+from ..calibration.tool import (MIN_MARKS, FlangePose, PoorlyDeterminedTool, ToolCalibration,
+                                ToolRequest, calibrate_tool, rapid_tooldata, tool_report)
+from ..errors import DataError
+from ..io.atomic import write_text_atomic
+from ..io.rtde_source import Ask, JointSource, Say, TypedJointSource
+from ..io.tool_marks import format_marks_csv, write_tool_json
+from ..kinematics.conventions import MM
 
 MAX_ATTEMPTS = 10
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,31}")

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .robot import Robot
+from ..kinematics.robot import Robot
 
 _CACHE: dict[tuple[str, int], "GravityModel"] = {}
 

@@ -4,7 +4,7 @@ Only the numbers of compensated targets change (see :mod:`olp_compensate.program
 with the nominal calibration nothing changes at all. What is done with each target:
 
 - a Cartesian target (robtarget, V+ transformation) with known tool and work object is
-  compensated (:mod:`olp_compensate.compensate`); a calibrated tool of the same name as
+  compensated (:mod:`olp_compensate.compensation.pose`); a calibrated tool of the same name as
   the program's tooldata is the real tool; its confdata is kept unless the joints left the
   written quadrant by more than a degree;
 - a target used with several tool/work-object pairs is compensated only when every pair
@@ -28,18 +28,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .calibration import Calibration
-from .compensate import COMPENSATED, Compensator, explain_failures
+from ..calibration.calibration import Calibration
+from .pose import COMPENSATED, Compensator, explain_failures
 from .confdata import vplus_configuration
-from .conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
+from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
                           quat_wxyz_from_matrix, rotation_angle_between)
-from .errors import DataError
+from ..errors import DataError
 from .ik import OPWParameters
-from .programs import Program, loads, resolve
-from .programs.grammar import no_gc
-from .programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
+from ..programs import Program, loads, resolve
+from ..programs.grammar import no_gc
+from ..programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
                             target_edits)
-from .programs.targets import QUAT_WXYZ, JointTarget
+from ..programs.targets import QUAT_WXYZ, JointTarget
 
 __all__ = ["TargetReport", "CompensationReport", "compensate_program", "KEPT", "EMIT_MODES"]
 

@@ -14,11 +14,11 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from test_tool import FIXED_TILTS_DEG, TOOL_M, irb2400_flange_pose, touches  # noqa: E402
 
-from olp_compensate.conventions import MM  # noqa: E402
+from olp_compensate.kinematics.conventions import MM  # noqa: E402
 from olp_compensate.errors import OlpError  # noqa: E402
 from olp_compensate.io.rtde_source import RtdeJointSource, parse_joints_deg  # noqa: E402
-from olp_compensate.tool import read_marks_csv  # noqa: E402
-from olp_compensate.wizard import run_wizard  # noqa: E402
+from olp_compensate.cli.tool_wizard import run_wizard  # noqa: E402
+from olp_compensate.io.tool_marks import read_marks_csv  # noqa: E402
 
 HAS_UR_RTDE = importlib.util.find_spec("rtde_receive") is not None
 needs_ur_rtde = pytest.mark.skipif(not HAS_UR_RTDE, reason="ur-rtde is not installed")

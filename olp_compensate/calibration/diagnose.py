@@ -1,13 +1,13 @@
 """Diagnosis: what the geometric model gets wrong, which effect explains it, and the gain.
 
-1. Fit the geometric model (:func:`olp_compensate.identify.identify`) with k-fold
+1. Fit the geometric model (:func:`olp_compensate.calibration.identify.identify`) with k-fold
    cross-validation by pose.
 2. Noise floor: the spread of repeated measurements of one pose (rows sharing ``pose`` and
    ``point``) when there are any, else ``noise_m`` (``--noise-mm``), else the residual of
    the final model (an upper bound).
-3. Scan: every candidate of :func:`olp_compensate.effects.candidate_effects` that the data
+3. Scan: every candidate of :func:`olp_compensate.calibration.effects.candidate_effects` that the data
    can test (its term is not zero and not a combination of the geometry, see
-   :func:`olp_compensate.identify.effect_separation`) is added to the current model and
+   :func:`olp_compensate.calibration.identify.effect_separation`) is added to the current model and
    both models are cross-validated on the same folds. The fits are Gauss-Newton steps from
    the current full-data solution (the problem is linear to far below the noise there), so
    the whole scan costs a few least-squares solves per candidate.
@@ -39,11 +39,11 @@ from scipy import stats
 
 from .effects import (Effect, EffectInputs, GearHarmonic, JointCompliance, ThermalExpansion,
                       candidate_effects)
-from .errors import DataError
+from ..errors import DataError
 from .identify import (IdentificationOptions, IdentificationResult, effect_separation,
                        identify, measurement_inputs, pose_folds, problem_at)
-from .io.measurements import Measurements
-from .robot import Robot
+from .measurements import Measurements
+from ..kinematics.robot import Robot
 
 TEST_DESCRIPTION = (
     "one-sided z-test of the held-out gain (current model's held-out sum of squares minus "

@@ -23,7 +23,7 @@ in radians, the user's joint convention (signs and zero positions of the control
 Branch numbering. The 8 solutions of both closed forms are ordered so that the index *is*
 the configuration number: ``index = 4 * behind + 2 * elbow + wrist``, with the three bits of
 :func:`configuration_bits`. For OPW arms this is ABB's ``cfx`` (see
-:mod:`olp_compensate.confdata`). Unreachable branches are NaN. Failure of an iterative solve
+:mod:`olp_compensate.compensation.confdata`). Unreachable branches are NaN. Failure of an iterative solve
 is a value in :class:`IKSolution`, never an exception.
 """
 
@@ -34,9 +34,9 @@ from typing import Callable
 
 import numpy as np
 
-from .conventions import (invert_pose, pose_from_rotation_translation, rot_y, rot_z,
+from ..kinematics.conventions import (invert_pose, pose_from_rotation_translation, rot_y, rot_z,
                           rotvec_from_rotation)
-from .errors import DataError, ModelError
+from ..errors import DataError, ModelError
 
 __all__ = [
     "OPWParameters", "URParameters", "IKSolution", "REASONS",
@@ -476,7 +476,7 @@ def _margins(params, q):
 def configuration_bits(params: OPWParameters | URParameters, q, tolerance: float = 0.0):
     """Configuration bits ``(m, 3)`` int of joints ``q (m, 6)``: (behind, elbow, wrist).
 
-    OPW arms (ABB's cfx, see :mod:`olp_compensate.confdata`): *behind* = wrist centre behind
+    OPW arms (ABB's cfx, see :mod:`olp_compensate.compensation.confdata`): *behind* = wrist centre behind
     axis 1 (its x in the arm plane < 0), *elbow* = wrist centre behind the lower arm
     (``sin(theta3 + atan2(a2, c3)) < 0``), *wrist* = axis 5 negative
     (``sign5 * sin(theta5) < 0``). UR arms: *behind* = wrist point (frame 5 origin) on the

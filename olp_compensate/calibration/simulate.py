@@ -3,10 +3,10 @@
 A virtual robot is the nominal URDF with a random rigid error on every joint origin (about
 1 mm and 0.1 degree per link), a zero offset on every joint, a measuring device placed
 anywhere, and measured points on the tool. Its truth is evaluated with pinocchio on the
-perturbed URDF model, a code path independent of :mod:`olp_compensate.model`.
+perturbed URDF model, a code path independent of :mod:`olp_compensate.kinematics.model`.
 
 It may also hide non-geometric effects (:class:`HiddenEffect`), evaluated here on their own
-terms and independently of :mod:`olp_compensate.effects`: gravity torques come from
+terms and independently of :mod:`olp_compensate.calibration.effects`: gravity torques come from
 ``pinocchio.computeGeneralizedGravity`` on the *true* (perturbed) model at the *true*
 joints, with the payload added through the flange frame's Jacobian; compliance is solved as
 a fixed point (the arm sags until the spring balances gravity); thermal expansion scales
@@ -20,10 +20,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rotation_from_rotvec
-from .errors import DataError, ModelError
-from .io.measurements import Measurements
-from .robot import Robot
+from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rotation_from_rotvec
+from ..errors import DataError, ModelError
+from .measurements import Measurements
+from ..kinematics.robot import Robot
 
 TRUTH_FORMAT = "olp-compensate virtual robot"
 HIDDEN_KINDS = ("joint_compliance", "gear_harmonic", "backlash", "thermal_expansion", "joint_scale")

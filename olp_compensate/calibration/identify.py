@@ -4,7 +4,7 @@ The unknowns are the device frame (6: ``base.tx .. base.rz``, the robot base in 
 frame), the free geometric parameters of the model, one 3-vector per measured tool point
 (``tool.NAME.x``...), the rotation of each tool whose rows carry an orientation
 (``tool.NAME.rx/ry/rz``, see below) and the parameters of the non-geometric effects asked for
-(``joint_compliance j2.c``..., :mod:`olp_compensate.effects`). Residuals are predicted minus
+(``joint_compliance j2.c``..., :mod:`olp_compensate.calibration.effects`). Residuals are predicted minus
 measured positions in the device frame.
 
 Full-pose rows (``Measurements.orientation``, see :mod:`olp_compensate.io.measurements`) add
@@ -40,16 +40,16 @@ from scipy.linalg.lapack import dpstrf
 from scipy.optimize import least_squares
 
 from .calibration import Calibration, ToolPoint, Validation
-from .conventions import (matrix_from_quat_wxyz, quat_wxyz_from_matrix, rotation_from_rotvec,
+from ..kinematics.conventions import (matrix_from_quat_wxyz, quat_wxyz_from_matrix, rotation_from_rotvec,
                           rotvec_from_rotation, skew)
 from .effects import (Conditions, Effect, EffectInputs, ThermalExpansion, effect_inputs,
                       needs_torque)
-from .errors import DataError
-from .io.measurements import Measurements
+from ..errors import DataError
+from .measurements import Measurements
 from .lm import levenberg_marquardt
-from .model import KinematicModel, build_model, forward, reusable_array
+from ..kinematics.model import KinematicModel, build_model, forward, reusable_array
 from .registration import register_device
-from .robot import Robot
+from ..kinematics.robot import Robot
 
 RANK_TOLERANCE = 1e-8
 """Singular values below this fraction of the largest mark an inseparable combination."""
@@ -241,7 +241,7 @@ class IdentificationProblem:
         self.row_weight = np.ones(len(self.measured))
         self.effects: list[Effect] = list(effects)
         if self.effects and inputs is None:
-            raise ValueError("effects need their inputs (olp_compensate.effects.effect_inputs)")
+            raise ValueError("effects need their inputs (olp_compensate.calibration.effects.effect_inputs)")
         self.inputs = inputs
         self.coupling = urdf_from_controller
         # Effects are linear in their parameters: precompute each basis (m, p) once.

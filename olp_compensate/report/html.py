@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnose import Diagnosis, KeptEffect, diagnosis_to_dict, summary
-from .effects import Backlash, JointCompliance, ThermalExpansion
-from .errors import OlpError
-from .io.atomic import write_bytes_atomic, write_text_atomic
+from ..calibration.diagnose import Diagnosis, KeptEffect, diagnosis_to_dict, summary
+from ..calibration.effects import Backlash, JointCompliance, ThermalExpansion
+from ..errors import OlpError
+from ..io.atomic import write_bytes_atomic, write_text_atomic
 
 MDEG_PER_RAD = 180.0 / np.pi * 1e3
 BEFORE, AFTER, CURVE = "#9a9a9a", "#1f77b4", "#d62728"

@@ -12,12 +12,12 @@ import io
 
 import numpy as np
 
-from .calibration import Calibration
-from .model import joint_frames
+from ..calibration.calibration import Calibration
+from ..kinematics.model import joint_frames
 
 
 def _rot_about(axis: np.ndarray, angle: float) -> np.ndarray:
-    from .conventions import rotation_from_rotvec
+    from ..kinematics.conventions import rotation_from_rotvec
     pose = np.eye(4)
     pose[:3, :3] = rotation_from_rotvec(np.asarray(axis) * angle)
     return pose
