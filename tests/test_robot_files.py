@@ -19,6 +19,12 @@ is the standard DH table (mm, deg)
 with all ABB joint signs +1 (axis 1 counter-clockwise seen from above, axis 2 positive tilts the
 lower arm forward, axis 3 positive tilts the upper arm down, axis 5 positive tilts the flange
 down).
+
+Robots of other makers (KUKA KR 16-2, FANUC R-2000iC/165F, Staubli TX2-60, UR10e) are checked the
+same way against standard DH tables written here from the data-sheet dimensions, with the
+controller's joint signs and zeros (see ``ControllerDhArm`` and robots/README.md). The FANUC has a
+J2/J3 interaction: its J3 is the J3-arm angle from the horizontal (positive = up), so the serial
+URDF joint_3 (axis -y) is ``J2 + J3`` (ROS-Industrial fanuc_driver ``J23_factor = 1``).
 """
 
 from __future__ import annotations
@@ -119,6 +125,91 @@ DH = {
                   [math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0]),
 }
 
+
+class ControllerDhArm:
+    """A 6R arm driven by the controller's axis values, as a standard DH table (m, deg).
+
+    ``theta(q)`` maps controller axes (rad) to the DH thetas (signs and zero offsets of the
+    controller); ``to_urdf(q)`` maps them to the URDF joints (identity unless coupled).
+    """
+
+    def __init__(self, a, d, alpha_deg, theta, ranges_deg, to_urdf=None):
+        self.a, self.d = list(a), list(d)
+        self.alpha = list(np.array(alpha_deg, dtype=float) * DEG)
+        self.theta = theta
+        self.ranges = np.array(ranges_deg, dtype=float) * DEG
+        self._to_urdf = to_urdf
+
+    def fk(self, q_controller) -> np.ndarray:
+        return fk_dh(self.a, self.d, self.alpha, self.theta(np.asarray(q_controller, dtype=float)))
+
+    def to_urdf(self, q_controller) -> np.ndarray:
+        q = np.array(q_controller, dtype=float)
+        return q if self._to_urdf is None else self._to_urdf(q)
+
+    def random_controller(self, rng) -> np.ndarray:
+        return rng.uniform(self.ranges[:, 0], self.ranges[:, 1])
+
+
+def _fanuc_to_urdf(q):
+    """FANUC J2/J3 interaction: URDF joint_3 (serial, FANUC J3 direction) = J2 + J3."""
+    q = np.array(q, dtype=float)
+    q[2] = q[1] + q[2]
+    return q
+
+
+# Controller axis ranges (deg), data sheets (see robots/README.md for the sources).
+KR16_2_RANGES = [(-185, 185), (-155, 35), (-130, 154), (-350, 350), (-130, 130), (-350, 350)]
+R2000IC_165F_RANGES = [(-185, 185), (-60, 76), (-132, 180), (-360, 360), (-125, 125), (-360, 360)]
+TX2_60_RANGES = [(-180, 180), (-127.5, 127.5), (-152.5, 152.5), (-270, 270), (-121, 132.5),
+                 (-270, 270)]
+UR10E_RANGES = [(-360, 360)] * 6
+
+OTHER = {
+    # KUKA KR 16-2 data sheet: A2 675 mm up and 260 mm forward of A1, lower arm 680 mm, A4 axis
+    # 35 mm below A3 (arm horizontal at zero), A3 to wrist centre 670 mm, flange 158 mm. KUKA
+    # signs: A1 clockwise from above (theta1 = -A1), A2/A3/A5 positive down, A4/A6 about -x.
+    "kuka_kr16_2": ControllerDhArm(
+        a=[0.260, 0.680, 0.035, 0, 0, 0], d=[0.675, 0, 0, -0.670, 0, 0.158],
+        alpha_deg=[-90, 0, -90, 90, 90, 0],
+        theta=lambda q: [-q[0], q[1], q[2] + math.pi / 2, q[3], q[4], -q[5]],
+        ranges_deg=KR16_2_RANGES),
+    # FANUC R-2000iC/165F: base = FANUC world frame at the J2 height; J2 312 mm forward of J1,
+    # J2 arm 1075 mm, J4 axis 225 mm above J3, J3 to wrist centre 1280 mm, faceplate 215 mm.
+    # J3 is measured from the horizontal (theta3 = -(J2 + J3)); J3, J4, J5, J6 positive about
+    # -y/-x (FANUC directions).
+    "fanuc_r2000ic_165f": ControllerDhArm(
+        a=[0.312, 1.075, 0.225, 0, 0, 0], d=[0, 0, 0, 1.280, 0, 0.215],
+        alpha_deg=[-90, 0, -90, 90, -90, 0],
+        theta=lambda q: [q[0], q[1] - math.pi / 2, -(q[1] + q[2]), -q[3], -q[4], -q[5]],
+        ranges_deg=R2000IC_165F_RANGES, to_urdf=_fanuc_to_urdf),
+    # Staubli TX2-60: base = Staubli world frame at the shoulder (axes 1 and 2 intersect), arm
+    # 290 mm, 20 mm lateral offset, forearm 310 mm, flange 70 mm; zero = arm and forearm vertical.
+    "staubli_tx2_60": ControllerDhArm(
+        a=[0, 0.290, 0, 0, 0, 0], d=[0, 0.020, 0, 0.310, 0, 0.070],
+        alpha_deg=[-90, 0, 90, -90, 90, 0],
+        theta=lambda q: [q[0], q[1] - math.pi / 2, q[2] + math.pi / 2, q[3], q[4], q[5]],
+        ranges_deg=TX2_60_RANGES),
+    # Universal Robots UR10e DH table (UR's DH-parameters page).
+    "ur10e": ControllerDhArm(
+        a=[0, -0.6127, -0.57155, 0, 0, 0], d=[0.1807, 0, 0, 0.17415, 0.11985, 0.11655],
+        alpha_deg=[90, 0, 0, 90, -90, 0], theta=lambda q: list(q), ranges_deg=UR10E_RANGES),
+}
+
+# Zero pose (all controller axes 0) from the data-sheet numbers: tool0 position (m) and the base
+# directions of tool0's x and z axes.
+ZERO_POSE = {
+    "kuka_kr16_2": ((0.260 + 0.680 + 0.670 + 0.158, 0.0, 0.675 - 0.035), (0, 0, -1), (1, 0, 0)),
+    "fanuc_r2000ic_165f": ((0.312 + 1.280 + 0.215, 0.0, 1.075 + 0.225), (0, 0, 1), (1, 0, 0)),
+    "staubli_tx2_60": ((0.0, 0.020, 0.290 + 0.310 + 0.070), (1, 0, 0), (0, 0, 1)),
+    "ur10e": ((-0.6127 - 0.57155, -(0.17415 + 0.11655), 0.1807 - 0.11985), (1, 0, 0), (0, -1, 0)),
+}
+
+# urdf_from_controller rows of the coupled robots among OTHER (the others have none: identity).
+COUPLING = {"fanuc_r2000ic_165f": [[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 1, 1, 0, 0, 0],
+                                   [0, 0, 0, 1, 0, 0], [0, 0, 0, 0, 1, 0], [0, 0, 0, 0, 0, 1]]}
+
+
 # Expected total mass (kg) of base_link + link_1..link_6: (low, high).
 TOTAL_MASS = {
     "abb_irb2400": (375.0, 385.0),
@@ -126,9 +217,13 @@ TOTAL_MASS = {
     "abb_irb6400": (1900.0, 2300.0),
     "unimation_puma560": (60.0, 66.0),
     "ur5e": (20.0, 21.5),
+    "kuka_kr16_2": (230.0, 240.0),           # 235 kg
+    "fanuc_r2000ic_165f": (1050.0, 1130.0),  # about 1090 kg (unverified)
+    "staubli_tx2_60": (50.0, 53.0),          # about 51.4 kg (unverified)
+    "ur10e": (33.0, 34.0),                   # 33.5 kg
 }
 
-ALL = sorted(list(ABB) + list(DH))
+ALL = sorted(list(ABB) + list(DH) + list(OTHER))
 
 
 # --------------------------------------------------------------------------- helpers
@@ -314,6 +409,102 @@ def test_puma560_zero_pose_numbers():
     assert np.allclose(pose[:3, :3], np.eye(3), atol=TOL)
 
 
+@pytest.mark.parametrize("name", sorted(OTHER))
+def test_other_zero_pose_numbers(name):
+    """All controller axes 0: tool0 where the data-sheet numbers put it."""
+    arm = OTHER[name]
+    position, tool_x, tool_z = ZERO_POSE[name]
+    model, data = load_pinocchio(name)
+    pose = pin_tool0(model, data, arm.to_urdf(np.zeros(6)))
+    assert np.max(np.abs(pose[:3, 3] - np.array(position))) < TOL, pose[:3, 3]
+    assert np.allclose(pose[:3, 0], tool_x, atol=TOL) and np.allclose(pose[:3, 2], tool_z, atol=TOL)
+    assert_pose_close(arm.fk(np.zeros(6)), pose)
+
+
+@pytest.mark.parametrize("name", sorted(OTHER))
+def test_other_random_configurations_against_dh(name):
+    arm = OTHER[name]
+    model, data = load_pinocchio(name)
+    rng = np.random.default_rng(20240612)
+    for _ in range(N_RANDOM):
+        q_ctrl = arm.random_controller(rng)
+        q_urdf = arm.to_urdf(q_ctrl)
+        assert np.all(q_urdf >= model.lowerPositionLimit - 1e-12)
+        assert np.all(q_urdf <= model.upperPositionLimit + 1e-12)
+        assert_pose_close(pin_tool0(model, data, q_urdf), arm.fk(q_ctrl))
+
+
+@pytest.mark.parametrize("name", sorted(OTHER))
+def test_other_controller_files(name):
+    """NAME.controller.json: the data-sheet axis ranges, a description, the coupling; the URDF
+    limits equal the ranges (uncoupled joints) or their envelope (FANUC joint_3)."""
+    import json
+
+    doc = json.loads((ROBOTS_DIR / f"{name}.controller.json").read_text(encoding="utf-8"))
+    assert isinstance(doc.get("description"), str) and doc["description"]
+    arm = OTHER[name]
+    np.testing.assert_array_equal(np.array(doc["axis_ranges_deg"], dtype=float) * DEG, arm.ranges)
+    coupling = np.array(doc.get("urdf_from_controller", np.eye(6)), dtype=float)
+    np.testing.assert_array_equal(coupling, np.array(COUPLING.get(name, np.eye(6)), dtype=float))
+    # the matrix is the reference model's map
+    q = np.random.default_rng(5).uniform(-1, 1, 6)
+    np.testing.assert_allclose(coupling @ q, arm.to_urdf(q), atol=1e-15)
+    model, _ = load_pinocchio(name)
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    for i in range(6):
+        row = coupling[i]
+        positive, negative = np.where(row > 0, row, 0), np.where(row < 0, row, 0)
+        expected_lower = arm.ranges[:, 0] @ positive + arm.ranges[:, 1] @ negative
+        expected_upper = arm.ranges[:, 1] @ positive + arm.ranges[:, 0] @ negative
+        assert abs(lower[i] - expected_lower) < 1e-12, (i, lower[i], expected_lower)
+        assert abs(upper[i] - expected_upper) < 1e-12, (i, upper[i], expected_upper)
+
+
+def test_fanuc_j2_j3_interaction():
+    """FANUC's J3 is measured from the horizontal: J2 alone moves the J2 arm and keeps the J3
+    arm's orientation; J3 positive raises the J3 arm; J5 positive tilts the faceplate up."""
+    arm = OTHER["fanuc_r2000ic_165f"]
+    model, data = load_pinocchio("fanuc_r2000ic_165f")
+    zero = pin_tool0(model, data, arm.to_urdf(np.zeros(6)))
+    small = 0.1
+    pose = pin_tool0(model, data, arm.to_urdf([0, small, 0, 0, 0, 0]))
+    assert np.allclose(pose[:3, :3], zero[:3, :3], atol=TOL)  # the J3 arm stays horizontal
+    assert abs(pose[0, 3] - zero[0, 3] - 1.075 * math.sin(small)) < TOL  # J2 positive: forward
+    assert pose[2, 3] < zero[2, 3]
+    assert pin_tool0(model, data, arm.to_urdf([0, 0, small, 0, 0, 0]))[2, 3] > zero[2, 3]
+    assert pin_tool0(model, data, arm.to_urdf([0, 0, 0, 0, small, 0]))[2, 3] > zero[2, 3]
+
+
+def test_kuka_joint_directions():
+    """KUKA: A1 positive turns clockwise seen from above; A2 = -90, A3 = +90 (home) puts the
+    lower arm vertical and the forearm horizontal; A5 positive tilts the flange down."""
+    arm = OTHER["kuka_kr16_2"]
+    model, data = load_pinocchio("kuka_kr16_2")
+    zero = pin_tool0(model, data, np.zeros(6))[:3, 3]
+    assert pin_tool0(model, data, [0.1, 0, 0, 0, 0, 0])[1, 3] < 0.0
+    home = pin_tool0(model, data, [0, -math.pi / 2, math.pi / 2, 0, 0, 0])
+    assert np.max(np.abs(home[:3, 3] - [0.260 + 0.670 + 0.158, 0, 0.675 + 0.680 - 0.035])) < TOL
+    assert np.allclose(home[:3, 2], [1, 0, 0], atol=TOL)
+    assert pin_tool0(model, data, [0, 0, 0, 0, 0.1, 0])[2, 3] < zero[2]
+    assert_pose_close(home, arm.fk([0, -math.pi / 2, math.pi / 2, 0, 0, 0]))
+
+
+@pytest.mark.parametrize("name", sorted(OTHER))
+def test_other_closed_form_family_fits(name):
+    """Each new arm is a spherical-wrist (OPW) or UR-type arm, so the package's closed-form
+    IK family fits its URDF chain."""
+    from olp_compensate.compensation.ik import OPWParameters, URParameters, fit_family
+
+    model, data = load_pinocchio(name)
+
+    def flange(q):
+        return np.array([pin_tool0(model, data, row) for row in np.atleast_2d(q)])
+
+    family = fit_family(flange)
+    expected = URParameters if name == "ur10e" else OPWParameters
+    assert isinstance(family, expected), family
+
+
 @pytest.mark.parametrize("name", ALL)
 def test_yourdfpy_agrees_with_pinocchio(name):
     urdf = yourdfpy.URDF.load(str(urdf_path(name)), load_meshes=False,
@@ -329,8 +520,8 @@ def test_yourdfpy_agrees_with_pinocchio(name):
 
 @pytest.mark.parametrize("name", ALL)
 def test_own_urdf_reader_agrees_with_yourdfpy(name):
-    """olp_compensate.urdf reads every joint as yourdfpy does (origin, axis, limits)."""
-    from olp_compensate.urdf import read_urdf_chain
+    """olp_compensate.kinematics.urdf reads every joint as yourdfpy does (origin, axis, limits)."""
+    from olp_compensate.kinematics.urdf import read_urdf_chain
 
     theirs = yourdfpy.URDF.load(str(urdf_path(name)), load_meshes=False,
                                 build_collision_scene_graph=False,
@@ -351,7 +542,7 @@ def test_own_urdf_reader_agrees_with_yourdfpy(name):
 
 
 def test_own_urdf_reader_rpy_matches_yourdfpy_on_a_general_origin():
-    from olp_compensate.urdf import read_urdf_chain
+    from olp_compensate.kinematics.urdf import read_urdf_chain
 
     text = ('<robot name="r"><link name="a"/><link name="b"/>'
             '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
@@ -375,7 +566,7 @@ def test_own_urdf_reader_rpy_matches_yourdfpy_on_a_general_origin():
 ])
 def test_own_urdf_reader_rejects_bad_text(text, message):
     from olp_compensate.errors import ModelError
-    from olp_compensate.urdf import read_urdf_chain
+    from olp_compensate.kinematics.urdf import read_urdf_chain
 
     with pytest.raises(ModelError, match=message):
         read_urdf_chain(text, "bad.urdf")
