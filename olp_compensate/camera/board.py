@@ -1,0 +1,164 @@
+"""The calibration board: a grid of dark printed circles on a light sheet, and board.json.
+
+Board frame: origin at the centre of dot (0, 0), x towards increasing column, y towards
+increasing row, z = x × y (the camera looks at the printed face from z < 0). Dot (r, c) is
+at ``(c * pitch, r * pitch, 0)``; "dot" means the centre of the printed circle. Dot (0, 0)
+is the *marker*: drawn with ``marker_diameter`` so that the orientation is unambiguous.
+
+board.json (mm at the file edge)::
+
+    {"rows": 9, "cols": 9, "pitch_mm": 25.0, "dot_diameter_mm": 5.0,
+     "marker_diameter_mm": 8.0}
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..kinematics.conventions import MM
+from ..errors import DataError
+from ..io.atomic import write_text_atomic
+
+BOARD_KEYS = ("rows", "cols", "pitch_mm", "dot_diameter_mm", "marker_diameter_mm")
+
+
+@dataclass(frozen=True)
+class SheetExtent:
+    """The light sheet around the dots, a rectangle in the board frame (m)."""
+
+    x_min: float
+    x_max: float
+    y_min: float
+    y_max: float
+
+    @property
+    def width(self) -> float:
+        """Extent along board x, m."""
+        return self.x_max - self.x_min
+
+    @property
+    def height(self) -> float:
+        """Extent along board y, m."""
+        return self.y_max - self.y_min
+
+
+@dataclass(frozen=True)
+class Board:
+    """A dot board. rows, cols : grid size (>= 3 each). pitch_m : centre-to-centre distance
+    (m). dot_diameter_m : printed circle diameter (m). marker_diameter_m : diameter of dot
+    (0, 0), larger than the others (m)."""
+
+    rows: int
+    cols: int
+    pitch_m: float
+    dot_diameter_m: float
+    marker_diameter_m: float
+
+    def __post_init__(self):
+        for name in ("rows", "cols"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
+                    or value < 3:
+                raise DataError(f"board: {name} must be an integer >= 3, got {value!r}")
+        for name in ("pitch_m", "dot_diameter_m", "marker_diameter_m"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise DataError(f"board: {name} must be a positive number, got {value!r}")
+        if self.marker_diameter_m <= self.dot_diameter_m * 1.2:
+            raise DataError(
+                f"board: the marker diameter ({self.marker_diameter_m / MM:g} mm) must be at "
+                f"least 1.2 times the dot diameter ({self.dot_diameter_m / MM:g} mm) to be "
+                "told apart")
+        # the marker and its neighbour must leave a gap of at least one dot radius
+        gap = self.pitch_m - (self.marker_diameter_m + self.dot_diameter_m) / 2
+        if gap < self.dot_diameter_m / 2:
+            raise DataError(
+                f"board: dots overlap or nearly touch: pitch {self.pitch_m / MM:g} mm leaves "
+                f"{gap / MM:g} mm between the marker and its neighbour, need at least "
+                f"{self.dot_diameter_m / 2 / MM:g} mm")
+
+    @property
+    def count(self) -> int:
+        """Number of dots, rows * cols."""
+        return self.rows * self.cols
+
+    def dot_positions(self) -> np.ndarray:
+        """Dot centres, shape (rows*cols, 3), m, board frame, row-major (index r*cols + c)."""
+        r, c = np.divmod(np.arange(self.count), self.cols)
+        return np.stack([c * self.pitch_m, r * self.pitch_m, np.zeros(self.count)], -1)
+
+    def dot_grid(self) -> np.ndarray:
+        """(row, column) of every dot, shape (rows*cols, 2), int, row-major."""
+        r, c = np.divmod(np.arange(self.count), self.cols)
+        return np.stack([r, c], -1)
+
+    def dot_radii(self) -> np.ndarray:
+        """Printed radius of every dot, shape (rows*cols,), m (index 0 is the marker)."""
+        radii = np.full(self.count, self.dot_diameter_m / 2)
+        radii[0] = self.marker_diameter_m / 2
+        return radii
+
+    def sheet_extent(self) -> SheetExtent:
+        """The light sheet the dots are printed on: one pitch beyond the outer dots' edges."""
+        margin = self.pitch_m + self.marker_diameter_m / 2
+        return SheetExtent(-margin, (self.cols - 1) * self.pitch_m + margin,
+                           -margin, (self.rows - 1) * self.pitch_m + margin)
+
+
+def board_from_dict(data: dict, source: str = "<board>") -> Board:
+    """A :class:`Board` from the board.json mapping (mm); ``source`` names it in errors."""
+    if not isinstance(data, dict):
+        raise DataError(f"{source}: expected a JSON object with keys {', '.join(BOARD_KEYS)}, "
+                        f"got {type(data).__name__}")
+    for key in BOARD_KEYS:
+        if key not in data:
+            raise DataError(f"{source}: missing key '{key}'")
+    for key in ("rows", "cols"):
+        if isinstance(data[key], bool) or not isinstance(data[key], int):
+            raise DataError(f"{source}: '{key}' must be an integer, got {data[key]!r}")
+    for key in BOARD_KEYS[2:]:
+        if isinstance(data[key], bool) or not isinstance(data[key], (int, float)):
+            raise DataError(f"{source}: '{key}' must be a number, got {data[key]!r}")
+    try:
+        return Board(rows=data["rows"], cols=data["cols"], pitch_m=data["pitch_mm"] * MM,
+                     dot_diameter_m=data["dot_diameter_mm"] * MM,
+                     marker_diameter_m=data["marker_diameter_mm"] * MM)
+    except DataError as exc:
+        raise DataError(f"{source}: {exc}") from None
+
+
+def board_to_dict(board: Board) -> dict:
+    """The board.json mapping (mm) of ``board``."""
+    return {"rows": int(board.rows), "cols": int(board.cols),
+            "pitch_mm": _mm(board.pitch_m), "dot_diameter_mm": _mm(board.dot_diameter_m),
+            "marker_diameter_mm": _mm(board.marker_diameter_m)}
+
+
+def _mm(metres: float) -> float:
+    # 25.0 mm stays 25.0 in the file, not 25.000000000000004
+    return round(float(metres) / MM, 9)
+
+
+def read_board(path: str | Path) -> Board:
+    """Read board.json (mm) into a :class:`Board` (m)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON ({exc.msg})") from None
+    return board_from_dict(data, str(path))
+
+
+def write_board(board: Board, path: str | Path) -> None:
+    """Write ``board`` as board.json (mm), atomically (temporary file, then rename)."""
+    write_text_atomic(path, json.dumps(board_to_dict(board), indent=2) + "\n")

@@ -1,0 +1,484 @@
+"""Subpixel centres of the board's dots in an image, ordered into the grid by the marker.
+
+Steps (each a function below):
+
+1. :func:`darkness` - local contrast: the paper level is estimated by a grey closing
+   (larger than any dot can appear) and the image becomes ``1 - I / paper``, so uneven
+   light and vignetting drop out.
+2. :func:`find_blobs` - connected components above a contrast threshold, kept if they are
+   filled ellipses (area against the area of the ellipse of equal second moments).
+3. :func:`match_grid` - the marker is the blob largest against its neighbours; with its
+   two nearest neighbours along the columns and the rows (column × row > 0 in the image,
+   the camera sees the printed face) and the diagonal one, a board-to-image homography is
+   grown ring by ring over the grid, refitted on every match.
+4. :func:`refine_centres` - each dot's centre is the darkness-weighted centroid inside an
+   ellipse slightly larger than the blob, against a background plane fitted on a ring
+   around it. That is the centroid of the dot's *image*: under perspective it is not the
+   image of the circle's centre; :func:`circle_centre_bias` gives the difference.
+
+Pixel coordinates: integer values at pixel centres, X = column, Y = row.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from ..errors import DataError
+from ..io.images import image_paths, read_grey
+from .board import Board
+from .model import CameraIntrinsics, project_points
+
+CONTRAST_THRESHOLDS = (0.3, 0.15, 0.5)
+"""A pixel belongs to a blob where ``1 - I / paper`` exceeds the threshold (printed dots:
+~0.8); the next one is tried when the board is not found whole (faint or blurred dots,
+dots touching dark shapes)."""
+
+BORDER_MARGIN_PX = 2
+"""A dot whose window comes closer than this to the image border is not measured."""
+
+
+@dataclass(frozen=True, eq=False)
+class Detection:
+    """The board found in one image.
+
+    name : image name. pixels : (rows*cols, 2) dot centres, px (X, Y), row-major in the
+    order of :meth:`Board.dot_positions`. area_px : (n,) blob areas above the threshold,
+    px^2. contrast : (n,) peak darkness of each dot (0 paper .. 1 black).
+    homography : (3, 3) board x, y (m) to pixels, fitted on all dots. homography_rms_px :
+    RMS distance of the dots to it (lens distortion and noise), px.
+    """
+
+    name: str
+    pixels: np.ndarray
+    area_px: np.ndarray
+    contrast: np.ndarray
+    homography: np.ndarray
+    homography_rms_px: float
+
+    ok = True
+
+
+@dataclass(frozen=True)
+class DetectionFailure:
+    """The board was not found whole in image ``name``; ``reason`` says why."""
+
+    name: str
+    reason: str
+
+    ok = False
+
+
+@dataclass(frozen=True, eq=False)
+class Blobs:
+    """Candidate dots: centres (m, 2) px, areas (m,) px^2, covariances (m, 2, 2) px^2 of
+    the blob pixels, boxes (m, 4) x, y, w, h and touches_border (m,) bool."""
+
+    centres: np.ndarray
+    areas: np.ndarray
+    covariances: np.ndarray
+    boxes: np.ndarray
+    touches_border: np.ndarray
+    labels: np.ndarray = field(repr=False)
+    label_ids: np.ndarray = field(repr=False)
+
+
+def _as_grey(image: np.ndarray) -> np.ndarray:
+    import cv2
+
+    image = np.asarray(image)
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        image = cv2.cvtColor(image[..., :3], cv2.COLOR_RGB2GRAY)
+    if image.ndim != 2:
+        raise DataError(f"detect: expected a grey (h, w) or colour (h, w, 3) image, got shape "
+                        f"{image.shape}")
+    if image.dtype != np.uint8:
+        raise DataError(f"detect: expected an 8-bit image, got {image.dtype}")
+    return image
+
+
+def largest_dot_px(board: Board, width: int, height: int) -> float:
+    """An upper bound on the marker's diameter in an image that holds the whole board, px."""
+    span = max(width, height) / (min(board.rows, board.cols) - 1)
+    return 2.0 * span * board.marker_diameter_m / board.pitch_m
+
+
+def darkness(grey: np.ndarray, board: Board) -> np.ndarray:
+    """``1 - I / paper`` (float32, same shape), paper level from a grey closing wider than
+    the largest dot the image can hold (:func:`largest_dot_px`)."""
+    import cv2
+
+    height, width = grey.shape
+    size = largest_dot_px(board, width, height) * 1.3
+    step = max(1, int(size // 12))
+    small = cv2.resize(grey, (max(1, width // step), max(1, height // step)),
+                       interpolation=cv2.INTER_AREA) if step > 1 else grey
+    k = int(math.ceil(size / step)) | 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    paper = cv2.morphologyEx(small, cv2.MORPH_CLOSE, kernel, borderType=cv2.BORDER_REPLICATE)
+    paper = cv2.blur(paper, (3, 3))
+    if step > 1:
+        paper = cv2.resize(paper, (width, height), interpolation=cv2.INTER_LINEAR)
+    paper = np.maximum(paper.astype(np.float32), np.maximum(grey, 8).astype(np.float32))
+    return 1.0 - grey.astype(np.float32) / paper
+
+
+def find_blobs(dark: np.ndarray, threshold: float = CONTRAST_THRESHOLDS[0],
+               min_area: int = 6) -> Blobs:
+    """Dark filled ellipses in a darkness image (see :func:`darkness`)."""
+    import cv2
+
+    height, width = dark.shape
+    binary = (dark > threshold).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    ys, xs = np.nonzero(binary)
+    lab = labels[ys, xs]
+    area = np.bincount(lab, minlength=n).astype(float)
+    safe = np.maximum(area, 1)
+    mx = np.bincount(lab, xs, n) / safe
+    my = np.bincount(lab, ys, n) / safe
+    dx, dy = xs - mx[lab], ys - my[lab]
+    cxx = np.bincount(lab, dx * dx, n) / safe + 1 / 12  # + pixel's own extent
+    cyy = np.bincount(lab, dy * dy, n) / safe + 1 / 12
+    cxy = np.bincount(lab, dx * dy, n) / safe
+    det = np.maximum(cxx * cyy - cxy * cxy, 1e-9)
+    fill = area / (4 * np.pi * np.sqrt(det))
+    trace = cxx + cyy
+    disc = np.sqrt(np.maximum(trace * trace / 4 - det, 0))
+    elongation = np.sqrt((trace / 2 + disc) / np.maximum(trace / 2 - disc, 1e-9))
+    x, y, w, h = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
+    tolerance = np.where(area < 40, 0.3, 0.15)
+    keep = (area >= min_area) & (np.abs(fill - 1) < tolerance) & (elongation < 6)
+    keep[0] = False  # the background component
+    ids = np.nonzero(keep)[0]
+    border = (x == 0) | (y == 0) | (x + w == width) | (y + h == height)
+    cov = np.stack([np.stack([cxx, cxy], -1), np.stack([cxy, cyy], -1)], -2)
+    return Blobs(centres=np.stack([mx, my], -1)[ids], areas=area[ids], covariances=cov[ids],
+                 boxes=stats[ids, :4], touches_border=border[ids], labels=labels,
+                 label_ids=ids)
+
+
+def fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """3x3 homography mapping points ``src`` (n, 2) to ``dst`` (n, 2), n >= 4, by the
+    normalized direct linear transform (least squares on all points)."""
+    def normalizer(p):
+        mean = p.mean(axis=0)
+        scale = math.sqrt(2) / max(np.sqrt(((p - mean) ** 2).sum(axis=1)).mean(), 1e-12)
+        return np.array([[scale, 0, -scale * mean[0]], [0, scale, -scale * mean[1]],
+                         [0, 0, 1]])
+
+    Ts, Td = normalizer(src), normalizer(dst)
+    s = src @ Ts[:2, :2].T + Ts[:2, 2]
+    d = dst @ Td[:2, :2].T + Td[:2, 2]
+    n = len(s)
+    A = np.zeros((2 * n, 9))
+    A[0::2, 0:2], A[0::2, 2] = s, 1
+    A[0::2, 6:8], A[0::2, 8] = -d[:, :1] * s, -d[:, 0]
+    A[1::2, 3:5], A[1::2, 5] = s, 1
+    A[1::2, 6:8], A[1::2, 8] = -d[:, 1:] * s, -d[:, 1]
+    H = np.linalg.svd(A)[2][-1].reshape(3, 3)
+    H = np.linalg.inv(Td) @ H @ Ts
+    return H / H[2, 2]
+
+
+def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Points (n, 2) mapped by the homography H (3, 3)."""
+    p = np.asarray(points, dtype=float) @ H[:, :2].T + H[:, 2]
+    return p[:, :2] / p[:, 2:3]
+
+
+@dataclass(frozen=True, eq=False)
+class _GridMatch:
+    blob_of_dot: np.ndarray  # (rows*cols,) blob index or -1
+    homography: np.ndarray  # grid (c, r) -> pixels
+
+    @property
+    def found(self) -> int:
+        return int(np.sum(self.blob_of_dot >= 0))
+
+
+def _grow(board: Board, blobs: Blobs, tree, start: dict[tuple[int, int], int]) -> _GridMatch:
+    """Grow a grid match from a few (r, c) -> blob seeds, ring by ring."""
+    rows, cols = board.rows, board.cols
+    blob_of_dot = np.full(rows * cols, -1)
+    for (r, c), b in start.items():
+        blob_of_dot[r * cols + c] = b
+    used = set(start.values())
+    grid = board.dot_grid()
+    dot_area = math.pi / 4 * (board.dot_diameter_m / board.pitch_m) ** 2  # in pitch^2
+    while True:
+        matched = blob_of_dot >= 0
+        H = fit_homography(grid[matched][:, ::-1].astype(float),
+                           blobs.centres[blob_of_dot[matched]])
+        # blob areas against the areas the homography predicts (perspective changes them)
+        dots = np.nonzero(matched)[0][1:]  # all but the marker
+        typical = float(np.median(blobs.areas[blob_of_dot[dots]]
+                                  / _image_area(H, grid[dots][:, ::-1], dot_area)))
+        rr, cc = grid[matched, 0], grid[matched, 1]
+        r_lo, r_hi = max(rr.min() - 1, 0), min(rr.max() + 1, rows - 1)
+        c_lo, c_hi = max(cc.min() - 1, 0), min(cc.max() + 1, cols - 1)
+        todo = np.nonzero(~matched & (grid[:, 0] >= r_lo) & (grid[:, 0] <= r_hi)
+                          & (grid[:, 1] >= c_lo) & (grid[:, 1] <= c_hi))[0]
+        if todo.size == 0:
+            break
+        cr = grid[todo][:, ::-1].astype(float)
+        predicted = apply_homography(H, cr)
+        step_c = np.linalg.norm(apply_homography(H, cr + [1, 0]) - predicted, axis=1)
+        step_r = np.linalg.norm(apply_homography(H, cr + [0, 1]) - predicted, axis=1)
+        tolerance = 0.3 * np.minimum(step_c, step_r)
+        expected_area = typical * _image_area(H, cr, dot_area)
+        distance, nearest = tree.query(predicted)
+        added = 0
+        for k in np.argsort(distance):
+            b = int(nearest[k])
+            if distance[k] > tolerance[k] or b in used:
+                continue
+            if not 0.33 < blobs.areas[b] / expected_area[k] < 3:
+                continue
+            blob_of_dot[todo[k]] = b
+            used.add(b)
+            added += 1
+        if added == 0:
+            break
+    matched = blob_of_dot >= 0
+    H = fit_homography(grid[matched][:, ::-1].astype(float), blobs.centres[blob_of_dot[matched]])
+    return _GridMatch(blob_of_dot, H)
+
+
+def _image_area(H: np.ndarray, points: np.ndarray, area: float) -> np.ndarray:
+    """Image area (px^2) of a small ``area`` at ``points`` (n, 2) mapped by H (3, 3):
+    ``area * |det H| / w^3``, the homography's local Jacobian determinant."""
+    w = points @ H[2, :2] + H[2, 2]
+    return area * abs(np.linalg.det(H)) / np.abs(w) ** 3
+
+
+def _seeds(board: Board, blobs: Blobs, tree) -> Iterator[dict[tuple[int, int], int]]:
+    """Candidate starts: marker, its column and row neighbours and the diagonal dot."""
+    n = len(blobs.areas)
+    if n < 4:
+        return
+    k = min(9, n)
+    _, neighbours = tree.query(blobs.centres, k=k)
+    expected = (board.marker_diameter_m / board.dot_diameter_m) ** 2
+    neighbour_area = np.median(blobs.areas[neighbours[:, 1:5]], axis=1)
+    ratio = blobs.areas / neighbour_area
+    score = np.abs(np.log(ratio / expected))
+    candidates = [i for i in np.argsort(score) if score[i] < math.log(2.0)]
+    for m in candidates[:8]:
+        centre = blobs.centres[m]
+        near = [int(j) for j in neighbours[m, 1:]
+                if 0.5 < expected * blobs.areas[j] / blobs.areas[m] < 2.0]
+        pairs = []
+        for a in near:
+            for b in near:
+                if a == b:
+                    continue
+                va, vb = blobs.centres[a] - centre, blobs.centres[b] - centre
+                la, lb = np.linalg.norm(va), np.linalg.norm(vb)
+                cross = (va[0] * vb[1] - va[1] * vb[0]) / (la * lb)
+                # the column direction turns to the row direction by +40..140 degrees
+                if cross < math.sin(math.radians(40)) or max(la, lb) > 2.5 * min(la, lb):
+                    continue
+                diagonal = blobs.centres[a] + vb
+                dd, d = tree.query(diagonal)
+                if dd > 0.3 * min(la, lb) or d in (m, a, b):
+                    continue
+                pairs.append((la + lb, a, b, int(d)))
+        for _, a, b, d in sorted(pairs)[:3]:
+            yield {(0, 0): int(m), (0, 1): a, (1, 0): b, (1, 1): d}
+
+
+def match_grid(board: Board, blobs: Blobs) -> _GridMatch | str:
+    """The blob of every dot (grid match), or the reason there is none."""
+    from scipy.spatial import cKDTree
+
+    if len(blobs.areas) < 4:
+        return f"found {len(blobs.areas)} dot-like blobs, need {board.count}"
+    tree = cKDTree(blobs.centres)
+    best = None
+    for seed in _seeds(board, blobs, tree):
+        match = _grow(board, blobs, tree, seed)
+        if match.found == board.count:
+            return match
+        if best is None or match.found > best.found:
+            best = match
+    if best is None:
+        return "no marker dot"
+    return best
+
+
+def _missing_reason(board: Board, blobs: Blobs, match: _GridMatch, shape) -> str:
+    height, width = shape
+    missing = np.nonzero(match.blob_of_dot < 0)[0]
+    grid = board.dot_grid()
+    predicted = apply_homography(match.homography, grid[missing][:, ::-1].astype(float))
+    outside = ((predicted[:, 0] < 0) | (predicted[:, 0] > width - 1)
+               | (predicted[:, 1] < 0) | (predicted[:, 1] > height - 1))
+    found = f"found {match.found} of {board.count} dots"
+    if np.any(outside):
+        r, c = grid[missing[np.argmax(outside)]]
+        count = int(outside.sum())
+        dots = f"dot ({r}, {c})" if count == 1 else f"{count} dots, e.g. ({r}, {c}),"
+        return f"{found}: board touches the image border ({dots} outside the image)"
+    if np.any(blobs.touches_border):
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(blobs.centres[blobs.touches_border])
+        step = np.median(np.linalg.norm(np.diff(apply_homography(
+            match.homography, np.array([[0.0, 0.0], [1.0, 0.0]])), axis=0), axis=1))
+        dist, _ = tree.query(predicted)
+        if np.any(dist < 0.5 * step):
+            return f"{found}: board touches the image border"
+    return f"{found} (dots hidden or not dark enough)"
+
+
+def refine_centres(grey: np.ndarray, dark: np.ndarray, blobs: Blobs, indices: np.ndarray,
+                   iterations: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Darkness-weighted centroids (n, 2) px of the blobs ``indices``, with a background
+    plane fitted on a ring around each; also (n,) peak contrast and (n,) bool "window fits
+    inside the image"."""
+    height, width = grey.shape
+    centres = np.empty((len(indices), 2))
+    contrast = np.zeros(len(indices))
+    inside = np.ones(len(indices), bool)
+    image = grey.astype(np.float64)
+    for k, b in enumerate(indices):
+        centre = blobs.centres[b].copy()
+        w, v = np.linalg.eigh(blobs.covariances[b])
+        semi = 2 * np.sqrt(np.maximum(w, 0.25))
+        grow = max(2.5, 0.35 * semi.min())
+        window = semi + grow
+        outer = window + max(2.5, 0.35 * semi.min())
+        half = int(math.ceil(outer.max())) + 2
+        for _ in range(iterations):
+            x0, y0 = int(round(centre[0])) - half, int(round(centre[1])) - half
+            x1, y1 = x0 + 2 * half + 1, y0 + 2 * half + 1
+            if x0 < BORDER_MARGIN_PX or y0 < BORDER_MARGIN_PX or x1 > width - BORDER_MARGIN_PX \
+                    or y1 > height - BORDER_MARGIN_PX:
+                inside[k] = False
+                break
+            ys, xs = np.mgrid[y0:y1, x0:x1]
+            px, py = xs - centre[0], ys - centre[1]
+            u1 = px * v[0, 0] + py * v[1, 0]
+            u2 = px * v[0, 1] + py * v[1, 1]
+            rw = (u1 / window[0]) ** 2 + (u2 / window[1]) ** 2
+            ro = (u1 / outer[0]) ** 2 + (u2 / outer[1]) ** 2
+            patch = image[y0:y1, x0:x1]
+            ring = (rw > 1) & (ro <= 1)
+            A = np.stack([np.ones(ring.sum()), px[ring], py[ring]], -1)
+            coef = np.linalg.lstsq(A, patch[ring], rcond=None)[0]
+            inner = rw <= 1
+            paper = coef[0] + coef[1] * px[inner] + coef[2] * py[inner]
+            weight = (paper - patch[inner]) / np.maximum(paper, 1.0)
+            total = weight.sum()
+            if total <= 0:
+                break
+            centre = np.array([(weight * xs[inner]).sum(), (weight * ys[inner]).sum()]) / total
+            contrast[k] = float(weight.max())
+        centres[k] = centre
+    return centres, contrast, inside
+
+
+def ellipse_centres(blobs: Blobs, indices: np.ndarray) -> np.ndarray:
+    """Centres (n, 2) px of ellipses fitted to the blobs' outer contours (cv2.fitEllipse);
+    the alternative to :func:`refine_centres`, kept for comparison."""
+    import cv2
+
+    out = np.empty((len(indices), 2))
+    for k, b in enumerate(indices):
+        x, y, w, h = blobs.boxes[b]
+        mask = (blobs.labels[y:y + h, x:x + w] == blobs.label_ids[b]).astype(np.uint8)
+        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        contour = max(contours, key=len)
+        if len(contour) >= 5:
+            (ex, ey), _, _ = cv2.fitEllipse(contour)
+        else:
+            ex, ey = contour.reshape(-1, 2).mean(axis=0)
+        out[k] = (ex + x, ey + y)
+    return out
+
+
+def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
+                method: str = "centroid") -> Detection | DetectionFailure:
+    """Find every dot of ``board`` in an 8-bit grey (h, w) or RGB (h, w, 3) image.
+
+    method : "centroid" (darkness-weighted centroid, the default and the more accurate)
+    or "ellipse" (centre of an ellipse fitted to the blob contour).
+    Returns a :class:`Detection`, or a :class:`DetectionFailure` with the reason.
+    """
+    if method not in ("centroid", "ellipse"):
+        raise DataError(f"detect: method must be 'centroid' or 'ellipse', got {method!r}")
+    grey = _as_grey(image)
+    dark = darkness(grey, board)
+    first = None
+    for threshold in CONTRAST_THRESHOLDS:
+        blobs = find_blobs(dark, threshold)
+        match = match_grid(board, blobs)
+        if not isinstance(match, str) and match.found == board.count:
+            break
+        if isinstance(match, str):
+            if np.any(blobs.touches_border):
+                match += " (dot-like blobs touch the image border: board cut off?)"
+            failure = DetectionFailure(name, match)
+        else:
+            failure = DetectionFailure(name, _missing_reason(board, blobs, match, grey.shape))
+        first = first or failure
+    else:
+        return first  # the reason at the standard threshold
+    indices = match.blob_of_dot
+    if np.any(blobs.touches_border[indices]):
+        return DetectionFailure(name, "board touches the image border")
+    centres, contrast, inside = refine_centres(grey, dark, blobs, indices)
+    if not np.all(inside):
+        r, c = board.dot_grid()[np.argmin(inside)]
+        return DetectionFailure(name, f"board touches the image border (dot ({r}, {c}))")
+    if method == "ellipse":
+        centres = ellipse_centres(blobs, indices)
+    H = fit_homography(board.dot_positions()[:, :2], centres)
+    rms = float(np.sqrt(np.mean(np.sum(
+        (apply_homography(H, board.dot_positions()[:, :2]) - centres) ** 2, axis=1))))
+    return Detection(name=name, pixels=centres, area_px=blobs.areas[indices],
+                     contrast=contrast, homography=H, homography_rms_px=rms)
+
+
+def detect_many(images: str | Path | Iterable[str | Path], board: Board,
+                method: str = "centroid") -> Iterator[Detection | DetectionFailure]:
+    """Detect the board in every image of IMAGES (a folder, sorted by name, or a list of
+    files); an unreadable image or one without the whole board yields a
+    :class:`DetectionFailure` naming it, and the others go on."""
+    for path in image_paths(images):
+        try:
+            grey = read_grey(path)
+        except DataError as exc:
+            yield DetectionFailure(path.name, f"cannot read: {exc}")
+            continue
+        yield detect_dots(grey, board, path.name, method)
+
+
+def circle_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
+                       board: Board, samples: int = 256) -> np.ndarray:
+    """Perspective bias of every dot (n, 2) px, row-major: the centroid of the area of the
+    dot's image minus the image of the dot's centre.
+
+    The printed circle's boundary is projected through the full camera model
+    (``samples`` points, distortion included) and the centroid of the enclosed polygon
+    taken (exact to O(1/samples^2)). Subtract it from detected centroids to get the
+    images of the dot centres; ``camera_T_board`` (4, 4, m) from a first calibration pass.
+    """
+    angles = np.linspace(0, 2 * np.pi, samples, endpoint=False)
+    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(samples)], -1)
+    centres = board.dot_positions()
+    boundary = centres[:, None, :] + board.dot_radii()[:, None, None] * ring
+    pix = project_points(intrinsics, camera_T_board, boundary.reshape(-1, 3))
+    pix = pix.reshape(len(centres), samples, 2)
+    x, y = pix[..., 0], pix[..., 1]
+    xn, yn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
+    cross = x * yn - xn * y
+    area = cross.sum(axis=1) / 2
+    cx = ((x + xn) * cross).sum(axis=1) / (6 * area)
+    cy = ((y + yn) * cross).sum(axis=1) / (6 * area)
+    return np.stack([cx, cy], -1) - project_points(intrinsics, camera_T_board, centres)

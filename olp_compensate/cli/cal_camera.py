@@ -1,0 +1,340 @@
+"""``olp-cal camera``: make a dot board, calibrate a camera from views of it, measure the
+camera's pose in the board frame.
+
+- ``board``: board.json (and optionally the printable SVG / PNG).
+- ``calibrate IMAGES... --board board.json -o camera.json``: the seed's RAC followed by the
+  full refinement (``--method rac-only`` keeps the RAC estimates).
+- ``measure IMAGES... --camera camera.json --board board.json -o poses.csv``: one row per
+  image, the camera frame in the board frame; with ``--joints joints.csv`` a measurement CSV
+  for ``olp-cal identify`` (the board is the measuring device, the camera the tool).
+
+IMAGES: folders (their .png/.jpg/.jpeg files, any case, sorted by name) or files.
+Exit codes: 0 success; 1 bad input (one line on stderr).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..camera.board import Board, board_to_dict, read_board, write_board
+from ..camera.calibrate import METHODS, View, calibrate
+from ..camera.detect import circle_centre_bias, detect_dots
+from ..camera.measure import measure_pose
+from ..errors import DataError
+from ..io.atomic import write_text_atomic
+from ..io.camera_file import read_camera, write_camera
+from ..io.images import image_paths, read_grey
+from ..io.measurements import FORMAT_LINE, read_csv_text
+
+HELP = "camera: make a dot board, calibrate a camera from views of it, measure camera poses"
+
+JOINT_RE = re.compile(r"q(\d+)_(deg|mm)$")
+
+
+def add_arguments(p) -> None:
+    sub = p.add_subparsers(dest="camera_command", required=True, metavar="SUBCOMMAND")
+    b = sub.add_parser("board", help="write board.json (and a printable SVG/PNG)",
+                       description="Write a dot board's description (board.json, mm) and "
+                                   "optionally a drawing to print at scale.")
+    b.add_argument("--rows", type=int, default=9, help="dot rows (default 9)")
+    b.add_argument("--cols", type=int, default=9, help="dot columns (default 9)")
+    b.add_argument("--pitch-mm", type=float, default=25.0,
+                   help="centre-to-centre distance of the dots, mm (default 25)")
+    b.add_argument("--dot-mm", type=float, default=5.0, help="dot diameter, mm (default 5)")
+    b.add_argument("--marker-mm", type=float, default=8.0,
+                   help="diameter of the marker dot (row 0, column 0), mm (default 8)")
+    b.add_argument("-o", "--output", required=True, help="board.json to write")
+    b.add_argument("--svg", help="also write the board as SVG (print at 100 %%)")
+    b.add_argument("--png", help="also write the board as PNG")
+    b.add_argument("--dpi", type=float, default=300.0, help="PNG resolution (default 300)")
+
+    c = sub.add_parser("calibrate", help="calibrate the camera from views of the board",
+                       description="Calibrate a camera from images of the dot board: the "
+                                   "seed's RAC (Tsai), then a full Levenberg-Marquardt "
+                                   "refinement on the reprojection error.")
+    c.add_argument("images", nargs="+", metavar="IMAGES",
+                   help="folders of .png/.jpg/.jpeg images, or image files")
+    c.add_argument("--board", required=True, help="board.json")
+    c.add_argument("-o", "--output", required=True, help="camera.json to write")
+    c.add_argument("--method", choices=METHODS, default="rac",
+                   help="rac: the RAC then the full refinement (default); rac-only: keep the "
+                        "RAC estimates, as the seed did")
+    c.add_argument("--no-circle-correction", action="store_true",
+                   help="use the detected dot centroids as they are (default: correct the "
+                        "perspective bias of circle centres)")
+
+    m = sub.add_parser("measure", help="the camera's pose in the board frame, per image",
+                       description="Measure the camera frame in the board frame in each image "
+                                   "with the calibrated intrinsics.")
+    m.add_argument("images", nargs="+", metavar="IMAGES",
+                   help="folders of .png/.jpg/.jpeg images, or image files")
+    m.add_argument("--camera", required=True, help="camera.json from 'camera calibrate'")
+    m.add_argument("--board", required=True, help="board.json")
+    m.add_argument("-o", "--output", required=True,
+                   help="CSV to write: image, x_mm, y_mm, z_mm, qw, qx, qy, qz, rms_px "
+                        "(with --joints: a measurement CSV for 'olp-cal identify')")
+    m.add_argument("--joints", help="joints CSV: image, q1_deg..qN_deg [, pose, other "
+                                    "columns passed through]")
+    m.add_argument("--name", default="camera",
+                   help="point name in the measurement CSV (default camera)")
+    m.add_argument("--no-circle-correction", action="store_true",
+                   help="use the detected dot centroids as they are")
+
+
+def run(args) -> int:
+    return {"board": _run_board, "calibrate": _run_calibrate,
+            "measure": _run_measure}[args.camera_command](args)
+
+
+# -- shared -----------------------------------------------------------------------------------
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def _check_output(out: Path, inputs: list[Path]) -> None:
+    for source in inputs:
+        if _same_file(out, source):
+            raise DataError(f"{out}: is an input ({source}); inputs are never overwritten, "
+                            f"choose another output file")
+
+
+def _expand(images: list[str]) -> list[Path]:
+    paths = []
+    for item in images:
+        paths += image_paths(item)
+    names = [p.name for p in paths]
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        raise DataError(f"{dup}: two images of this name; rows are named by file name, "
+                        f"rename one")
+    return paths
+
+
+def _detect(paths: list[Path], board: Board):
+    """(name, pixels or None, reason, (width, height)) per image, in order; an unreadable
+    image is a DataError."""
+    out = []
+    for path in paths:
+        if not path.is_file():
+            raise DataError(f"{path}: no such image file")
+        grey = read_grey(path)
+        found = detect_dots(grey, board, path.name)
+        size = (grey.shape[1], grey.shape[0])
+        if found.ok:
+            out.append((path.name, found.pixels, "", size))
+        else:
+            out.append((path.name, None, found.reason, size))
+    return out
+
+
+# -- board ------------------------------------------------------------------------------------
+
+def _run_board(args) -> int:
+    from ..camera.drawing import write_board_png, write_board_svg
+
+    board = Board(rows=args.rows, cols=args.cols, pitch_m=args.pitch_mm * 1e-3,
+                  dot_diameter_m=args.dot_mm * 1e-3, marker_diameter_m=args.marker_mm * 1e-3)
+    outputs = [Path(p) for p in (args.output, args.svg, args.png) if p]
+    if len({p.resolve() for p in outputs}) < len(outputs):
+        raise DataError("-o, --svg and --png must name different files")
+    write_board(board, args.output)
+    print(f"wrote {args.output} ({board.rows} x {board.cols} dots, pitch "
+          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, marker {args.marker_mm:g} mm)")
+    if args.svg:
+        write_board_svg(board, args.svg)
+        print(f"wrote {args.svg} (print at 100 %, then check the pitch with a rule)")
+    if args.png:
+        write_board_png(board, args.png, args.dpi)
+        print(f"wrote {args.png} ({args.dpi:g} dpi)")
+    return 0
+
+
+# -- calibrate --------------------------------------------------------------------------------
+
+_UNITS = {"fx": ("px", 3), "mu": ("(fy / fx)", 6), "cx": ("px", 3), "cy": ("px", 3),
+          "k1": ("(per normalized radius^2, distorted to undistorted)", 5),
+          "k2": ("(per normalized radius^4)", 5)}
+
+
+def _run_calibrate(args) -> int:
+    board = read_board(args.board)
+    paths = _expand(args.images)
+    out = Path(args.output)
+    _check_output(out, paths + [Path(args.board)])
+    found = _detect(paths, board)
+    sizes = {size for _, _, _, size in found}
+    if len(sizes) > 1:
+        raise DataError("images of different sizes: " + ", ".join(
+            f"{name} {w}x{h}" for name, _, _, (w, h) in found[:len(sizes) + 1]) +
+            "; calibrate one camera at one resolution")
+    width, height = sizes.pop()
+    points = board.dot_positions()
+    views = [View(name, pix, points) for name, pix, _, _ in found if pix is not None]
+    not_found = [(name, reason) for name, pix, reason, _ in found if pix is None]
+    for name, reason in not_found:
+        print(f"skipped {name}: {reason}")
+    bias = None if args.no_circle_correction else \
+        (lambda k, T: circle_centre_bias(k, T, board))
+    cal = calibrate(views, width, height, method=args.method, centre_bias=bias)
+    what = ("the seed's RAC, then the full refinement" if args.method == "rac"
+            else "the seed's RAC estimates kept")
+    corr = (f"circle-centre correction, {cal.bias_iterations} passes" if cal.bias_iterations
+            else "detected centroids as they are")
+    print(f"camera {width} x {height} px from {len(cal.views)} of {len(paths)} images "
+          f"(method {args.method}: {what}; {corr})")
+    for v in cal.views:
+        note = "" if v.in_rac else "  (not in the RAC: too close to parallel)"
+        print(f"  {v.name}: rms {v.rms_px:.3f} px, max {v.max_px:.3f} px, board tilted "
+              f"{v.tilt_deg:.0f} deg{note}")
+    for s in cal.skipped:
+        print(f"skipped {s.name}: {s.reason}")
+    n_dots = sum(len(v.pixels) for v in views)
+    sigma = "" if not np.isfinite(cal.sigma_px) else f", sigma {cal.sigma_px:.3f} px"
+    print(f"overall: rms {cal.rms_px:.3f} px, max {cal.max_px:.3f} px over {n_dots} dots"
+          f"{sigma}")
+    print("parameters (value +/- one standard deviation; RAC estimate):")
+    for name, (unit, digits) in _UNITS.items():
+        value, std = getattr(cal.intrinsics, name), cal.std[name]
+        sd = f"+/- {std:.{digits}f}" if np.isfinite(std) else "+/- n/a (RAC)"
+        print(f"  {name:3s} {value:.{digits}f} {sd} {unit}".rstrip()
+              + f"   (RAC {getattr(cal.rac, name):.{digits}f})")
+    write_camera(out, cal, board_to_dict(board))
+    print(f"wrote {out}")
+    return 0
+
+
+# -- measure ----------------------------------------------------------------------------------
+
+def _read_joints(path: Path) -> tuple[list[str], list[dict[str, str]], list[int]]:
+    """Header, rows (column -> text) and 1-based line numbers of a joints CSV."""
+    text = read_csv_text(path, "a joints CSV (image, q1_deg..qN_deg)")
+    lines = text.splitlines()
+    start = 0
+    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
+        start += 1
+    if start == len(lines):
+        raise DataError(f"{path}: no header row (expected image, q1_deg, ..., qN_deg)")
+    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
+    header = [h.strip() for h in next(reader)]
+    if "image" not in header:
+        raise DataError(f"{path}:{start + 1}: missing column 'image' (header has: "
+                        f"{', '.join(header)})")
+    joints = [h for h in header if JOINT_RE.match(h)]
+    if not joints:
+        raise DataError(f"{path}:{start + 1}: no joint columns (expected q1_deg, ..., "
+                        f"qN_deg)")
+    numbers = sorted(int(JOINT_RE.match(h).group(1)) for h in joints)
+    if numbers != list(range(1, len(numbers) + 1)):
+        raise DataError(f"{path}:{start + 1}: joint columns must be q1..q{len(numbers)}, got "
+                        f"{', '.join(joints)}")
+    rows, where = [], []
+    for offset, record in enumerate(reader):
+        line = start + 2 + offset
+        if not record or all(not c.strip() for c in record) or record[0].startswith("#"):
+            continue
+        if len(record) != len(header):
+            raise DataError(f"{path}:{line}: {len(record)} fields, the header has "
+                            f"{len(header)}")
+        rows.append({h: c.strip() for h, c in zip(header, record)})
+        where.append(line)
+    if not rows:
+        raise DataError(f"{path}: no data rows after the header")
+    return header, rows, where
+
+
+def _run_measure(args) -> int:
+    board = read_board(args.board)
+    cal = read_camera(args.camera)
+    paths = _expand(args.images)
+    out = Path(args.output)
+    inputs = paths + [Path(args.board), Path(args.camera)]
+    joints = None
+    if args.joints:
+        inputs.append(Path(args.joints))
+        joints = _read_joints(Path(args.joints))
+        known = {p.name for p in paths}
+        header, rows, where = joints
+        for row, line in zip(rows, where):
+            if row["image"] not in known:
+                raise DataError(f"{args.joints}:{line}: image '{row['image']}' is not among "
+                                f"the images given")
+    _check_output(out, inputs)
+    k = cal.intrinsics
+    bias = None if args.no_circle_correction else \
+        (lambda intr, T: circle_centre_bias(intr, T, board))
+    points = board.dot_positions()
+    measured = {}
+    for name, pix, reason, (w, h) in _detect(paths, board):
+        if (w, h) != (k.width, k.height):
+            raise DataError(f"{name}: image is {w} x {h} px, the camera was calibrated at "
+                            f"{k.width} x {k.height} ({args.camera})")
+        if pix is None:
+            print(f"{name}: board not found ({reason}); left out")
+            continue
+        measured[name] = measure_pose(pix, points, k, name=name, centre_bias=bias)
+    if joints is None:
+        text = _poses_csv(measured)
+        count = len(measured)
+    else:
+        text, count = _measurements_csv(joints, measured, args.name, args.joints)
+        listed = {row["image"] for row in joints[1]}
+        for name in measured:
+            if name not in listed:
+                print(f"{name}: no row in {args.joints}; left out")
+    write_text_atomic(out, text)
+    for m in measured.values():
+        print(f"  {m.name}: x {m.position_mm[0]:.3f} y {m.position_mm[1]:.3f} z "
+              f"{m.position_mm[2]:.3f} mm, +/- {m.sigma_mm:.3f} mm, {m.sigma_deg:.4f} deg, "
+              f"rms {m.rms_px:.3f} px")
+    print(f"wrote {out} ({count} rows: the camera frame in the board frame, mm, quaternion "
+          f"w first)")
+    return 0
+
+
+def _pose_cells(m) -> list[str]:
+    return [f"{v:.4f}" for v in m.position_mm] + [f"{v:.9f}" for v in m.quat_wxyz]
+
+
+def _poses_csv(measured: dict) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["image", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz", "rms_px"])
+    for m in measured.values():
+        writer.writerow([m.name] + _pose_cells(m) + [f"{m.rms_px:.4f}"])
+    return buf.getvalue()
+
+
+def _measurements_csv(joints, measured: dict, point: str, source: str) -> tuple[str, int]:
+    header, rows, _ = joints
+    joint_cols = sorted((h for h in header if JOINT_RE.match(h)),
+                        key=lambda h: int(JOINT_RE.match(h).group(1)))
+    own = {"image", "pose", "point", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz",
+           "sigma_mm", "sigma_deg"}
+    extra = [h for h in header if h not in own and h not in joint_cols]
+    buf = io.StringIO()
+    buf.write(f"{FORMAT_LINE}\n# device: the board (frame of its dot (0, 0)); point "
+              f"{point}: the camera's optical centre and axes; from {source}\n")
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["image"] + joint_cols + ["pose", "point", "x_mm", "y_mm", "z_mm", "qw",
+                                             "qx", "qy", "qz", "sigma_mm", "sigma_deg"]
+                    + extra)
+    count = 0
+    for number, row in enumerate(rows, start=1):
+        m = measured.get(row["image"])
+        if m is None:
+            continue
+        pose = row.get("pose") or str(number)
+        writer.writerow([row["image"]] + [row[c] for c in joint_cols] + [pose, point]
+                        + _pose_cells(m) + [f"{m.sigma_mm:.4f}", f"{m.sigma_deg:.5f}"]
+                        + [row[h] for h in extra])
+        count += 1
+    return buf.getvalue(), count
