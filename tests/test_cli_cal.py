@@ -63,7 +63,7 @@ GOOD_HEADER = "pose,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n"
     ("pose,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm\n1,0,0,0,0,0,0,1,2\n", "missing column 'z_mm'"),
     (GOOD_HEADER + "1,0,0,0,0,0,0,1,2,nan\n", "bad.csv:2: column 'z_mm'"),
     (GOOD_HEADER + "1,0,0,abc,0,0,0,1,2,3\n", "column 'q3_deg': 'abc' is not a number"),
-    (GOOD_HEADER + "1,0,0,0,0,0,0,1,2,3\n", "equations"),
+    (GOOD_HEADER + "1,0,0,0,0,0,0,1,2,3\n", "only 1 distinct pose"),
     ("pose,q1_deg,q2_deg,q3_deg,x_mm,y_mm,z_mm\n1,0,0,0,1,2,3\n", "3 joint columns"),
 ])
 def test_bad_measurements_give_one_clear_line(tmp_path, capsys, body, message):

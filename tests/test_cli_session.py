@@ -146,7 +146,7 @@ def test_session_errors_are_one_line(campaign, tmp_path, capsys, monkeypatch):
          "not one; a measurement CSV already holds its points"),
         (["merge", str(session), str(short), "-o", str(tmp_path / "m.csv")],
          "short.csv has 1 points but"),
-        (["merge", str(session), str(device), "-o", str(device)], "is an input of the merge"),
+        (["merge", str(session), str(device), "-o", str(device)], "refusing to overwrite"),
         (["merge", str(tmp_path / "none.mcap"), str(device), "-o", str(tmp_path / "m.csv")],
          "none.mcap: cannot read"),
         (["identify", str(session), "--points", str(device), "--robot", "ur5e_x"],

@@ -14,6 +14,10 @@ from olp_compensate.kinematics.conventions import (pose_from_rotation_translatio
                                         rot_x, rot_z, rotvec_from_rotation)
 from olp_compensate.errors import DataError, ModelError
 from olp_compensate.compensation import ik
+from olp_compensate.compensation.ik.configuration import (configuration_margins,
+                                                          select_on_branch, shift_into)
+from olp_compensate.compensation.ik.jacobians import nominal_jacobian
+from olp_compensate.compensation.ik.solver import BLOCK, CLOSED_FORM_STEPS
 from olp_compensate.compensation.ik import (REASONS, IKSolution, OPWParameters, ReachBound, URParameters,
                                branch_of,
                                closed_form_forward, closed_form_inverse, configuration_bits,
@@ -531,7 +535,7 @@ def test_nominal_jacobian_is_the_geometric_jacobian(name, odd):
                         tool=pose_from_rotation_translation(rot_x(0.3), [0.01, 0.02, 0.1]))
     params = fit_family(robot.fk)
     q = np.random.default_rng(0).uniform(-PI, PI, (100, 6))
-    np.testing.assert_allclose(ik._nominal_jacobian(params, q), robot.fk_jacobian(q)[1],
+    np.testing.assert_allclose(nominal_jacobian(params, q), robot.fk_jacobian(q)[1],
                                atol=1e-12)
 
 
@@ -543,17 +547,17 @@ def test_select_all_axes_at_once_is_the_per_axis_shift():
     conf = np.concatenate([rng.integers(-4, 4, (3000, 3)), rng.integers(0, 8, (3000, 1))], 1)
     for limits in (None, IRB2400_LIMITS):
         for tolerance in (np.inf, PI / 4):
-            got, status = ik._select_q(q, conf, limits, tolerance)
+            got, status = select_on_branch(q, conf, limits, tolerance)
             want = q.copy()
             quadrant_ok = np.ones(len(q), bool)
             for j in range(6):
                 lim = None if limits is None else limits[j]
                 if j in (0, 3, 5):
                     lower = conf[:, (0, 3, 5).index(j)] * (PI / 2)
-                    want[:, j], dist = ik._shift_into(q[:, j], lim, lower, lower + PI / 2)
+                    want[:, j], dist = shift_into(q[:, j], lim, lower, lower + PI / 2)
                     quadrant_ok &= ~(dist > tolerance)
                 elif lim is not None:
-                    want[:, j], _ = ik._shift_into(q[:, j], lim, np.full(len(q), lim[0]),
+                    want[:, j], _ = shift_into(q[:, j], lim, np.full(len(q), lim[0]),
                                                    np.full(len(q), lim[1]))
             np.testing.assert_array_equal(got, want)
             within = (np.ones(len(q), bool) if limits is None else
@@ -589,9 +593,9 @@ def test_solve_in_blocks_near_singularities():
     rng = np.random.default_rng(2)
     robot = IRB2400.perturbed(rng)
     q = rng.uniform(IRB2400_LIMITS[:, 0] * 0.95, IRB2400_LIMITS[:, 1] * 0.95, (60000, 6))
-    margins = np.abs(ik._margins(IRB2400_OPW, q))[:, [0, 2]]
+    margins = np.abs(configuration_margins(IRB2400_OPW, q))[:, [0, 2]]
     near = q[np.all(margins > 2e-3, axis=1) & np.any(margins < 2e-2, axis=1)][:1000]
-    q_true = np.concatenate([q[:ik._BLOCK * 2], near])
+    q_true = np.concatenate([q[:BLOCK * 2], near])
     target = robot.fk(q_true)
     conf = abb_confdata(IRB2400_OPW, q_true)
     result = solve(IRB2400_OPW, robot.fk_jacobian, target, conf, IRB2400_LIMITS)
@@ -701,7 +705,7 @@ def test_targets_beyond_the_exact_reach_are_unreachable_without_restarts():
     result = solve(IRB2400_OPW, IRB2400.fk_jacobian, target, conf, reach=reach)
     assert result.success[:n].all() and not result.success[n:].any()
     assert set(result.reason[n:]) == {"unreachable"}
-    assert result.iterations[n:].max() <= ik._CLOSED_FORM_STEPS
+    assert result.iterations[n:].max() <= CLOSED_FORM_STEPS
     reached = pose_errors(IRB2400.fk(result.q[:n]), target[:n])
     assert reached[0].max() <= 1e-9 and reached[1].max() <= 1e-9
     without = solve(IRB2400_OPW, IRB2400.fk_jacobian, target[n:], conf[n:])
@@ -730,7 +734,7 @@ def test_targets_just_beyond_a_calibrated_arms_reach_are_proven_unreachable():
     result = solve(IRB2400_OPW, robot.fk_jacobian, target, abb_confdata(IRB2400_OPW, q),
                    reach=reach)
     assert set(result.reason[proven]) == {"unreachable"}
-    assert result.iterations[proven].max() <= ik._CLOSED_FORM_STEPS
+    assert result.iterations[proven].max() <= CLOSED_FORM_STEPS
     for i in np.flatnonzero(proven)[:20]:
         starts = closed_form_inverse(IRB2400_OPW, target[i:i + 1])[0]
         starts = np.concatenate([starts[np.all(np.isfinite(starts), axis=1)],

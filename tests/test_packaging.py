@@ -33,3 +33,52 @@ def test_wheel_ships_robots_and_grammars(tmp_path):
     assert out.startswith("6 ")
     assert "abb_irb2400.urdf" in out and "ur5e.urdf" in out and "abb_irb2400.controller.json" in out
     assert "README.md" in out.split("] [")[-1]  # the grammars folder ships
+
+
+def _readme_command(after: str) -> str:
+    """The indented command line that follows the paragraph starting with ``after``."""
+    text = (ROOT / "README.md").read_text()
+    block = text[text.index(after):]
+    return next(ln.strip() for ln in block.splitlines() if ln.startswith("    ") and ln.strip())
+
+
+def test_ci_runs_exactly_the_readmes_test_command():
+    command = _readme_command("Run the tests")
+    assert command.startswith("python3 -m venv .venv && .venv/bin/")   # no active venv needed
+    ci = [ln for ln in (ROOT / ".ci" / "run").read_text().splitlines()
+          if ln.strip() and not ln.startswith("#")]
+    assert ci[-1] == command
+
+
+def _console_lines() -> list[str]:
+    """The commands of the README's worked example (``$ olp-...`` lines)."""
+    text = (ROOT / "README.md").read_text()
+    example = text[text.index("## Worked example"):]
+    example = example[:example.index("\n## ", 5)]
+    return [ln[2:].split("  #")[0].strip() for ln in example.splitlines()
+            if ln.startswith("$ olp-")]
+
+
+@pytest.mark.slow
+def test_the_readme_commands_run_as_written_in_a_fresh_folder(tmp_path):
+    """The set-up command (after its install steps) and the worked example, in a fresh
+    folder holding only the shipped samples, with the installed olp-cal and olp-fix."""
+    import shlex
+    import shutil
+
+    shutil.copytree(ROOT / "samples", tmp_path / "samples")
+    bin_dir = Path(sys.executable).parent
+    setup = _readme_command("Run the main job")
+    steps = [s.strip() for part in setup.split("&&") for s in part.split(";")]
+    steps = [s for s in steps if s.startswith(("olp-cal", "olp-fix"))]
+    assert len(steps) == 4
+    expected = {"olp-cal": 0, "olp-fix": 2}
+    for step in steps + _console_lines():
+        words = shlex.split(step)
+        done = subprocess.run([str(bin_dir / words[0])] + words[1:], cwd=tmp_path,
+                              capture_output=True, text=True, timeout=600)
+        want = expected[words[0]] if step in steps else 0
+        assert done.returncode == want, (step, done.stderr)
+        assert "Traceback" not in done.stderr
+    assert (tmp_path / "samples" / "cell_a_compensated.mod").exists()
+    assert (tmp_path / "cell_a_report.csv").exists() and (tmp_path / "cell_b_report.csv").exists()

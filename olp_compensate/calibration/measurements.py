@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import DataError
+
 
 @dataclass(frozen=True)
 class Measurements:
@@ -55,3 +57,66 @@ class Measurements:
             time_s=pick(self.time_s), directions=pick(self.directions),
             extra={k: list(np.asarray(v, dtype=object)[mask]) for k, v in self.extra.items()},
             metadata=self.metadata, rows=pick(self.rows), source=self.source)
+
+
+SAME_POSE_RAD = 1e-6
+"""Two rows whose joints differ by less than this (rad or m) in every joint are one pose."""
+SAME_POINT_M = 1e-6
+"""Measured points closer than this (m) in every coordinate are one point."""
+
+
+def distinct_poses(meas: Measurements) -> int:
+    """How many different joint vectors the rows hold (repeated poses count once)."""
+    if meas.n_rows == 0:
+        return 0
+    keys = np.round(np.asarray(meas.joints, dtype=float) / SAME_POSE_RAD)
+    return len(np.unique(keys, axis=0))
+
+
+def check_finite(meas: Measurements) -> None:
+    """:class:`DataError` naming the first row holding a non-finite joint or point (the
+    readers refuse them already; this guards measurements built in code)."""
+    for name, values in (("joints", meas.joints), ("points", meas.points)):
+        bad = ~np.isfinite(np.asarray(values, dtype=float))
+        if np.any(bad):
+            row = int(np.argwhere(bad)[0][0])
+            line = meas.rows[row] if meas.rows is not None else row + 1
+            raise DataError(f"{meas.source}:{line}: {name} hold a non-finite number")
+
+
+def minimum_poses(n_unknowns: int, equations_per_pose: int) -> int:
+    """Fewest distinct poses that give at least one equation per unknown, plus one pose
+    of redundancy for the noise estimate."""
+    return -(-n_unknowns // max(equations_per_pose, 1)) + 1
+
+
+def check_spread(meas: Measurements, n_unknowns: int) -> None:
+    """:class:`DataError` saying what to add when the data cannot determine ``n_unknowns``
+    parameters: non-finite numbers, every measured point the same (the device did not see
+    the robot move), or fewer distinct poses than the unknowns need (repeated rows of one
+    pose add no information about the geometry).
+
+    ``n_unknowns``: the fit's unknowns (device registration, geometry, tool points)."""
+    check_finite(meas)
+    if meas.n_rows == 0:
+        raise DataError(f"{meas.source}: no measured rows")
+    poses = distinct_poses(meas)
+    points_per_pose = max(1, len(np.unique(meas.point_names)))
+    equations = 3 * points_per_pose
+    if meas.orientation is not None and np.any(np.isfinite(meas.orientation)):
+        equations += 3
+    needed = minimum_poses(n_unknowns, equations)
+    if poses < needed:
+        rows = f"{meas.n_rows} row{'s' if meas.n_rows != 1 else ''}"
+        verb = "holds" if meas.n_rows == 1 else "hold"
+        raise DataError(f"{meas.source}: {rows} {verb} only {poses} distinct "
+                        f"pose{'s' if poses != 1 else ''}, and {n_unknowns} unknowns need at "
+                        f"least {needed}; measure {needed - poses} or more poses that differ "
+                        f"in every joint (repeating a pose only measures the noise)")
+    points = np.asarray(meas.points, dtype=float)
+    span = points.max(axis=0) - points.min(axis=0)
+    if np.all(span < SAME_POINT_M):
+        where = ", ".join(f"{v * 1e3:.6g}" for v in points[0])
+        raise DataError(f"{meas.source}: every measured point is the same ({where}) mm: the "
+                        f"device did not see the robot move; check the x_mm, y_mm, z_mm "
+                        f"columns")

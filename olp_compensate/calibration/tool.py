@@ -40,6 +40,12 @@ COND_LIMIT = 25.0
 MIN_MARKS = {("known_marks", "base"): 3, ("known_marks", "world"): 4, ("fixed_point", None): 4}
 """Fewest touches per method (and frame) that leave redundancy to estimate the noise."""
 
+MAX_RMS_M = 5e-3
+"""Largest accepted RMS residual of a tool fit, m: touches 5 mm off one tool point are
+wrong marks, frame or robot model, not touch noise (see :func:`check_tool_fit`)."""
+SAME_MARK_M = 1e-4
+"""Marks closer than this to each other in every coordinate are one mark, m."""
+
 FlangePose = Callable[[np.ndarray], np.ndarray]
 """Forward kinematics: joints (m, n) rad -> base_T_flange (m, 4, 4), metres."""
 
@@ -228,6 +234,11 @@ def tool_from_known_marks(base_T_flange, marks_m, frame: str = "base", name: str
                         f"{marks.shape}")
     if not np.all(np.isfinite(marks)):
         raise DataError("marks: contain NaN or infinite values")
+    if np.all(np.ptp(marks, axis=0) < SAME_MARK_M):
+        where = ", ".join(f"{v / MM:.6g}" for v in marks[0])
+        raise DataError(f"marks: every mark has the same coordinates ({where}) mm; give each "
+                        f"mark its own coordinates, or leave them empty on every row for the "
+                        f"fixed-point method (one point touched from several orientations)")
     m = len(poses)
     rot, org = poses[:, :3, :3], poses[:, :3, 3]
     if frame == "base":
@@ -312,6 +323,22 @@ def calibrate_tool(request: ToolRequest, flange_pose: FlangePose) -> ToolCalibra
         return tool_from_known_marks(poses, request.marks, request.frame, request.name,
                                      request.labels())
     raise DataError(f"method: expected 'known_marks' or 'fixed_point', got {request.method!r}")
+
+
+def check_tool_fit(result: ToolCalibration, max_rms_m: float = MAX_RMS_M) -> None:
+    """:class:`DataError` when a fitted tool is not fit to save: a non-finite TCP or
+    residual, or an RMS residual above ``max_rms_m`` (naming the worst touch)."""
+    numbers = np.concatenate([np.ravel(result.xyz_m), np.ravel(result.residuals_m)])
+    if not np.all(np.isfinite(numbers)):
+        raise DataError(f"tool {result.name}: the fit gave non-finite numbers; check the "
+                        f"marks' coordinates and joints")
+    if result.rms_m > max_rms_m:
+        worst = int(np.argmax(result.residuals_m))
+        raise DataError(f"tool {result.name}: the touches do not fit one tool point (RMS "
+                        f"residual {result.rms_m / MM:.3f} mm, above {max_rms_m / MM:g} mm; "
+                        f"worst {result.mark_names[worst]}: "
+                        f"{result.residuals_m[worst] / MM:.3f} mm): wrong marks, frame or "
+                        f"robot model? Nothing written")
 
 
 # -- report -----------------------------------------------------------------------------------

@@ -12,6 +12,9 @@ from ..io.atomic import write_text_atomic
 from ..io.calibration_file import write_calibration
 from ..io.measurements import read_measurements
 from ..kinematics.robot import load_robot
+from ..calibration.measurements import check_spread
+from .cal_identify import least_unknowns
+from .common import refuse_clashes
 
 HELP = ("name the non-geometric effects (compliance, gear error, backlash, heat, scale) in "
         "the measurements, fit them and measure the gain on held-out poses")
@@ -46,6 +49,9 @@ def _kinds(text: str | None) -> tuple[str, ...] | None:
 
 
 def run(args) -> int:
+    refuse_clashes([("measurements", args.measurements), ("--robot", args.robot)],
+                   [("-o", args.output), ("--json", args.json), ("--html", args.html),
+                    ("--png-dir", args.png_dir)])
     if args.noise_mm is not None and not args.noise_mm > 0:
         raise DataError(f"--noise-mm must be positive, got {args.noise_mm}")
     if args.folds < 2:
@@ -54,6 +60,7 @@ def run(args) -> int:
                               alpha=args.alpha, folds=args.folds, kinds=_kinds(args.kinds))
     robot = load_robot(args.robot)
     meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
+    check_spread(meas, least_unknowns(robot, meas))
     result = diagnose(robot, meas, options)
     print(summary(result))
     if args.output:

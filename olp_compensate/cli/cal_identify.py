@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..calibration.identify import IdentificationOptions, identify
+from ..calibration.measurements import check_spread
+from ..errors import DataError
 from ..io.calibration_file import write_calibration
 from ..io.session import read_measurements_any
 from ..kinematics.robot import load_robot
-from .common import mm
+from .common import mm, refuse_clashes
 
 HELP = ("identify the robot's geometry from a measurement CSV (or an MCAP session with the "
         "device's points) and write calib.json")
@@ -118,15 +122,33 @@ def report(result) -> str:
     return "\n".join(lines)
 
 
+def least_unknowns(robot, meas) -> int:
+    """A floor on the fit's unknowns: the device registration (6), one geometric parameter
+    per joint, the tool points (3 each). identify() knows the exact count."""
+    return 6 + robot.n_joints + 3 * len(np.unique(meas.point_names))
+
+
+def check_fit(result) -> None:
+    """:class:`DataError` when the fit's residual is not a finite number."""
+    if not math.isfinite(result.residual_rms) or not math.isfinite(result.residual_max):
+        raise DataError(f"the fit did not converge to finite numbers (residual RMS "
+                        f"{result.residual_rms}); the data cannot determine the model; "
+                        f"nothing written")
+
+
 def run(args) -> int:
+    refuse_clashes([("measurements", args.measurements), ("--points", args.points),
+                    ("--robot", args.robot)], [("-o", args.output)])
     robot = load_robot(args.robot)
     meas = read_measurement_source(args, [j.unit for j in robot.joints])
+    check_spread(meas, least_unknowns(robot, meas))
     options = IdentificationOptions(convention=args.convention, solver=args.solver,
                                     robust=args.robust, folds=args.folds,
                                     freeze=tuple(args.freeze),
                                     position_sigma_mm=args.position_sigma_mm,
                                     orientation_sigma_deg=args.orientation_sigma_deg)
     result = identify(robot, meas, options)
+    check_fit(result)
     print(report(result))
     if args.output:
         write_calibration(args.output, result.calibration)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..io.session import merge_session
+from .common import refuse_clashes
 
 HELP = "join an MCAP session (joints) with the measuring device's points into a measurement CSV"
 
@@ -21,6 +22,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    refuse_clashes([("session", args.session), ("points", args.points)], [("-o", args.output)])
     count = merge_session(args.session, args.points, args.output, by=args.by,
                           tolerance_s=args.tolerance_s, time_offset_s=args.time_offset_s)
     print(f"wrote {count} measured points ({args.session} joints + {args.points} points, "

@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..calibration.calibration import nominal_calibration
 from ..io.calibration_file import write_calibration
 from ..kinematics.robot import load_robot
+from .common import refuse_clashes
 
 HELP = "write a calibration that is exactly the nominal robot (device frame = base frame)"
 
@@ -15,6 +16,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    refuse_clashes([("--robot", args.robot)], [("-o", args.output)])
     robot = load_robot(args.robot)
     write_calibration(args.output, nominal_calibration(robot))
     print(f"wrote the nominal calibration of {robot.name} to {args.output}")

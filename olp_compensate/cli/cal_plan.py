@@ -9,6 +9,7 @@ from ..io.poses import check_within_limits, read_poses, write_poses
 from ..calibration.pose_planning import (CRITERIA, DEFAULT_CANDIDATES, DEFAULT_CRITERION, DEFAULT_TOOL_M,
                              RANDOM_DRAWS, plan_poses, planning_space)
 from ..kinematics.robot import load_robot
+from .common import refuse_clashes
 
 HELP = ("plan the poses to measure (I- or D-optimal for the identification, among random or "
         "given candidate poses) and write them as a joint CSV")
@@ -53,6 +54,8 @@ def parse_tool(text: str) -> np.ndarray:
 
 
 def run(args) -> int:
+    refuse_clashes([("--from", args.candidates_file), ("--robot", args.robot)],
+                   [("-o", args.output)])
     if args.poses < 1 or args.candidates < 1 or not args.min_distance_deg >= 0:
         raise DataError("--poses and --candidates must be positive, --min-distance-deg not "
                         "negative")

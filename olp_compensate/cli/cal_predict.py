@@ -12,7 +12,8 @@ from ..calibration.effects import Conditions, ThermalExpansion
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import read_calibration
-from ..io.measurements import joint_columns, parse_cell_number
+from ..io.measurements import joint_columns, open_table, parse_cell_number, read_csv_text
+from .common import refuse_clashes
 
 HELP = ("predict measured-point positions (device frame, mm) for joint rows of a CSV; "
         "optional payload_kg, temperature_c and direction_K columns feed the model's effects")
@@ -41,66 +42,90 @@ def _conditions(cal, columns: dict[str, list[float]], directions) -> Conditions 
     return Conditions(payload_kg=payload, temperature_c=temperature, directions=directions)
 
 
-def run(args) -> int:
-    cal = read_calibration(args.model)
-    path = Path(args.joints)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: cannot read ({exc})") from None
-    lines = [ln for ln in text.splitlines() if not ln.startswith("#")]
-    rows = list(csv.reader(lines))
-    if not rows:
-        raise DataError(f"{path}: empty file, expected a header with {', '.join(joint_columns(['deg'] * 2))}...")
-    header = [h.strip() for h in rows[0]]
-    columns = joint_columns([j.unit for j in cal.robot.joints])
-    for c in columns:
-        if c not in header:
-            raise DataError(f"{path}:1: missing column '{c}'")
-    index = {h: k for k, h in enumerate(header)}
-    optional = [c for c in ("payload_kg", "temperature_c") if c in index]
-    n = cal.robot.n_joints
-    direction_cols = {}
+def _direction_columns(header: list[str], n: int, where: str) -> dict[str, int]:
+    """``direction_K`` columns and their 0-based joint."""
+    found = {}
     for h in header:
         if h.startswith("direction_"):
             try:
                 joint = int(h.split("_", 1)[1]) - 1
             except ValueError:
-                raise DataError(f"{path}:1: column '{h}': expected direction_K, K a joint "
+                raise DataError(f"{where}: column '{h}': expected direction_K, K a joint "
                                 f"number") from None
             if not 0 <= joint < n:
-                raise DataError(f"{path}:1: column '{h}': the robot has joints 1..{n}")
-            direction_cols[h] = joint
-    readings, names = [], []
+                raise DataError(f"{where}: column '{h}': the robot has joints 1..{n}")
+            found[h] = joint
+    return found
+
+
+def _check_limits(cal, q: np.ndarray, lines: list[int], source: str) -> None:
+    """:class:`DataError` naming the first row whose joints lie outside the robot's
+    limits (as olp-cal identify refuses them)."""
+    urdf = cal.robot.joints_from_controller(q)
+    outside = (urdf < cal.robot.lower_limits - 1e-6) | (urdf > cal.robot.upper_limits + 1e-6)
+    if np.any(outside):
+        row, joint = np.argwhere(outside)[0]
+        value = cal.robot.to_degrees_or_mm(q[row])[joint]
+        raise DataError(f"{source}:{lines[row]}: q{joint + 1} = {value:.6g} puts joint "
+                        f"{joint + 1} outside the limits of {cal.robot.name}")
+
+
+def run(args) -> int:
+    refuse_clashes([("--model", args.model), ("joints", args.joints)], [("-o", args.output)])
+    cal = read_calibration(args.model)
+    source = str(Path(args.joints))
+    columns = joint_columns([j.unit for j in cal.robot.joints])
+    table = open_table(read_csv_text(args.joints, "a CSV of joint values"), source,
+                       ", ".join(columns))
+    header = table.header
+    index = table.require(columns, source)
+    optional = [c for c in ("payload_kg", "temperature_c") if c in index]
+    n = cal.robot.n_joints
+    direction_cols = _direction_columns(header, n, f"{source}:{table.header_line}")
+    comma = table.decimal_comma
+
+    def number(row, line, column):
+        return parse_cell_number(row[index[column]], source, line, column, comma)
+    readings, names, records, lines = [], [], [], []
     extra = {c: [] for c in optional}
-    directions = np.zeros((len(rows) - 1, n))
-    for line_no, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise DataError(f"{path}:{line_no}: {len(row)} fields, the header has {len(header)}")
-        readings.append([parse_cell_number(row[index[c]], str(path), line_no, c) for c in columns])
+    direction_rows = []
+    default_point = "tcp" if "tcp" in cal.tools or not cal.tools else sorted(cal.tools)[0]
+    for line_no, row in table.records:
+        records.append(row)
+        lines.append(line_no)
+        readings.append([number(row, line_no, c) for c in columns])
         names.append(row[index["point"]].strip() if "point" in index and row[index["point"]].strip()
-                     else ("tcp" if "tcp" in cal.tools or not cal.tools else sorted(cal.tools)[0]))
+                     else default_point)
         for c in optional:
-            cell = row[index[c]].strip()
-            extra[c].append(parse_cell_number(cell, str(path), line_no, c) if cell else np.nan)
-        for h, joint in direction_cols.items():
-            cell = row[index[h]].strip()
-            if cell:
-                directions[line_no - 2, joint] = np.sign(parse_cell_number(cell, str(path), line_no, h))
+            extra[c].append(number(row, line_no, c) if row[index[c]].strip() else np.nan)
+        direction_rows.append([np.sign(number(row, line_no, h)) if row[index[h]].strip() else 0.0
+                               for h in direction_cols])
+    if not records:
+        raise DataError(f"{source}: no data rows after the header")
+    directions = np.zeros((len(records), n))
+    for k, joint in enumerate(direction_cols.values()):
+        directions[:, joint] = [r[k] for r in direction_rows]
     q = cal.robot.to_radians_or_metres(np.array(readings).reshape(-1, len(columns)))
+    _check_limits(cal, q, lines, source)
     conditions = _conditions(cal, extra, directions if direction_cols else None)
     if not cal.tools:
         points = (cal.flange_poses(q, conditions)[:, :3, 3] @ cal.device_T_base[:3, :3].T
                   + cal.device_T_base[:3, 3])
     else:
         points = cal.predict_points(q, names, conditions)
+    bad = ~np.all(np.isfinite(points), axis=1)
+    if np.any(bad):
+        raise DataError(f"{source}:{lines[int(np.argmax(bad))]}: the model predicts a "
+                        f"non-finite point here; nothing written")
     out_header = [h for h in header if h not in ("x_mm", "y_mm", "z_mm")] + ["x_mm", "y_mm", "z_mm"]
     out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
+    # a spreadsheet's ';' file comes back in its own form: ';' and decimal commas
+    writer = csv.writer(out, lineterminator="\n", delimiter=";" if comma else ",")
     writer.writerow(out_header)
-    for row, p in zip(rows[1:], points * 1e3):
+    for row, p in zip(records, points * 1e3):
         kept = [row[index[h]] for h in out_header[:-3]]
-        writer.writerow(kept + [f"{v:.6f}" for v in p])
+        numbers = [f"{v:.6f}" for v in p]
+        writer.writerow(kept + ([v.replace(".", ",") for v in numbers] if comma else numbers))
     write_text_atomic(args.output, out.getvalue())
     print(f"wrote {len(points)} predicted points (device frame, mm) to {args.output}")
     return 0

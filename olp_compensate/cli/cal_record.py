@@ -6,6 +6,7 @@ from ..errors import DataError, ModelError
 from ..io.rtde_source import RtdeJointSource, TypedJointSource, console_ask, console_say
 from ..io.session import record_session
 from ..kinematics.robot import load_robot
+from .common import refuse_clashes
 
 HELP = ("record the joints at each measured pose into an MCAP session (live from a UR "
         "controller with --ur, else typed on stdin)")
@@ -33,6 +34,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    refuse_clashes([("--robot", args.robot)], [("-o", args.output)])
     robot = load_robot(args.robot) if args.robot else None
     if robot is not None:
         odd = [j.name for j in robot.joints if j.unit != "deg"]

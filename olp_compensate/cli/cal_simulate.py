@@ -11,6 +11,7 @@ from ..io.atomic import write_text_atomic
 from ..io.measurements import write_measurements
 from ..io.poses import check_within_limits, read_poses
 from ..kinematics.robot import load_robot
+from .common import refuse_clashes
 from ..calibration.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
                         random_joints, scaled_effect)
 
@@ -110,6 +111,8 @@ def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | Non
 
 
 def run(args) -> int:
+    refuse_clashes([("--joints", args.joints), ("--robot", args.robot)],
+                   [("-o", args.output), ("--truth", args.truth)])
     if (args.poses is None) == (args.joints is None):
         raise DataError("give either --poses N (random joints) or --joints poses.csv")
     if ((args.poses is not None and args.poses < 1) or args.noise_mm < 0 or args.points < 1

@@ -11,14 +11,12 @@ numbers' bytes change).
 
 from __future__ import annotations
 
-import os
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from .. import programs
 from ..calibration.calibration import Calibration, ToolPoint, nominal_calibration
 from ..kinematics.conventions import MM
 from ..errors import DataError, ModelError
@@ -26,9 +24,10 @@ from ..io.atomic import write_bytes_atomic, write_text_atomic
 from ..io.calibration_file import read_calibration, write_calibration
 from ..io.rtde_source import RtdeJointSource, console_ask, console_say
 from ..kinematics.robot import load_robot
-from ..calibration.tool import (ToolCalibration, ToolRequest, calibrate_tool, rapid_tooldata,
-                                tool_report)
+from ..calibration.tool import (ToolCalibration, ToolRequest, calibrate_tool, check_tool_fit,
+                                rapid_tooldata, tool_report)
 from ..io.tool_marks import format_marks_csv, read_marks_csv
+from .common import refuse_clashes
 from .tool_wizard import BAD_POINT_MM, run_wizard
 
 HELP = "recalibrate a tool's TCP from touched marks (--marks) or with the interactive wizard"
@@ -91,15 +90,6 @@ def _check_name(name: str, hint: str) -> str:
     return name
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        if a.exists() and b.exists():
-            return os.path.samefile(a, b)
-    except OSError:
-        pass
-    return a.resolve() == b.resolve()
-
-
 @dataclass
 class _ProgramTool:
     """The tooldata declaration to rewrite, and the program holding it."""
@@ -154,7 +144,7 @@ class _Plan:
     program: _ProgramTool | None
 
 
-def _plan(args, name: str | None, inputs: list[Path]) -> _Plan:
+def _plan(args, name: str | None, inputs: list[tuple[str, str | None]]) -> _Plan:
     """Outputs for tool ``name`` (None: the wizard asks; then only -o is known yet)."""
     calib_out = _calib_out(args, name)
     program_path = Path(args.update_program) if args.update_program else None
@@ -164,16 +154,14 @@ def _plan(args, name: str | None, inputs: list[Path]) -> _Plan:
             program_path.with_name(f"{program_path.stem}_{name}{program_path.suffix}")
     elif args.program_out:
         raise DataError("--program-out goes with --update-program PROGRAM")
-    every_input = inputs + ([program_path] if program_path else [])
-    for out in (calib_out, program_out):
-        for source in every_input:
-            if out is not None and _same_file(out, source):
-                raise DataError(f"{out}: is an input ({source}); inputs are never "
-                                f"overwritten, choose another output file")
-    if calib_out is not None and program_out is not None and _same_file(calib_out, program_out):
-        raise DataError(f"{calib_out}: named for both the calibration and the program")
+    refuse_clashes(inputs + [("--update-program", program_path), ("--robot", args.robot)],
+                   [("-o" if args.output else "the calibration output", calib_out),
+                    ("--program-out" if args.program_out else "the program output",
+                     program_out)])
     target = None
     if program_path is not None:
+        from .. import programs
+
         target = _program_tool(programs.load(program_path), program_path, program_out, name)
     return _Plan(calib_out, target)
 
@@ -242,6 +230,8 @@ def _write(result: ToolCalibration, cal: Calibration, plan: _Plan,
         write_calibration(plan.calib_out, replace(cal, tools=tools))
         written.append(plan.calib_out)
     if plan.program is not None:
+        from .. import programs
+
         target = plan.program
         edits = programs.tool_edits(target.tool, position_mm=np.asarray(result.xyz_m) / MM,
                                     quat_wxyz=result.quat_wxyz)
@@ -277,14 +267,14 @@ def _run_marks(args, cal: Calibration, kinematics: str) -> int:
     request = read_marks_csv(args.marks, cal.robot.n_joints, frame=args.frame)
     name = _check_name(args.name or request.name, "give --name TOOL")
     request = replace(request, name=name)
-    inputs = [Path(args.marks)] + ([Path(args.model)] if args.model else [])
-    plan = _plan(args, name, inputs)
+    plan = _plan(args, name, [("--marks", args.marks), ("--model", args.model)])
     where = f", marks in the {request.frame} frame" if request.method == "known_marks" else ""
     print(f"tool {name}: {len(request.joints)} touches from {args.marks} "
           f"({request.method.replace('_', ' ')}{where}); {kinematics}")
     result = calibrate_tool(request, cal.flange_poses)
     for line in tool_report(result, min(3.0 * args.noise_mm, BAD_POINT_MM) * MM):
         print(line)
+    check_tool_fit(result)
     _print_outputs(result, args, cal, plan, _write(result, cal, plan))
     return 0
 
@@ -297,8 +287,7 @@ def _run_wizard(args, cal: Calibration, kinematics: str) -> int:
     if args.update_program and args.name is None:
         raise DataError("--update-program with the wizard needs --name TOOL (the tooldata "
                         "to rewrite), so that a missing declaration stops us before touching")
-    inputs = [Path(args.model)] if args.model else []
-    plan = _plan(args, args.name, inputs)
+    plan = _plan(args, args.name, [("--model", args.model)])
     n = cal.robot.n_joints
     source = None
 
@@ -341,6 +330,11 @@ def _run_wizard(args, cal: Calibration, kinematics: str) -> int:
 
 
 def run(args) -> int:
+    # the outputs named on the command line, before anything is read (the defaults,
+    # which need the tool's name, are checked again by _plan)
+    refuse_clashes([("--marks", args.marks), ("--model", args.model),
+                    ("--update-program", args.update_program), ("--robot", args.robot)],
+                   [("-o", args.output), ("--program-out", args.program_out)])
     cal, kinematics = _calibration(args)
     odd = [j.name for j in cal.robot.joints if j.unit != "deg"]
     if odd:

@@ -9,22 +9,27 @@ from __future__ import annotations
 
 import argparse
 import gc
+import re
 import sys
 import time
 from pathlib import Path
 
 from .. import __version__
-from ..errors import DataError, ParseError
-from ..io.atomic import write_bytes_atomic, write_text_atomic
-from ..io.calibration_file import read_calibration
-from ..compensation.pose import COMPENSATED
-from ..compensation.program import EMIT_MODES, KEPT, compensate_program
-from ..programs import DIALECTS, ENCODING, dialect_for, load
-from ..programs.grammar import no_gc
-from ..kinematics.robot import load_robot
-from .common import exit_now, run_guarded, silence_stdout
+from ..errors import DataError, ModelError, OlpError
+from .common import THREADS_HELP, exit_now, refuse_clashes, run_guarded, silence_stdout
 
 SHOWN_PROBLEMS = 20
+EMIT_MODES = ("pose", "joints")
+"""As :data:`olp_compensate.compensation.program.EMIT_MODES` (a test checks), spelled here so
+that ``olp-fix --version`` and ``--help`` import nothing heavy."""
+DIALECTS = ("rapid", "vplus")
+"""As :data:`olp_compensate.programs.DIALECTS` (a test checks)."""
+ROBOT_COMMENT = re.compile(rb"^[ \t]*[!;][ \t]*olp-robot[ \t]*:[ \t]*([A-Za-z0-9_.+-]+)",
+                           re.MULTILINE | re.IGNORECASE)
+"""The comment that says which robot a program is for: ``! olp-robot: abb_irb2400`` in
+RAPID, ``; olp-robot: unimation_puma560`` in V+ (the robot's name as calib.json has it)."""
+ROBOT_COMMENT_SPAN = 65536
+"""Only the program's first bytes are searched for :data:`ROBOT_COMMENT` (its header)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -44,6 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
                    help="targets never moved to in this file: leave them ('skip', default) "
                         "or compensate them with tool0/wobj0 ('tool0')")
+    p.epilog = (f"A comment '! olp-robot: NAME' (RAPID) or '; olp-robot: NAME' (V+) in the "
+                f"first {ROBOT_COMMENT_SPAN // 1024} KB of the program names the robot it is "
+                f"for; a calibration of another robot is then refused. {THREADS_HELP}.")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary on the terminal")
     p.add_argument("--version", action="version", version=f"olp-fix {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0,
@@ -56,18 +64,40 @@ def default_output(path: Path) -> Path:
     return path.with_name(f"{path.stem}_compensated{path.suffix}")
 
 
-def _same_file(a: Path, b: Path) -> bool:
+def program_robot(path: Path) -> tuple[str, int] | None:
+    """(robot name, 1-based line) of the program's ``olp-robot`` comment, or None."""
     try:
-        return a.resolve() == b.resolve() or (b.exists() and a.samefile(b))
+        with open(path, "rb") as stream:
+            head = stream.read(ROBOT_COMMENT_SPAN)
     except OSError:
-        return False
+        return None   # the parser says why it cannot read the file
+    found = ROBOT_COMMENT.search(head)
+    if found is None:
+        return None
+    return found.group(1).decode("ascii"), head.count(b"\n", 0, found.start()) + 1
+
+
+def check_robot(path: Path, calibration, model: str) -> None:
+    """:class:`ModelError` when the program names another robot than the calibration's."""
+    named = program_robot(path)
+    if named is not None and named[0].lower() != calibration.robot.name.lower():
+        raise ModelError(f"{path}:{named[1]}: the program is for robot '{named[0]}' (its "
+                         f"olp-robot comment), but {model} is a calibration of "
+                         f"'{calibration.robot.name}'")
 
 
 def run(args, retain: list | None = None) -> int:
     """Run olp-fix on parsed arguments; returns the exit code. ``retain``: a list that
     receives the run's program and report, so the caller decides when they are freed."""
+    path = Path(args.program)
+    out = Path(args.output) if args.output else default_output(path)
+    refuse_clashes([("program", path), ("--model", args.model), ("--robot", args.robot)],
+                   [("-o" if args.output else "the default output", out),
+                    ("--report", args.report)])
     # a short batch run over millions of small acyclic records: the cyclic collector's
     # full scans (each time it comes back on between stages) would only cost time
+    from ..programs.grammar import no_gc
+
     with no_gc():
         return _run(args, retain)
 
@@ -76,16 +106,19 @@ def _run(args, retain: list | None) -> int:
     started = time.perf_counter()
     path = Path(args.program)
     out = Path(args.output) if args.output else default_output(path)
-    if _same_file(path, out):
-        raise DataError(f"{out}: refusing to overwrite the input program; choose another -o")
-    if args.report and _same_file(path, Path(args.report)):
-        raise DataError(f"{args.report}: refusing to overwrite the input program")
+    from ..compensation.program import compensate_program
+    from ..io.atomic import write_files_atomic
+    from ..io.calibration_file import read_calibration
+    from ..kinematics.robot import load_robot
+    from ..programs import ENCODING, dialect_for, load
+
     dialect = args.dialect or dialect_for(path)
     robot = load_robot(args.robot) if args.robot else None
     calibration = read_calibration(args.model, robot)
+    check_robot(path, calibration, args.model)
     try:
         program = load(path, dialect)
-    except ParseError as exc:
+    except OlpError as exc:
         if exc.context:
             print(exc.context, file=sys.stderr)
         raise
@@ -93,22 +126,32 @@ def _run(args, retain: list | None) -> int:
                                       unused=args.unused)
     if retain is not None:
         retain += [program, text, report]
-    write_bytes_atomic(out, text.encode(ENCODING))
+    if not report.rows:
+        raise DataError(f"{path}: no robot target in the program (empty or cut short?); "
+                        f"nothing written")
+    files = [(out, text.encode(ENCODING))]
     if args.report:
-        write_text_atomic(args.report, report.to_csv())
+        files.append((Path(args.report), report.to_csv().encode("utf-8")))
+    write_files_atomic(files)   # both or, on a failure, neither of a run's files renamed
     if not args.quiet:
         try:
-            _summary(report, out, args.report, time.perf_counter() - started)
+            _summary(report, out, args.report, time.perf_counter() - started,
+                     f"  robot {calibration.robot.name} (calibration {args.model})")
         except BrokenPipeError:   # `olp-fix ... | head`: the files are written all the same
             silence_stdout()
     return report.exit_code
 
 
-def _summary(report, out: Path, report_path: str | None, seconds: float) -> None:
+def _summary(report, out: Path, report_path: str | None, seconds: float,
+             robot_line: str) -> None:
+    from ..compensation.pose import COMPENSATED
+    from ..compensation.program import KEPT
+
     rows = report.rows
     counts = report.counts()
     parts = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
     print(f"olp-fix: {report.file}: {len(rows)} target uses ({parts}) in {seconds:.2f} s")
+    print(robot_line)
     shift = turn = dq = -1.0
     problems = []
     for r in rows:

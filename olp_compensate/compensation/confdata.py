@@ -44,16 +44,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DataError, ModelError
-from .ik import (OPWParameters, URParameters, _as_joints, _check_family, _margins,
-                 branch_of, select_branch)
+from .ik import OPWParameters, URParameters, branch_of, select_branch
+from .ik.configuration import configuration_margins
+from .ik.families import check_family
+from .ik.inputs import as_joints
 
 __all__ = ["abb_confdata", "select_branch", "vplus_configuration", "vplus_branch"]
 
 
 def abb_confdata(params: OPWParameters | URParameters, q) -> np.ndarray:
     """ABB confdata ``(m, 4)`` int = (cf1, cf4, cf6, cfx) of joints ``q (m, 6)`` rad."""
-    _check_family(params)
-    q = _as_joints(q, 6, "q")
+    check_family(params)
+    q = as_joints(q, 6, "q")
     quadrants = np.floor(q[:, [0, 3, 5]] / (np.pi / 2)).astype(int)
     return np.concatenate([quadrants, branch_of(params, q)[:, None]], 1)
 
@@ -63,8 +65,8 @@ def vplus_configuration(params: OPWParameters, q) -> np.ndarray:
     if not isinstance(params, OPWParameters):
         raise ModelError(f"V+ configurations are defined here for OPW (PUMA-like) arms, "
                          f"got {type(params).__name__}")
-    q = _as_joints(q, 6, "q", allow_nan=True)
-    front, lower_arm, wrist = _margins(params, q).T
+    q = as_joints(q, 6, "q", allow_nan=True)
+    front, lower_arm, wrist = configuration_margins(params, q).T
     righty = front >= 0 if params.b == 0 else front * params.b < 0
     # elbow above the shoulder-wrist line: "front of lower arm" seen from the side the
     # wrist centre is on

@@ -29,7 +29,13 @@ from ..errors import ModelError
 from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
                      robot_from_urdf_text)
-from .atomic import write_text_atomic
+from .atomic import check_finite_json, write_text_atomic
+
+LENGTH_OR_ANGLE_LIMIT = 1e6
+"""Largest plausible size of a length (mm) or angle (deg) in calib.json (1 km)."""
+PLAUSIBLE_PATHS = ("model/parameters/*/value", "model/parameters/*/nominal",
+                   "device_T_base/xyz_mm/*", "tools/*/xyz_mm/*", "robot/axis_ranges_deg/*/*")
+"""JSON paths (``*``: any key or index) whose numbers are lengths or angles."""
 
 FORMAT = "olp-compensate calibration"
 VERSION = 1
@@ -104,13 +110,16 @@ def calibration_to_dict(cal: Calibration) -> dict:
     }
 
 
-def dumps_calibration(cal: Calibration) -> str:
-    return json.dumps(calibration_to_dict(cal), indent=2) + "\n"
+def dumps_calibration(cal: Calibration, source: str = "calibration") -> str:
+    """calib.json text; :class:`DataError` when a number is not finite (never written)."""
+    doc = calibration_to_dict(cal)
+    check_finite_json(doc, source)
+    return json.dumps(doc, indent=2, allow_nan=False) + "\n"
 
 
 def write_calibration(path: str | Path, cal: Calibration) -> None:
     """Write calib.json atomically."""
-    write_text_atomic(path, dumps_calibration(cal))
+    write_text_atomic(path, dumps_calibration(cal, str(path)))
 
 
 def calibration_from_dict(doc: dict, source: str = "<calibration>",
@@ -127,6 +136,8 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
     if exc is not None:
         where = "/".join(str(p) for p in exc.absolute_path) or "(top level)"
         raise ModelError(f"{source}: invalid calibration at {where}: {exc.message}")
+    _check_square(doc["robot"], "urdf_from_controller", source)
+    _check_square(doc["robot"], "axis_ranges_deg", source, columns=2)
     embedded = robot_from_urdf_text(doc["robot"]["urdf"], name=doc["robot"]["name"],
                                     source=f"{source} (embedded URDF)",
                                     urdf_from_controller=doc["robot"].get("urdf_from_controller"))
@@ -178,6 +189,19 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
                        validation=validation)
 
 
+def _check_square(robot_doc: dict, key: str, source: str, columns: int | None = None) -> None:
+    """:class:`ModelError` when ``robot/KEY`` is not a table of ``joints`` rows of
+    ``columns`` (default ``joints``) numbers each."""
+    table = robot_doc.get(key)
+    if table is None:
+        return
+    n = robot_doc.get("joints")
+    width = n if columns is None else columns
+    if (not isinstance(table, list) or len(table) != n
+            or any(not isinstance(row, list) or len(row) != width for row in table)):
+        raise ModelError(f"{source}: robot/{key}: expected {n} rows of {width} numbers")
+
+
 def _with_axis_ranges(embedded: Robot, ranges_deg, robot: Robot | None, source: str) -> Robot:
     """The embedded robot with the controller's axis ranges: the file's, else those of the
     robot given, else those of the bundled robot of that name and fingerprint (files
@@ -196,15 +220,54 @@ def _with_axis_ranges(embedded: Robot, ranges_deg, robot: Robot | None, source: 
                                 axis_ranges=ranges)
 
 
+def _matches(path: list, pattern: str) -> bool:
+    parts = pattern.split("/")
+    return len(parts) == len(path) and all(p == "*" or p == str(k) for p, k in zip(parts, path))
+
+
+def _numbers(value, path: list):
+    """(JSON path, number) of every number in a document."""
+    if isinstance(value, bool):
+        return
+    if isinstance(value, (int, float)):
+        yield path, value
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            yield from _numbers(item, path + [key])
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            yield from _numbers(item, path + [k])
+
+
+def check_numbers(doc, source: str) -> None:
+    """:class:`ModelError` naming the JSON path of the first number that is not finite,
+    or of a length or angle beyond :data:`LENGTH_OR_ANGLE_LIMIT` (a corrupt or hand-edited
+    file; JSON itself has no NaN, but Python's reader accepts it)."""
+    for path, value in _numbers(doc, []):
+        where = "/".join(map(str, path))
+        if path[:2] == ["model", "parameters"] and len(path) > 2:
+            entry = doc["model"]["parameters"][path[2]]
+            if isinstance(entry, dict) and isinstance(entry.get("name"), str):
+                where += f" ({entry['name']})"
+        if not np.isfinite(value):
+            raise ModelError(f"{source}: {where}: {value} is not a finite number")
+        if abs(value) > LENGTH_OR_ANGLE_LIMIT and any(_matches(path, p) for p in PLAUSIBLE_PATHS):
+            raise ModelError(f"{source}: {where}: {value:.6g} is beyond any plausible length "
+                             f"or angle (at most {LENGTH_OR_ANGLE_LIMIT:g})")
+
+
 def read_calibration(path: str | Path, robot: Robot | None = None) -> Calibration:
     """Read and validate calib.json (see :func:`calibration_from_dict`)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: cannot read calibration ({exc})") from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ModelError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON ({exc.msg})") from None
+    except RecursionError:
+        raise ModelError(f"{path}: not a calibration (nested too deeply)") from None
+    check_numbers(doc, str(path))
     return calibration_from_dict(doc, str(path), robot)

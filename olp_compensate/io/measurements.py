@@ -23,6 +23,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -55,18 +56,105 @@ def data_records(reader, start: int, n_fields: int, source: str):
         yield line, record
 
 
-def parse_cell_number(text: str, source: str, line: int, column: str) -> float:
-    """A finite number from a CSV cell; :class:`DataError` naming file, line and column."""
+PLAUSIBLE_LIMITS = {"_mm": 1e6, "_deg": 1e5}
+"""Largest magnitude a cell may hold, by the unit at the end of its column name (1 km,
+about 280 turns); beyond it the number is a typo or a corrupt file, not a measurement."""
+OTHER_LIMIT = 1e12
+"""Largest magnitude of any other number (Unix times are about 1.7e9 s)."""
+
+
+def plausible_limit(column: str) -> float:
+    """The largest magnitude accepted in ``column`` (see :data:`PLAUSIBLE_LIMITS`)."""
+    for suffix, limit in PLAUSIBLE_LIMITS.items():
+        if column.endswith(suffix):
+            return limit
+    return OTHER_LIMIT
+
+
+def short(text: str, width: int = 24) -> str:
+    """``text`` cut to ``width`` characters for a message (a 309-digit number is not read)."""
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
+def parse_cell_number(text: str, source: str, line: int, column: str,
+                      decimal_comma: bool = False) -> float:
+    """A finite number of plausible size from a CSV cell; :class:`DataError` naming file,
+    line and column. ``decimal_comma``: the file separates fields with ``;`` (German or
+    French Excel), so ``1,5`` is 1.5; a cell with both ``.`` and ``,`` is refused (a
+    thousands separator would be misread)."""
+    number = text.strip()
+    if decimal_comma and "," in number:
+        if "." in number or number.count(",") > 1:
+            raise DataError(f"{source}:{line}: column '{column}': '{short(text)}' has a "
+                            f"thousands separator; save the numbers without one")
+        number = number.replace(",", ".")
     try:
-        value = float(text)
+        value = float(number)
     except ValueError:
-        raise DataError(f"{source}:{line}: column '{column}': '{text}' is not a number") from None
+        raise DataError(f"{source}:{line}: column '{column}': '{short(text)}' is not a "
+                        f"number") from None
     if not math.isfinite(value):
-        raise DataError(f"{source}:{line}: column '{column}': {text} is not a finite number")
+        raise DataError(f"{source}:{line}: column '{column}': {short(text)} is not a finite "
+                        f"number")
+    limit = plausible_limit(column)
+    if abs(value) > limit:
+        raise DataError(f"{source}:{line}: column '{column}': {short(text)} is beyond any "
+                        f"plausible value (at most {limit:g} in size)")
     return value
 
 
-def _parse_quaternion(cell: dict[str, str], source: str, line: int) -> list[float]:
+@dataclass
+class Table:
+    """A CSV file's parts: ``metadata`` (``#`` lines before the header), ``header``
+    (stripped names), ``header_line`` (1-based), ``records`` (an iterator of (1-based line,
+    fields) from :func:`data_records`) and ``decimal_comma`` (fields separated by ``;``)."""
+
+    metadata: list[str]
+    header: list[str]
+    header_line: int
+    records: object
+    decimal_comma: bool
+
+    def require(self, columns, source: str) -> dict[str, int]:
+        """Column index by name; :class:`DataError` naming the first missing column."""
+        for name in columns:
+            if name not in self.header:
+                raise DataError(f"{source}:{self.header_line}: missing column '{name}' "
+                                f"(header has: {', '.join(self.header)})")
+        return {h: k for k, h in enumerate(self.header)}
+
+
+def open_table(text: str, source: str, expected: str) -> Table:
+    """Split CSV text into metadata, header and data records. A byte-order mark (Excel's
+    "CSV UTF-8") is dropped; a header separated by ``;`` (Excel in German or French) selects
+    ``;`` fields with decimal commas. ``expected`` names the header's columns for the
+    message when there is none."""
+    text = text.lstrip("\ufeff")
+    lines = text.splitlines()
+    metadata, start = [], 0
+    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
+        if lines[start].startswith("#"):
+            metadata.append(lines[start])
+        start += 1
+    if start == len(lines):
+        raise DataError(f"{source}: no header row (expected {expected})")
+    first = lines[start]
+    delimiter = ";" if first.count(";") > first.count(",") else ","
+    reader = csv.reader(io.StringIO("\n".join(lines[start:])), delimiter=delimiter)
+    header = [h.strip().lstrip("\ufeff") for h in next(reader)]
+    return Table(metadata=metadata, header=header, header_line=start + 1,
+                 records=data_records(reader, start, len(header), source),
+                 decimal_comma=delimiter == ";")
+
+
+def _joint_number(column: str) -> int:
+    """K of a joint column ``qK_unit`` (0 when K is not a number, e.g. ``q1x_deg``)."""
+    digits = column[1:].split("_")[0]
+    return int(digits) if digits.isdigit() else 0
+
+
+def _parse_quaternion(cell: dict[str, str], source: str, line: int,
+                      decimal_comma: bool = False) -> list[float]:
     """The unit quaternion (w, x, y, z) of one row, or four NaN when its cells are empty."""
     empty = [c for c in ORIENTATION_COLUMNS if not cell[c]]
     if len(empty) == len(ORIENTATION_COLUMNS):
@@ -74,7 +162,8 @@ def _parse_quaternion(cell: dict[str, str], source: str, line: int) -> list[floa
     if empty:
         raise DataError(f"{source}:{line}: column '{empty[0]}': empty, but the row has other "
                         f"orientation cells (give all of qw, qx, qy, qz, or none)")
-    quat = [parse_cell_number(cell[c], source, line, c) for c in ORIENTATION_COLUMNS]
+    quat = [parse_cell_number(cell[c], source, line, c, decimal_comma)
+            for c in ORIENTATION_COLUMNS]
     norm = math.sqrt(sum(v * v for v in quat))
     if norm < 1e-9:
         raise DataError(f"{source}:{line}: columns 'qw', 'qx', 'qy', 'qz': quaternion of zero "
@@ -86,28 +175,16 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
                        ) -> Measurements:
     """Parse measurement CSV text for a robot whose joints read in ``joint_units``
     (``'deg'`` or ``'mm'`` per joint)."""
-    lines = text.splitlines()
-    metadata = []
-    start = 0
-    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
-        if lines[start].startswith("#"):
-            metadata.append(lines[start])
-        start += 1
-    if start == len(lines):
-        raise DataError(f"{source}: no header row (expected columns like q1_deg, ..., x_mm)")
-    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
-    header = [h.strip() for h in next(reader)]
+    table = open_table(text, source, "columns like q1_deg, ..., x_mm")
+    metadata, header, start = table.metadata, table.header, table.header_line - 1
     expected_joints = joint_columns(joint_units)
     present_joints = sorted((h for h in header if h.startswith("q") and h[1:2].isdigit()),
-                            key=lambda h: int(h[1:].split("_")[0]))
+                            key=_joint_number)
     if len(present_joints) != len(expected_joints) and present_joints:
         raise DataError(f"{source}:{start + 1}: the file has {len(present_joints)} joint columns "
                         f"({', '.join(present_joints)}) but the robot has {len(expected_joints)} "
                         f"joints ({', '.join(expected_joints)})")
-    for name in expected_joints + ["x_mm", "y_mm", "z_mm"]:
-        if name not in header:
-            raise DataError(f"{source}:{start + 1}: missing column '{name}' "
-                            f"(header has: {', '.join(header)})")
+    table.require(expected_joints + ["x_mm", "y_mm", "z_mm"], source)
     index = {h: k for k, h in enumerate(header)}
     has_orientation = all(c in index for c in ORIENTATION_COLUMNS)
     if not has_orientation and any(c in index for c in ORIENTATION_COLUMNS):
@@ -121,20 +198,24 @@ def parse_measurements(text: str, joint_units: list[str], source: str = "<measur
     joints, points, poses, names, quats = [], [], [], [], []
     payload, temperature, time_s, directions, rows = [], [], [], [], []
     extra: dict[str, list[str]] = {h: [] for h in extra_cols}
-    for line, record in data_records(reader, start, len(header), source):
+    comma = table.decimal_comma
+
+    def number(cell, line, column):
+        return parse_cell_number(cell[column], source, line, column, comma)
+    for line, record in table.records:
         cell = {h: record[k].strip() for h, k in index.items()}
-        joints.append([parse_cell_number(cell[c], source, line, c) for c in expected_joints])
-        points.append([parse_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
+        joints.append([number(cell, line, c) for c in expected_joints])
+        points.append([number(cell, line, c) for c in ("x_mm", "y_mm", "z_mm")])
         poses.append(cell.get("pose") or str(len(poses)))
         names.append(cell.get("point") or "tcp")
         if has_orientation:
-            quats.append(_parse_quaternion(cell, source, line))
+            quats.append(_parse_quaternion(cell, source, line, comma))
         for column, target in (("payload_kg", payload), ("temperature_c", temperature),
                                ("time_s", time_s)):
             if column in index:
-                target.append(parse_cell_number(cell[column], source, line, column) if cell[column] else 0.0)
+                target.append(number(cell, line, column) if cell[column] else 0.0)
         if direction_cols:
-            directions.append([parse_cell_number(cell[c], source, line, c) if cell[c] else 0.0
+            directions.append([number(cell, line, c) if cell[c] else 0.0
                                for c in direction_cols])
         for h in extra_cols:
             extra[h].append(cell[h])
@@ -176,7 +257,7 @@ def read_csv_text(path: str | Path, expected: str) -> str:
         raise DataError(f"{path}: cannot read ({exc.strerror})") from None
     if b"\x00" in raw[:4096]:
         raise DataError(f"{path}: binary file, expected {expected}")
-    return raw.decode("utf-8", errors="replace")
+    return raw.decode("utf-8-sig", errors="replace")
 
 
 def read_measurements(path: str | Path, robot_or_units) -> Measurements:
@@ -190,7 +271,9 @@ def read_measurements(path: str | Path, robot_or_units) -> Measurements:
 
 def format_measurements(meas: Measurements, joint_units: list[str],
                         metadata: list[str] | None = None) -> str:
-    """CSV text of measurements (mm and degrees, 6 decimals), the inverse of the parser."""
+    """CSV text of measurements (mm and degrees, 6 decimals), the inverse of the parser.
+    :class:`DataError` when a number to write is not finite (nothing non-finite is written)."""
+    check_finite_measurements(meas)
     out = io.StringIO()
     for line in [FORMAT_LINE] + list(metadata or []):
         out.write(line if line.startswith("#") else f"# {line}")
@@ -217,6 +300,19 @@ def format_measurements(meas: Measurements, joint_units: list[str],
             row += [f"{v:.9f}" if np.isfinite(v) else "" for v in meas.orientation[k]]
         writer.writerow(row)
     return out.getvalue()
+
+
+def check_finite_measurements(meas: Measurements) -> None:
+    """:class:`DataError` naming the first non-finite number of ``meas`` (orientations may
+    be NaN: position-only rows)."""
+    arrays = [("joints", meas.joints), ("points", meas.points), ("payload_kg", meas.payload_kg),
+              ("temperature_c", meas.temperature_c), ("time_s", meas.time_s),
+              ("directions", meas.directions)]
+    for name, values in arrays:
+        if values is not None and not np.all(np.isfinite(values)):
+            row = int(np.argwhere(~np.isfinite(np.asarray(values)))[0][0])
+            raise DataError(f"{meas.source}: refusing to write a non-finite number "
+                            f"({name}, row {row + 1})")
 
 
 def write_measurements(path: str | Path, meas: Measurements, joint_units: list[str],

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import DataError
 from .atomic import write_text_atomic
-from .measurements import data_records, joint_columns, parse_cell_number, read_csv_text
+from .measurements import joint_columns, open_table, parse_cell_number, read_csv_text
 
 FORMAT_LINE = "# olp-compensate poses v1"
 
@@ -39,6 +39,8 @@ def format_poses(joints: np.ndarray, joint_units: list[str], pose_ids=None,
                  metadata: list[str] | None = None) -> str:
     """CSV text of joint vectors (m, n), SI, written in degrees (mm), 6 decimals."""
     joints = np.atleast_2d(joints)
+    if not np.all(np.isfinite(joints)):
+        raise DataError("refusing to write a pose list with non-finite joints")
     ids = [str(k + 1) for k in range(len(joints))] if pose_ids is None else list(pose_ids)
     out = io.StringIO()
     for line in [FORMAT_LINE] + list(metadata or []):
@@ -60,33 +62,21 @@ def write_poses(path: str | Path, joints: np.ndarray, joint_units: list[str], po
 def parse_poses(text: str, joint_units: list[str], source: str = "<poses>") -> PoseList:
     """Parse a pose list (or any CSV with the joint columns) for a robot whose joints read
     in ``joint_units`` ('deg' or 'mm' per joint)."""
-    lines = text.splitlines()
-    metadata, start = [], 0
-    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
-        if lines[start].startswith("#"):
-            metadata.append(lines[start])
-        start += 1
     columns = joint_columns(joint_units)
-    if start == len(lines):
-        raise DataError(f"{source}: no header row (expected pose, {', '.join(columns)})")
-    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
-    header = [h.strip() for h in next(reader)]
+    table = open_table(text, source, f"pose, {', '.join(columns)}")
+    header, metadata = table.header, table.metadata
     present = [h for h in header if h.startswith("q") and h[1:2].isdigit()]
     if present and len(present) != len(columns):
-        raise DataError(f"{source}:{start + 1}: the file has {len(present)} joint columns "
-                        f"({', '.join(present)}) but the robot has {len(columns)} joints "
-                        f"({', '.join(columns)})")
-    for name in columns:
-        if name not in header:
-            raise DataError(f"{source}:{start + 1}: missing column '{name}' "
-                            f"(header has: {', '.join(header)})")
-    index = {h: k for k, h in enumerate(header)}
+        raise DataError(f"{source}:{table.header_line}: the file has {len(present)} joint "
+                        f"columns ({', '.join(present)}) but the robot has {len(columns)} "
+                        f"joints ({', '.join(columns)})")
+    index = table.require(columns, source)
     scale = np.array([np.pi / 180.0 if u == "deg" else 1e-3 for u in joint_units])
     joints, ids, rows = [], [], []
     seen: dict[str, int] = {}
-    for line, record in data_records(reader, start, len(header), source):
-        q = np.array([parse_cell_number(record[index[c]].strip(), source, line, c)
-                      for c in columns]) * scale
+    for line, record in table.records:
+        q = np.array([parse_cell_number(record[index[c]], source, line, c,
+                                        table.decimal_comma) for c in columns]) * scale
         pose = record[index["pose"]].strip() if "pose" in index else ""
         pose = pose or str(len(ids) + 1)
         if pose in seen:
@@ -118,5 +108,5 @@ def check_within_limits(poses: PoseList, robot) -> None:
         row, joint = np.argwhere(outside)[0]
         value = robot.to_degrees_or_mm(poses.joints[row])[joint]
         raise DataError(f"{poses.source}:{poses.rows[row]}: pose '{poses.pose_ids[row]}': "
-                        f"q{joint + 1} = {value:.3f} puts joint {joint + 1} outside the limits "
+                        f"q{joint + 1} = {value:.6g} puts joint {joint + 1} outside the limits "
                         f"of {robot.name}")

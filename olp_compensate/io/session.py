@@ -16,12 +16,9 @@ folder and renamed, so none is ever half-written, and an input is never overwrit
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import os
-import tempfile
 import time
 from dataclasses import replace
 from datetime import datetime, timezone
@@ -31,7 +28,8 @@ import numpy as np
 
 from ..calibration.measurements import Measurements
 from ..errors import DataError, OlpError
-from .measurements import data_records, read_measurements, write_measurements
+from . import atomic
+from .measurements import open_table, parse_cell_number, read_measurements, write_measurements
 from .rtde_source import Ask, JointSource, Say
 
 FORMAT = "olp-compensate session v1"
@@ -84,14 +82,17 @@ def record_session(path, joint_source: JointSource, ask: Ask, say: Say, *, robot
     _check_new(path, overwrite)
     from mcap.writer import Writer
 
-    folder = path.parent if str(path.parent) else Path(".")
+    atomic.remove_stale_temps(path)
+    tmp = atomic.temp_name(path)
+    atomic.track_temp(tmp)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
     except OSError as exc:
+        atomic.untrack_temp(tmp)
         raise OlpError(f"{path}: cannot write ({exc.strerror})") from None
     n = joint_source.n_joints
     count = 0
-    failure: OlpError | None = None
+    failure: OlpError | KeyboardInterrupt | None = None
     with os.fdopen(fd, "wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="olp-compensate")
@@ -130,19 +131,22 @@ def record_session(path, joint_source: JointSource, ask: Ask, say: Say, *, robot
                 count = pose
                 say(f"  pose {pose} recorded: q = ("
                     + ", ".join(f"{v:.3f}" for v in message["q_deg"]) + ") deg")
-        except OlpError as exc:
+        except (OlpError, KeyboardInterrupt) as exc:   # keep the poses recorded so far
             failure = exc
         finally:
             writer.finish()
             stream.flush()
             os.fsync(stream.fileno())
     if count == 0:
-        Path(tmp).unlink(missing_ok=True)
+        atomic.untrack_temp(tmp, remove=True)
         if failure is not None:
             raise failure
         say("No pose recorded; nothing written.")
         return 0
     os.replace(tmp, path)
+    atomic.untrack_temp(tmp, written=path)
+    if isinstance(failure, KeyboardInterrupt):
+        raise failure
     if failure is not None:
         raise type(failure)(f"{failure} (the {count} poses recorded so far are saved in "
                             f"{path})") from failure
@@ -193,36 +197,18 @@ def read_session(path):
 def _read_device_csv(path: Path):
     """Device points: rows of x_mm, y_mm, z_mm [, time_s, point, pose] (``#`` lines skipped)."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_bytes().decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") \
             from None
-    lines = text.splitlines()
-    start = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")),
-                 None)
-    if start is None:
-        raise DataError(f"{path}: no header row (expected x_mm, y_mm, z_mm)")
-    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
-    header = [h.strip() for h in next(reader)]
-    for column in ("x_mm", "y_mm", "z_mm"):
-        if column not in header:
-            raise DataError(f"{path}:{start + 1}: missing column '{column}' "
-                            f"(header has: {', '.join(header)})")
-    index = {h: k for k, h in enumerate(header)}
+    table = open_table(text, str(path), "x_mm, y_mm, z_mm")
+    index = table.require(("x_mm", "y_mm", "z_mm"), str(path))
     rows = []
-    for line, record in data_records(reader, start, len(header), str(path)):
+    for line, record in table.records:
         cell = {h: record[k].strip() for h, k in index.items()}
 
         def number(column):
-            try:
-                value = float(cell[column])
-            except ValueError:
-                raise DataError(f"{path}:{line}: column '{column}': '{cell[column]}' is not a "
-                                f"number") from None
-            if not math.isfinite(value):
-                raise DataError(f"{path}:{line}: column '{column}': {cell[column]} is not a "
-                                f"finite number")
-            return value
+            return parse_cell_number(cell[column], str(path), line, column, table.decimal_comma)
         rows.append({"line": line, "xyz": [number(c) for c in ("x_mm", "y_mm", "z_mm")],
                      "time_s": number("time_s") if "time_s" in index else None,
                      "point": cell.get("point") or "tcp", "pose": cell.get("pose") or None})

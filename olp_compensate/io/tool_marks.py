@@ -14,8 +14,8 @@ import numpy as np
 from ..calibration.tool import ToolCalibration, ToolRequest
 from ..errors import DataError
 from ..kinematics.conventions import MM
-from .atomic import write_text_atomic
-from .measurements import data_records, parse_cell_number
+from .atomic import check_finite_json, write_text_atomic
+from .measurements import open_table, parse_cell_number
 
 
 def tool_to_dict(result: ToolCalibration) -> dict:
@@ -38,7 +38,9 @@ def tool_to_dict(result: ToolCalibration) -> dict:
 
 def write_tool_json(result: ToolCalibration, path) -> None:
     """Write ``{"tools": {name: entry}}`` atomically (an entry to merge into calib.json)."""
-    text = json.dumps({"tools": {result.name: tool_to_dict(result)}}, indent=2)
+    document = {"tools": {result.name: tool_to_dict(result)}}
+    check_finite_json(document, str(path))
+    text = json.dumps(document, indent=2, allow_nan=False)
     write_text_atomic(path, text + "\n")
 
 
@@ -71,36 +73,29 @@ def read_marks_csv(path, n_joints: int, frame: str | None = None) -> ToolRequest
         raise DataError(f"frame: expected 'base' or 'world', got {frame!r}")
     source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        text = Path(path).read_bytes().decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise DataError(f"{source}: cannot read ({getattr(exc, 'strerror', None) or exc})") \
             from None
-    lines = text.splitlines()
-    name = Path(path).stem
-    start = 0
-    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
-        found = re.match(r"#\s*tool\s*:\s*(\S+)", lines[start])
-        name = found.group(1) if found else name
-        start += 1
-    if start == len(lines):
-        raise DataError(f"{source}: no header row (expected mark, q1_deg, ..., x_mm, y_mm, z_mm)")
-    reader = csv.reader(io.StringIO("\n".join(lines[start:])))
-    header = [h.strip() for h in next(reader)]
     joint_cols = [f"q{k + 1}_deg" for k in range(n_joints)]
-    for column in ["mark"] + joint_cols + ["x_mm", "y_mm", "z_mm"]:
-        if column not in header:
-            raise DataError(f"{source}:{start + 1}: missing column '{column}' "
-                            f"(header has: {', '.join(header)})")
-    index = {h: k for k, h in enumerate(header)}
+    table = open_table(text, source, "mark, q1_deg, ..., x_mm, y_mm, z_mm")
+    name = Path(path).stem
+    for line in table.metadata:
+        found = re.match(r"#\s*tool\s*:\s*(\S+)", line.lstrip("\ufeff"))
+        name = found.group(1) if found else name
+    index = table.require(["mark"] + joint_cols + ["x_mm", "y_mm", "z_mm"], source)
+
+    def number(cell, line, column):
+        return parse_cell_number(cell[column], source, line, column, table.decimal_comma)
     labels, joints, marks, frames, filled = [], [], [], [], []
-    for line, record in data_records(reader, start, len(header), source):
+    for line, record in table.records:
         cell = {h: record[k].strip() for h, k in index.items()}
         labels.append(cell["mark"] or f"M{len(labels) + 1}")
-        joints.append([parse_cell_number(cell[c], source, line, c) for c in joint_cols])
+        joints.append([number(cell, line, c) for c in joint_cols])
         xyz = [cell[c] for c in ("x_mm", "y_mm", "z_mm")]
         filled.append((line, sum(bool(v) for v in xyz)))
         if all(xyz):
-            marks.append([parse_cell_number(cell[c], source, line, c) for c in ("x_mm", "y_mm", "z_mm")])
+            marks.append([number(cell, line, c) for c in ("x_mm", "y_mm", "z_mm")])
         row_frame = (cell.get("frame") or frame or "base").lower()
         if row_frame not in ("base", "world"):
             raise DataError(f"{source}:{line}: column 'frame': expected 'base' or 'world', "
