@@ -411,7 +411,7 @@ def test_report_csv_reads_back_field_for_field():
     import io
     import math
 
-    from olp_compensate.compensation.program import CompensationReport, TargetReport
+    from olp_compensate.compensation.report import CompensationReport, TargetReport
 
     rows = (TargetReport("p1", "a,b.mod", 3, 5, "ok", "tool \"x\"", "wobj0",
                          (1.0, -2.5, 0.00004), 0.25, 1.5, "[0,0,0,0]", "[0,-1,0,0]",
@@ -464,7 +464,7 @@ def test_calibrated_tool_orientation_used_only_near_the_tooldata(turn_deg, used)
 def test_confdata_texts_of_many_rows_match_row_by_row():
     """The report's confdata column (distinct rows written once, via a 64-bit key) is the
     row-by-row text, also for values beyond the key's 16 bits and rows without confdata."""
-    from olp_compensate.compensation.program import _config_texts
+    from olp_compensate.compensation.report import config_texts as _config_texts
 
     rng = np.random.default_rng(0)
     for extreme in (None, 70000, -40000):

@@ -89,3 +89,21 @@ def test_corrupted_samples_never_leak_lark_errors(name: str):
             assert err.context is not None
         except OlpError:
             pass
+
+
+def test_binary_or_encrypted_module_is_one_line_without_its_bytes(tmp_path):
+    """An encrypted module (control bytes, no NUL) and a binary file (NUL) are refused in
+    one line that says so and echoes none of their bytes."""
+    rng = np.random.default_rng(3)
+    noise = bytes(rng.integers(0, 256, 4000, dtype="uint8").tolist())
+    encrypted = noise.replace(b"\x00", b"\x01")
+    for name, data in (("enc.mod", b"%%%\r\n  VERSION:1\r\n%%%\r\n" + encrypted),
+                       ("bin.mod", b"MODULE A\n\x00\x01\x02ENDMODULE\n")):
+        path = tmp_path / name
+        path.write_bytes(data)
+        with pytest.raises(ParseError) as info:
+            load(path)
+        err = info.value
+        assert "binary or encrypted" in err.message
+        assert err.context is None and "\n" not in str(err)
+        assert all(32 <= ord(c) < 127 for c in str(err))

@@ -9,7 +9,10 @@ from pathlib import Path
 
 import pytest
 
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.compensation.program import compensate_program
 from olp_compensate.errors import ParseError
+from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import load
 
 CASES = sorted(p for p in (Path(__file__).parent / "programs").iterdir() if p.is_dir())
@@ -99,7 +102,9 @@ def test_golden(case: Path):
         assert err.context and err.context.splitlines()[-1].strip() == "^"
         return
     program = load(path)
-    _match(expected, summary(program), case.name)
+    _match({k: v for k, v in expected.items() if k != "report"}, summary(program), case.name)
+    if "report" in expected:
+        _match_report(expected["report"], program, case.name)
     for t in program.targets + program.joint_targets:  # every span points at its text
         for n in t.numbers:
             assert program.text[n.start:n.end] == n.text
@@ -111,3 +116,21 @@ def test_every_feature_group_has_a_case():
                    "rapid_runtime", "rapid_crlf_latin1", "vplus_locations", "vplus_program",
                    "rapid_error_", "vplus_error_"):
         assert any(n.startswith(prefix) for n in names), prefix
+
+
+def _match_report(expected: list, program, where: str) -> None:
+    """The report rows of the program compensated on the nominal IRB 2400, in text order:
+    target, line, column, status (and tool, wobj, a piece of the note where given); the
+    nominal calibration changes no byte."""
+    text, report = compensate_program(program, None,
+                                      nominal_calibration(load_robot("abb_irb2400")))
+    assert text == program.text, f"{where}: the nominal calibration changed the text"
+    rows = [dict(target=r.target, line=r.line, column=r.column, status=r.status,
+                 tool=r.tool, wobj=r.wobj, note=r.note) for r in report.rows]
+    assert len(rows) == len(expected), f"{where}.report: {rows!r}"
+    for k, (want, row) in enumerate(zip(expected, rows)):
+        for key, value in want.items():
+            if key == "note_contains":
+                assert value in row["note"], f"{where}.report[{k}]: {row!r}"
+            else:
+                assert row[key] == value, f"{where}.report[{k}].{key}: {row!r}"

@@ -74,24 +74,21 @@ def test_an_unwritable_cache_file_is_not_an_error(cache_home):
     assert path.is_dir() and not any(path.iterdir())
 
 
-def test_full_collections_are_held_off_only_while_parsing():
+def test_the_library_leaves_the_garbage_collector_alone(monkeypatch):
+    """Only the command line touches the collector: parsing, resolving and compensating
+    a program never switch it off nor change its thresholds."""
     import gc
-    import threading
 
+    from olp_compensate.calibration.calibration import nominal_calibration
+    from olp_compensate.compensation.program import compensate_program
     from olp_compensate.errors import ParseError
+    from olp_compensate.kinematics.robot import load_robot
 
-    before = gc.get_threshold()
-    with grammar.young_gc_only():
-        held = gc.get_threshold()
-        with grammar.young_gc_only():
-            assert gc.get_threshold() == held
-        assert gc.get_threshold() == held  # the outer parse still runs
-        other = threading.Thread(target=lambda: loads(SAMPLE, "rapid"))
-        other.start()
-        other.join()
-        assert gc.get_threshold() == held
-    assert held[:2] == before[:2] and held[2] > 10 ** 6
-    assert gc.get_threshold() == before
+    cal = nominal_calibration(load_robot("abb_irb2400"))
+    touched = []
+    monkeypatch.setattr(gc, "disable", lambda: touched.append("disable"))
+    monkeypatch.setattr(gc, "set_threshold", lambda *a: touched.append(("threshold", a)))
+    compensate_program(SAMPLE, "rapid", cal)
     with pytest.raises(ParseError):
         loads("MODULE A\n  PROC main(\nENDMODULE\n", "rapid")
-    assert gc.get_threshold() == before
+    assert touched == []

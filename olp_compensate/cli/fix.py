@@ -16,7 +16,8 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import DataError, ModelError, OlpError
-from .common import THREADS_HELP, exit_now, refuse_clashes, run_guarded, silence_stdout
+from .common import (THREADS_HELP, exit_now, no_gc, refuse_clashes, run_guarded,
+                     silence_stdout)
 
 SHOWN_PROBLEMS = 20
 EMIT_MODES = ("pose", "joints")
@@ -96,8 +97,6 @@ def run(args, retain: list | None = None) -> int:
                     ("--report", args.report)])
     # a short batch run over millions of small acyclic records: the cyclic collector's
     # full scans (each time it comes back on between stages) would only cost time
-    from ..programs.grammar import no_gc
-
     with no_gc():
         return _run(args, retain)
 

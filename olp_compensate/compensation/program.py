@@ -19,32 +19,30 @@ with the nominal calibration nothing changes at all. What is done with each targ
 
 from __future__ import annotations
 
-import csv
-import io
 import math
-import dataclasses
 import operator
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..calibration.calibration import Calibration
-from .pose import COMPENSATED, Compensator, explain_failures
-from .confdata import vplus_configuration
-from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
-                          quat_wxyz_from_matrix, rotation_angle_between)
 from ..errors import DataError
-from .ik import OPWParameters
+from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
+                                      pose_from_rotation_translation, quat_wxyz_from_matrix,
+                                      rotation_angle_between)
 from ..programs import Program, loads, resolve
-from ..programs.grammar import no_gc
-from ..programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg, splice,
-                            target_edits)
-from ..programs.targets import QUAT_WXYZ, JointTarget
+from ..programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg,
+                             splice, target_edits)
+from ..programs.targets import JointTarget
+from .confdata import vplus_configuration
+from .ik import OPWParameters
+from .pose import COMPENSATED, Compensator, explain_failures
+from .report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
+                     config_texts, failure_row, joint_target_row, motion_row, row_name,
+                     solved_note, written_row)
 
 __all__ = ["TargetReport", "CompensationReport", "compensate_program", "KEPT", "EMIT_MODES"]
 
-KEPT = ("joint_target",)
-"""Statuses of targets that need no compensation (the program is still fully compensated)."""
 EMIT_MODES = ("pose", "joints")
 CONFIG_SLACK_RAD = math.radians(1.0)
 """A written quadrant is kept while its axis is less than this outside it."""
@@ -52,131 +50,6 @@ TOOL_FRAME_SLACK_RAD = math.radians(5.0)
 """A calibrated tool orientation this close to the tooldata's is taken as the real one."""
 _SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree within this
 
-
-@dataclass(slots=True)   # not frozen: a frozen __init__ costs 2 us a row
-class TargetReport:
-    """One row of the report: one target with one tool/work-object pair (or one run-time
-    motion). Lengths in mm, angles in degrees; NaN where not compensated.
-
-    correction_mm : (dx, dy, dz) change of the written target, in its work object.
-    joints : (n,) controller axes the real robot takes, deg (mm for prismatic axes).
-    joint_change : largest |real - nominal| joint value for the original target, deg.
-    """
-
-    target: str
-    file: str
-    line: int
-    column: int
-    status: str
-    tool: str = ""
-    wobj: str = ""
-    correction_mm: tuple[float, float, float] = (math.nan,) * 3
-    correction_deg: float = math.nan
-    joint_change: float = math.nan
-    config_before: str = ""
-    config_after: str = ""
-    joints: tuple[float, ...] = ()
-    note: str = ""
-
-    @property
-    def compensated(self) -> bool:
-        return self.status in COMPENSATED
-
-    @property
-    def fine(self) -> bool:
-        """Compensated, or needing no compensation."""
-        return self.status in COMPENSATED or self.status in KEPT
-
-
-@dataclass(frozen=True)
-class CompensationReport:
-    """Everything :func:`compensate_program` did: one row per target use, and warnings
-    (one line each, file:line first)."""
-
-    file: str
-    rows: tuple[TargetReport, ...]
-    warnings: tuple[str, ...] = ()
-    n_joints: int = 6
-    emit: str = "pose"
-    edits: int = 0
-
-    @property
-    def all_compensated(self) -> bool:
-        return all(r.fine for r in self.rows)
-
-    @property
-    def exit_code(self) -> int:
-        """0 when every target was compensated (or needs no compensation), else 2."""
-        return 0 if self.all_compensated else 2
-
-    def counts(self) -> dict[str, int]:
-        out: dict[str, int] = {}
-        for r in self.rows:
-            out[r.status] = out.get(r.status, 0) + 1
-        return out
-
-    def to_csv(self) -> str:
-        """The report as CSV text (one row per target use; units in the column names)."""
-        buf = io.StringIO()
-        joint_columns = [f"q{k + 1}_deg" for k in range(self.n_joints)]
-        csv.writer(buf, lineterminator="\n").writerow(
-            ["target", "file", "line", "column", "status", "tool", "wobj", "dx_mm", "dy_mm",
-             "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after",
-             *joint_columns, "note"])
-        # one %-format per row (100k-target programs); a row with a missing number takes
-        # the per-field path. Fields repeated across rows are quoted once.
-        nj = self.n_joints
-        row_format = ",".join(["%s,%s,%d,%d,%s,%s,%s"] + ["%.4f"] * 3 + ["%.5f"] * 2
-                              + ["%s,%s"] + ["%.6f"] * nj + ["%s"])
-        empty_joints = "," * (nj - 1)
-        quoted = _Quoted()
-        field_text = _csv_field
-        lines = []
-        isfinite = math.isfinite
-        for r in self.rows:
-            c, q = r.correction_mm, r.joints
-            try:   # one sum: NaN or inf anywhere makes it non-finite
-                whole = (len(c) == 3 and len(q) == nj and isfinite(
-                    c[0] + c[1] + c[2] + r.correction_deg + r.joint_change + sum(q)))
-            except TypeError:   # a None
-                whole = False
-            if whole:
-                lines.append(row_format % (
-                    field_text(r.target), quoted[r.file], r.line, r.column, quoted[r.status],
-                    quoted[r.tool], quoted[r.wobj], *c, r.correction_deg, r.joint_change,
-                    quoted[r.config_before], quoted[r.config_after], *q, quoted[r.note]))
-                continue
-            joint_text = ",".join(_num(v, 6) for v in q) if q else empty_joints
-            lines.append(",".join((
-                field_text(r.target), quoted[r.file], str(r.line), str(r.column),
-                quoted[r.status], quoted[r.tool], quoted[r.wobj],
-                *(_num(v, 4) for v in r.correction_mm), _num(r.correction_deg, 5),
-                _num(r.joint_change, 5), quoted[r.config_before], quoted[r.config_after],
-                joint_text, quoted[r.note])))
-        lines.append("")
-        return buf.getvalue() + "\n".join(lines)
-
-
-class _Quoted(dict):
-    """text -> its CSV field, computed once per distinct text."""
-
-    def __missing__(self, text: str) -> str:
-        value = self[text] = _csv_field(text)
-        return value
-
-
-def _csv_field(text: str) -> str:
-    """One CSV field as csv.writer writes it (quoted only when it must be)."""
-    if "," in text or '"' in text or "\n" in text or "\r" in text:
-        return '"' + text.replace('"', '""') + '"'
-    return text
-
-
-def _num(value: float, decimals: int) -> str:
-    return "" if value is None or not math.isfinite(value) else f"{value:.{decimals}f}"
-
-
-# ----------------------------------------------------------------------------------------
 
 def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
     """flange_T_tool of the real robot for the program tool ``name``, and a note.
@@ -198,18 +71,6 @@ def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
                              f"tooldata's: the tooldata's orientation kept)")
             return pose_from_rotation_translation(rotation, tool.xyz_m), note
     return program_tool, ""
-
-
-_CONFIG_TEXT: dict = {}
-
-
-def _config_text(values) -> str:
-    """'[cf1,cf4,cf6,cfx]' of a confdata (memoized: programs repeat a few of them)."""
-    key = tuple(values)
-    text = _CONFIG_TEXT.get(key)
-    if text is None:
-        text = _CONFIG_TEXT[key] = "[" + ",".join(str(int(v)) for v in key) + "]" if key else ""
-    return text
 
 
 def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
@@ -246,11 +107,6 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
     :class:`CompensationReport`. Raises :class:`~olp_compensate.errors.ParseError` for a
     malformed program and DataError for bad arguments.
     """
-    with no_gc():   # hundreds of thousands of small records: no collector passes
-        return _compensate_program(program, dialect, calibration, emit, file, unused)
-
-
-def _compensate_program(program, dialect, calibration, emit, file, unused):
     if emit not in EMIT_MODES:
         raise DataError(f"emit: expected one of {', '.join(EMIT_MODES)}, got {emit!r}")
     if unused not in ("skip", "tool0"):
@@ -260,127 +116,97 @@ def _compensate_program(program, dialect, calibration, emit, file, unused):
             raise DataError("dialect: needed when the program is given as text")
         program = loads(program, dialect, file)
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
-    robot = comp.robot
     res = resolve(program)
     vplus = program.dialect == "vplus"
-    targets, pairs = res.entry_targets, res.pairs
-    m = len(targets)
-    pair_of = res.entry_pairs.tolist()
-
-    # what to do with each entry: a row now, or solve it (job: entry indices)
-    rows: list = [None] * m
-    job: list[int] = []
-    known = np.isfinite(res.base_T_flange[:, 0, 0]).tolist()
-    skip_unused = unused == "skip"
-    for k, t in enumerate(targets):
-        if type(t) is JointTarget:
-            pair = pairs[pair_of[k]]
-            rows[k] = TargetReport(*_where(t), "joint_target", pair.tool_name, pair.wobj_name,
-                                   joints=tuple(t.joints_deg()), note="joints kept as written")
-        elif skip_unused and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
-            rows[k] = _row(t, pairs[pair_of[k]], "unused", _NOT_MOVED)
-        elif known[k]:
-            job.append(k)
-        else:
-            rows[k] = _row(t, pairs[pair_of[k]], "unresolved", "; ".join(res.entry_notes[k]))
-
-    n = len(job)
-    write: dict[int, int] = {}   # id(target) -> job row to write, in text order
-    if n:
-        solved = _solve(comp, res, job, vplus)
-        ambiguous = _ambiguous(res, job, solved)
-        config_after = ([solved.vplus_text.get(i, "") for i in range(n)] if vplus else
-                        _config_texts(solved.conf))
-        ok, reason = solved.ok.tolist(), solved.reason
-        shift = list(map(tuple, solved.shift_mm.tolist()))
-        turn, change = solved.turn_deg.tolist(), solved.change_deg.tolist()
-        joints = list(map(tuple, solved.joints_deg.tolist()))
-        entry_notes, tool_note = res.entry_notes, solved.tool_note
-        for i, (k, before) in enumerate(zip(job, solved.config_before)):
-            t = targets[k]
-            pair = pairs[pair_of[k]]
-            notes = entry_notes[k]
-            note = _note(notes, tool_note[i]) if notes else tool_note[i]
-            file, line, column = t.source      # _where(t), inline: once per target
-            name = t.name
-            if name is None or t.array_index is not None:
-                name = t.display_name
-            if not ok[i]:
-                rows[k] = _failure_row(TargetReport(name, file, line, column, reason[i],
-                                                    pair.tool_name, pair.wobj_name,
-                                                    config_before=before, note=note),
-                                       solved.failures[i], robot, vplus)
-            elif k in ambiguous:
-                rows[k] = TargetReport(name, file, line, column, "ambiguous", pair.tool_name,
-                                       pair.wobj_name, config_before=before,
-                                       joints=joints[i],
-                                       note="used with several tools/work objects needing "
-                                            "different corrections; left as written")
-            else:
-                write[id(t)] = i
-                rows[k] = TargetReport(name, file, line, column, reason[i], pair.tool_name,
-                                       pair.wobj_name, shift[i], turn[i], change[i],
-                                       before, config_after[i], joints[i], note)
-    for use, why in res.unresolved:
-        where = use.location
-        name = (use.runtime.expression if use.runtime is not None
-                else use.target_name or "<target>")
-        rows.append(TargetReport(target=name, file=where.file, line=where.line,
-                                 column=where.column,
-                                 status="runtime" if use.runtime is not None else "unresolved",
-                                 tool=use.tool or "", wobj=use.wobj or "", note=why))
-    rows.sort(key=_LINE_COLUMN)
-
+    rows, job = _rows_not_solved(res, unused)
+    solved = _solve(comp, res, job, vplus) if job else None
+    write = _rows_solved(res, job, solved, comp.robot, vplus, rows) if job else {}
+    rows.extend(motion_row(use, "runtime" if use.runtime is not None else "unresolved", why)
+                for use, why in res.unresolved)
+    rows.extend(_problem_rows(program))
+    rows.sort(key=LINE_COLUMN)
     warnings = list(res.warnings)
-    edits = _edits(program, comp, res, job, write, solved if n else None, emit, vplus,
-                   warnings)
+    edits = _edits(program, comp, res, job, write, solved, emit, vplus, warnings)
     text = splice(program.text, edits) if edits else program.text
     report = CompensationReport(file=program.file, rows=tuple(rows), warnings=tuple(warnings),
-                                n_joints=robot.n_joints, emit=emit, edits=len(edits))
+                                n_joints=comp.robot.n_joints, emit=emit, edits=len(edits))
     return text, report
 
 
-_LINE_COLUMN = operator.attrgetter("line", "column")
-_NOT_MOVED = "not moved to in this file: tool and work object unknown, left as written"
+def _rows_not_solved(res, unused: str) -> tuple[list, list[int]]:
+    """(rows, job): a row for each entry decided without solving (joint targets, unused,
+    unresolved), None for the others, whose entry indices are the ``job`` to solve."""
+    targets, pairs = res.entry_targets, res.pairs
+    pair_of = res.entry_pairs.tolist()
+    rows: list = [None] * len(targets)
+    job: list[int] = []
+    known = np.isfinite(res.base_T_flange[:, 0, 0]).tolist()
+    skip_unused = unused == "skip"
+    bad = res.bad_value.tolist()
+    for k, t in enumerate(targets):
+        if type(t) is JointTarget:
+            rows[k] = joint_target_row(t, pairs[pair_of[k]])
+        elif bad[k]:
+            rows[k] = written_row(t, pairs[pair_of[k]], "bad_target", res.entry_notes[k][0])
+        elif skip_unused and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
+            rows[k] = written_row(t, pairs[pair_of[k]], "unused", NOT_MOVED)
+        elif known[k]:
+            job.append(k)
+        else:
+            rows[k] = written_row(t, pairs[pair_of[k]], "unresolved",
+                                  "; ".join(res.entry_notes[k]))
+    return rows, job
 
 
-def _where(t) -> tuple:
-    """The first fields of a report row: target, file, line, column."""
-    file, line, column = t.source
-    name = t.name
-    if name is None or t.array_index is not None:
-        name = t.display_name   # <inline>, p{3}, pick[3]
-    return name, file, line, column
+def _rows_solved(res, job: list[int], solved, robot, vplus: bool, rows: list
+                 ) -> dict[int, int]:
+    """Fill ``rows`` for the solved ``job`` entries; returns the targets to write:
+    id(target) -> job row, in text order."""
+    targets, pairs = res.entry_targets, res.pairs
+    pair_of = res.entry_pairs.tolist()
+    write: dict[int, int] = {}
+    ambiguous = _ambiguous(res, job, solved)
+    config_after = ([solved.vplus_text.get(i, "") for i in range(len(job))] if vplus else
+                    config_texts(solved.conf))
+    ok, reason = solved.ok.tolist(), solved.reason
+    shift = list(map(tuple, solved.shift_mm.tolist()))
+    turn, change = solved.turn_deg.tolist(), solved.change_deg.tolist()
+    joints = list(map(tuple, solved.joints_deg.tolist()))
+    entry_notes, tool_note = res.entry_notes, solved.tool_note
+    for i, (k, before) in enumerate(zip(job, solved.config_before)):
+        t = targets[k]
+        pair = pairs[pair_of[k]]
+        notes = entry_notes[k]
+        note = solved_note(notes, tool_note[i]) if notes else tool_note[i]
+        file, line, column = t.source
+        name = row_name(t)
+        if not ok[i]:
+            rows[k] = failure_row(TargetReport(
+                target=name, file=file, line=line, column=column, status=reason[i],
+                tool=pair.tool_name, wobj=pair.wobj_name, config_before=before, note=note),
+                solved.failures[i], robot, vplus)
+        elif k in ambiguous:
+            rows[k] = TargetReport(
+                target=name, file=file, line=line, column=column, status="ambiguous",
+                tool=pair.tool_name, wobj=pair.wobj_name, config_before=before,
+                joints=joints[i], note="used with several tools/work objects needing "
+                                       "different corrections; left as written")
+        else:
+            write[id(t)] = i
+            rows[k] = TargetReport(
+                target=name, file=file, line=line, column=column, status=reason[i],
+                tool=pair.tool_name, wobj=pair.wobj_name, correction_mm=shift[i],
+                correction_deg=turn[i], joint_change=change[i], config_before=before,
+                config_after=config_after[i], joints=joints[i], note=note)
+    return write
 
 
-def _row(t, pair, status: str, note: str) -> TargetReport:
-    """A row for a Cartesian target left as written."""
-    config = t.config_values() if t.orientation_kind == QUAT_WXYZ else ()
-    return TargetReport(*_where(t), status, pair.tool_name, pair.wobj_name,
-                        config_before=_config_text(config), note=note)
-
-
-def _failure_row(row: TargetReport, failure, robot, vplus: bool) -> TargetReport:
-    """``row`` of a target not compensated, with why (in words and numbers), the best
-    joints found and their configuration."""
-    if failure is None:
-        return row
-    note = failure.note if not row.note else f"{failure.note}; {row.note}"
-    joints = ()
-    if np.all(np.isfinite(failure.joints)):
-        joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
-    config = _config_text(failure.config) if failure.config is not None and not vplus else ""
-    return dataclasses.replace(row, note=note, joints=joints, config_after=config)
-
-
-def _note(notes: tuple[str, ...], tool_note: str) -> str:
-    """The report note of a solved entry: its resolution notes and the real-tool note."""
-    if not notes:
-        return tool_note
-    kept = [x for x in notes if x != "unused"] + [tool_note]
-    if "unused" in notes:
-        kept.append("not moved to in this file: tool0/wobj0 assumed")
-    return "; ".join(x for x in kept if x)
+def _problem_rows(program: Program) -> list[TargetReport]:
+    """Rows for what the parser found but could not take as a target (``program.problems``:
+    a literal with a zero quaternion, a motion instruction it does not know...)."""
+    return [TargetReport(target=p.target, file=p.location.file, line=p.location.line,
+                         column=p.location.column, status=p.status, note=p.reason)
+            for p in program.problems]
 
 
 @dataclass(eq=False)
@@ -495,31 +321,12 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
                                       "FLIP" if flip else "NOFLIP"))
     return _Solved(
         ok=ok, reason=reason, written=written, has_conf=has_conf,
-        config_before=_config_texts(written, has_conf), conf=conf, new_targets=new_targets,
+        config_before=config_texts(written, has_conf), conf=conf, new_targets=new_targets,
         q_ctrl=q_ctrl, shift_mm=(new_targets[:, :3, 3] - original[:, :3, 3]) / MM,
         turn_deg=np.degrees(rotation_angle_between(new_targets[:, :3, :3],
                                                    original[:, :3, :3])),
         change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
         vplus_text=vplus_text, failures=failures)
-
-
-def _config_texts(confdata: np.ndarray, has_conf: np.ndarray | None = None) -> list[str]:
-    """'[cf1,cf4,cf6,cfx]' of each row of ``confdata`` (n, 4) int, '' where ``has_conf``
-    is False. Programs repeat a few confdata: each distinct row is written once (rows
-    found by one 64-bit key per row when every value fits in 16 bits)."""
-    if not len(confdata):
-        return []
-    if np.abs(confdata).max() < 1 << 15:
-        shifted = (confdata + (1 << 15)).astype(np.uint64)
-        key = (shifted[:, 0] << 48) | (shifted[:, 1] << 32) | (shifted[:, 2] << 16) | shifted[:, 3]
-        _, first, which = np.unique(key, return_index=True, return_inverse=True)
-        texts = [_config_text(tuple(c)) for c in confdata[first].tolist()]
-        out = [texts[j] for j in which.reshape(-1).tolist()]
-    else:
-        out = [_config_text(tuple(c)) for c in confdata.tolist()]
-    if has_conf is not None and not has_conf.all():
-        out = [t if h else "" for t, h in zip(out, has_conf.tolist())]
-    return out
 
 
 def _pose_or_nan(pose) -> np.ndarray:
@@ -621,6 +428,8 @@ def _joint_blocker(program: Program, uses: dict, t) -> str | None:
             return f"{u.instruction} at line {u.location.line} needs a Cartesian target"
         if u.wobj is not None and program.dialect == "vplus":
             return f"used relative to frame {u.wobj} at line {u.location.line}"
+    if t.storage == "assigned":
+        return f"assigned in {t.routine} at line {t.location.line}: stays a robtarget"
     if t.name is None:
         return None
     key = t.name.lower()
@@ -641,7 +450,7 @@ def _joint_convertible(program: Program, uses: dict, targets) -> set[int]:
     if program.dialect == "rapid":
         by_decl: dict = {}
         for t in program.targets:
-            if t.storage != "inline":
+            if t.storage not in ("inline", "assigned"):
                 by_decl.setdefault(t.type_span, []).append(t)
         for members in by_decl.values():
             if any(id(m) not in ok or id(m) not in chosen for m in members):

@@ -9,14 +9,11 @@ offending line with a caret under the spot.
 from __future__ import annotations
 
 import bisect
-import contextlib
 import contextvars
 import functools
-import gc
 import os
 import re
 import sys
-import threading
 from pathlib import Path
 
 import lark
@@ -73,50 +70,6 @@ def cache_file(key: str) -> str | None:
 # The records of the parse in progress; set by the dialect's parse function so that the
 # cached parser's callbacks can append to them (thread- and reentrancy-safe).
 current_sink: contextvars.ContextVar = contextvars.ContextVar("olp_program_sink")
-
-
-_young_gc_lock = threading.Lock()
-_young_gc_depth = 0
-_young_gc_saved = (700, 10, 10)
-
-
-@contextlib.contextmanager
-def young_gc_only():
-    """Hold off the cyclic garbage collector's full collections (nested and across threads:
-    until the last one leaves); the young generations are still collected.
-
-    A parse allocates millions of small objects that live as long as its program: young
-    collections see them in small batches, while they are still in the processor's cache,
-    and stop tracking the plain tuples of plain values among them for good; full
-    collections (one each time a quarter more have piled up) would scan them all again
-    and again.
-    """
-    global _young_gc_depth, _young_gc_saved
-    with _young_gc_lock:
-        if _young_gc_depth == 0:
-            _young_gc_saved = gc.get_threshold()
-            gc.set_threshold(_young_gc_saved[0], _young_gc_saved[1], 1 << 30)
-        _young_gc_depth += 1
-    try:
-        yield
-    finally:
-        with _young_gc_lock:
-            _young_gc_depth -= 1
-            if _young_gc_depth == 0:
-                gc.set_threshold(*_young_gc_saved)
-
-
-@contextlib.contextmanager
-def no_gc():
-    """Pause the cyclic garbage collector: a parse allocates millions of small acyclic
-    objects, and the collector's repeated full scans would make it several times slower."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
 
 
 class LineIndex:
@@ -267,12 +220,25 @@ def convert_lark_error(exc: UnexpectedInput, text: str, file: str) -> ParseError
     return ParseError(str(exc).splitlines()[0], file, line, col)
 
 
+_CONTROL = re.compile(r"[\x00-\x08\x0e-\x1a\x1c-\x1f\x7f]")
+BINARY_SHARE = 0.01
+"""A text whose first 64 KiB hold more than this share of control bytes is binary."""
+
+
 def check_text(text: str, file: str) -> None:
-    """Reject binary input (NUL bytes) before the parser sees it."""
+    """Reject binary input (a NUL byte, or many control bytes: an encrypted module, an
+    image...) before the parser sees it, in one line that does not echo its bytes."""
+    head = text[:1 << 16]
+    controls = len(_CONTROL.findall(head))
     nul = text.find("\x00")
-    if nul >= 0:
-        raise error_at("binary file (NUL byte found); expected a text program", text, file,
-                       nul)
+    if nul < 0 and controls <= BINARY_SHARE * len(head):
+        return
+    first = nul if nul >= 0 else _CONTROL.search(head).start()
+    line, column = LineIndex(text).line_col(first)
+    raise ParseError(f"binary or encrypted file ({controls} control bytes in the first "
+                     f"{len(head)}; first at this position): not a program in plain text "
+                     f"(an encrypted RAPID module cannot be read; compensate its plain "
+                     f"source)", file, line, column)
 
 
 def newline_style(text: str) -> str:

@@ -36,6 +36,7 @@ def _record(*counts: int) -> str:
 ROBTARGET_PATTERN = _record(3, 4, 4, 6)
 ROBTARGET_RE = re.compile(ROBTARGET_PATTERN)
 JOINTTARGET_RE = re.compile(_record(6, 6))
+_MALFORMED = re.compile(r"[-+]?[\w.]+(?:[eE][-+]?[\w.]*)?")  # a number run, as shown in errors
 _SKIP = re.compile(r"(?:[ \t\r\n\f]+|![^\r\n]*)*")
 _TOKEN = re.compile(r"""
     (?P<ws>[ \t\r\n\f]+|![^\r\n]*)
@@ -120,8 +121,10 @@ def read_aggregate(text: str, start: int, end: int | None = None) -> Agg:
         elif not stack:
             raise LiteralError("expected '['", pos0)
         elif kind == "num":
-            g = m.group()
-            item_tokens.append(_make_number((pos0, pos, g)))
+            if pos < n and (text[pos].isalnum() or text[pos] in "._"):
+                bad = _MALFORMED.match(text, pos0, n).group()
+                raise LiteralError(f"malformed number {bad!r}", pos0)
+            item_tokens.append(_make_number((pos0, pos, m.group())))
         elif kind == "str":
             item_tokens.append(Atom("string", m.group(), pos0, pos))
         elif kind == "word":

@@ -1,4 +1,4 @@
-"""RAPID parse records and the two hot paths (whole runs of simple statements).
+"""The RAPID parser's two hot paths (whole runs of simple statements).
 
 The grammar hands over runs of one-line declarations (FAST_DECLS) and calls (FAST_CALLS) as
 single tokens; the lexer callbacks here split them with anchored regular expressions, in
@@ -12,132 +12,13 @@ the grammar (start symbol ``call``), which gives the exact error if it is wrong.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 from lark import Token
 
-from .grammar import LineIndex, current_sink
+from .grammar import current_sink
 from .literals import ROBTARGET_PATTERN
+from .rapid_records import Arg, Decl, Ex, Opt, Sink, call_record_of
 from .targets import QUAT_WXYZ, CartesianTarget, MotionUse
-
-
-@dataclass(frozen=True, slots=True)
-class MotionSpec:
-    """Where a motion instruction keeps its targets and its tool.
-
-    targets : (positional index, role) pairs; tool : positional index (-1 = last);
-    joint : the target is a jointtarget; writes : positional index of a robtarget the
-    instruction writes (SearchL's search point), or None.
-    """
-
-    targets: tuple[tuple[int, str], ...]
-    tool: int = -1
-    joint: bool = False
-    writes: int | None = None
-
-
-_TO = ((0, "to"),)
-_CIRC = ((0, "circle"), (1, "to"))
-MOTIONS: dict[str, MotionSpec] = {}
-for _n in ("MoveL", "MoveJ", "TriggL", "TriggJ", "TriggLIOs", "TriggJIOs", "ArcL",
-           "ArcLStart", "ArcLEnd", "ArcL1", "ArcL2", "ArcRepL", "SpotL", "SpotJ", "SpotML",
-           "SpotMJ", "CapL", "PaintL", "DispL", "MoveLFF", "MoveLStart", "MoveLEnd"):
-    MOTIONS[_n.lower()] = MotionSpec(_TO)
-for _n in ("MoveC", "TriggC", "ArcC", "ArcCStart", "ArcCEnd", "ArcC1", "ArcC2", "CapC",
-           "PaintC", "DispC"):
-    MOTIONS[_n.lower()] = MotionSpec(_CIRC)
-for _n in ("MoveLDO", "MoveJDO", "MoveLAO", "MoveJAO", "MoveLGO", "MoveJGO", "MoveLSync",
-           "MoveJSync"):
-    MOTIONS[_n.lower()] = MotionSpec(_TO, tool=3)
-for _n in ("MoveCDO", "MoveCAO", "MoveCGO", "MoveCSync"):
-    MOTIONS[_n.lower()] = MotionSpec(_CIRC, tool=4)
-MOTIONS["searchl"] = MotionSpec(((2, "to"),), writes=1)
-MOTIONS["searchc"] = MotionSpec(((2, "circle"), (3, "to")), writes=1)
-MOTIONS["moveabsj"] = MotionSpec(_TO, joint=True)
-
-RUNTIME_FUNCS = {
-    "offs": "Offs() displaces the target at run time",
-    "reltool": "RelTool() displaces the target in the tool frame at run time",
-    "crobt": "CRobT() reads the current position at run time",
-    "cjointt": "CJointT() reads the current joints at run time",
-    "calcrobt": "CalcRobT() computes the target from joints at run time",
-    "calcjointt": "CalcJointT() computes joints at run time",
-    "mirpos": "MirPos() mirrors the target at run time",
-    "poseinv": "pose arithmetic at run time",
-    "posemult": "pose arithmetic at run time",
-}
-
-
-# ---- records appended by the parser callbacks -----------------------------------------
-
-class Ex:
-    """An expression's span and what it is (kind: name, index, call, complex, aggregate,
-    num, string, star, expr)."""
-
-    __slots__ = ("start", "end", "kind", "name", "index", "args")
-
-    def __init__(self, start, end, kind, name=None, index=None, args=None):
-        self.start, self.end, self.kind = start, end, kind
-        self.name, self.index, self.args = name, index, args
-
-
-class Opt:
-    """An optional argument ``\\name``, ``\\name:=value`` or ``\\name?param``."""
-
-    __slots__ = ("name", "value", "cond", "start", "end")
-
-    def __init__(self, name, value, cond, start, end):
-        self.name, self.value, self.cond, self.start, self.end = name, value, cond, start, end
-
-
-class Arg:
-    """One comma-separated argument: a value (or None) and its optional arguments."""
-
-    __slots__ = ("value", "opts")
-
-    def __init__(self, value, opts):
-        self.value, self.opts = value, opts
-
-
-class Sink:
-    """The records of one parse. The fast paths build module-level robtarget declarations
-    and the plainest MoveL/MoveJ into model objects at once (``targets``, ``motions``);
-    everything else is recorded for the builder."""
-
-    __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
-                 "targets", "motions", "depth", "routine", "pending", "reparse",
-                 "types")
-
-    def __init__(self, text: str, file: str, reparse):
-        self.text, self.file, self.reparse = text, file, reparse
-        self.index = LineIndex(text)
-        self.decls, self.calls, self.assigns, self.routines, self.modules = [], [], [], [], []
-        self.targets: list = []
-        self.motions: list = []
-        self.types: dict = {}  # ALIAS and RECORD definitions: lower name -> (kind, data)
-        # set by lexer callbacks, in text order: routine nesting, name, names still to skip
-        self.depth = 0
-        self.routine: str | None = None
-        self.pending = 0
-
-
-_TOKEN_KIND = {"NUM": "num", "STRING": "string", "AGGREGATE": "aggregate", "STAR": "star"}
-
-
-def as_ex(x) -> Ex:
-    if type(x) is Ex:
-        return x
-    return Ex(x.start_pos, x.end_pos, _TOKEN_KIND.get(x.type, "expr"))
-
-
-def start_of(x) -> int:
-    return x.start if type(x) is Ex else x.start_pos
-
-
-def end_of(x) -> int:
-    """End offset of an Ex, a lark Token or a (start, end) span."""
-    t = type(x)
-    return x.end if t is Ex else (x[1] if t is tuple else x.end_pos)
 
 
 # ---- the two hot-path tokens ----------------------------------------------------------
@@ -166,7 +47,6 @@ _TIGHT_ROBTARGET = re.compile(_FAST_ROBTARGET.pattern.replace(r"[ \t\r\n\f]*+", 
                               re.ASCII)
 _ROBTARGET_NUMBERS = range(5, 22)
 _STORAGE = {"CONST": "CONST", "PERS": "PERS", "VAR": "VAR"}
-_tuple_new = tuple.__new__  # a NamedTuple from all its fields, without its __new__ frame
 
 
 def _on_fast_decls(tok: Token) -> Token:
@@ -189,9 +69,10 @@ def _split_fast_decls(tok: Token, sink: Sink) -> None:
                 break
         m = match(text, pos, end)
         dims = m.group(5)
-        out.append((m.group(1), m.group(2).upper(), m.group(3), m.span(3), m.group(4),
-                    m.start(4), dims.count(",") + 1 if dims is not None else 0,
-                    Ex(m.start(6), m.end(6), "aggregate"), pos))
+        out.append(Decl(scope=m.group(1), storage=m.group(2).upper(), type_name=m.group(3),
+                        type_span=m.span(3), name=m.group(4), name_pos=m.start(4),
+                        rank=dims.count(",") + 1 if dims is not None else 0,
+                        value=Ex(m.start(6), m.end(6), "aggregate"), start=pos))
         pos = m.end()
 
 
@@ -201,7 +82,7 @@ def _direct_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
     # the blank-free form first; whichever read the previous declaration goes first
     first, second = _TIGHT_ROBTARGET.match, _FAST_ROBTARGET.match
     append, file, numbers = sink.targets.append, sink.file, _ROBTARGET_NUMBERS
-    storage_of, new, target = _STORAGE.get, _tuple_new, CartesianTarget
+    storage_of, target = _STORAGE.get, CartesianTarget
     count, rfind = text.count, text.rfind
     index = sink.index
     last, line, line_start = index.position()  # sink.index.line_col, inlined (text order)
@@ -224,9 +105,11 @@ def _direct_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
         else:
             source = (file, *index.line_col(a))
         storage = g[0]
-        append(new(target, (
-            g[2], source, g[4:], tuple(map(m.start, numbers)), QUAT_WXYZ, m.span(4),
-            storage_of(storage) or storage.upper(), None, None, m.span(2))))
+        append(target(
+            name=g[2], source=source, texts=g[4:], starts=tuple(map(m.start, numbers)),
+            orientation_kind=QUAT_WXYZ, span=m.span(4),
+            storage=storage_of(storage) or storage.upper(), array_index=None,
+            routine=None, type_span=m.span(2)))
         pos = m.end()
     index.moved(last, line, line_start)
     return pos
@@ -253,23 +136,6 @@ def _leave_routine(tok: Token) -> Token:
     sink.depth -= 1
     sink.routine = None
     return tok
-
-
-def call_record(name: str, start: int, name_end: int, args) -> tuple:
-    """The unified call record: (name, start, name_end, end, positional, opts).
-
-    positional : the values in order, each an :class:`Ex` or a (start, end) span;
-    opts : the optional arguments, :class:`Opt` (value an Ex, a span or None);
-    end : where the last argument (or the name) ends.
-    """
-    positional = [a.value for a in args if a.value is not None]
-    opts = [o for a in args for o in a.opts]
-    return _call_record(name, start, name_end, positional, opts)
-
-
-def _call_record(name: str, start: int, name_end: int, positional, opts) -> tuple:
-    end = max([name_end] + [end_of(v) for v in positional] + [o.end for o in opts])
-    return (name, start, name_end, end, positional, opts)
 
 
 _VAL = (r"-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
@@ -348,7 +214,7 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
     other argument lists are split by one regex (plain values and optional arguments) or
     item by item. A motion instruction whose arguments none of these reads is parsed
     again by the grammar (start symbol ``call``), which records it or raises the error;
-    other calls are opaque (only plain-name arguments are kept, as references).
+    so is any other call whose arguments they do not read.
     """
     text, pos, end = sink.text, tok.start_pos, tok.end_pos
     out, inline = sink.calls, _INLINE_MOVE.match
@@ -371,9 +237,9 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
         else:
             items = _items_split(seg, ne)
         if items is not None:
-            out.append(_call_record(name, pos, ne, items[0], items[1]))
-        elif name.lower() in MOTIONS:
-            sink.reparse(pos, semi + 1)  # the grammar reads it, or says why not
+            out.append(call_record_of(name, pos, ne, items[0], items[1]))
+        elif not sink.reparsing:   # the grammar reads it (a target may hide in it), or
+            sink.reparse(pos, semi + 1)   # says why not
         pos = skip(text, semi + 1, end).end()
 
 
@@ -382,7 +248,7 @@ def _direct_moves(sink: Sink, text: str, pos: int, end: int) -> int:
     offset after them."""
     match, append = _SIMPLE_MOVE.match, sink.motions.append
     routine, file = sink.routine, sink.file
-    new, use = _tuple_new, MotionUse
+    use = MotionUse
     count, rfind = text.count, text.rfind
     index = sink.index
     last, line, line_start = index.position()  # sink.index.line_col, inlined (text order)
@@ -399,10 +265,12 @@ def _direct_moves(sink: Sink, text: str, pos: int, end: int) -> int:
             source = (file, line, a - line_start + 1)
         else:
             source = (file, *index.line_col(a))
-        append(new(use, (
-            instruction, source, "to", name, None if number is None else (int(number),),
-            None, None, tool, None, wobj, None, False, routine, m.span(1), (pos, m.start(7)),
-            target_span)))
+        append(use(
+            instruction=instruction, source=source, role="to", target_name=name,
+            target_index=None if number is None else (int(number),), inline=None,
+            runtime=None, tool=tool, tool_inline=None, wobj=wobj, wobj_inline=None,
+            joint=False, routine=routine, instruction_span=m.span(1),
+            statement_span=(pos, m.start(7)), target_span=target_span))
         pos = m.end()
     index.moved(last, line, line_start)
     return pos
@@ -413,13 +281,16 @@ def _direct_inline_move(sink: Sink, m: re.Match) -> None:
     span = m.span(2)
     line, col = sink.index.line_col(span[0])
     source = (sink.file, line, col)
-    target = CartesianTarget(None, source, m.groups()[2:19],
-                             tuple(map(m.start, _INLINE_NUMBERS)), QUAT_WXYZ, span, "inline",
-                             None, sink.routine, None)
+    target = CartesianTarget(name=None, source=source, texts=m.groups()[2:19],
+                             starts=tuple(map(m.start, _INLINE_NUMBERS)),
+                             orientation_kind=QUAT_WXYZ, span=span, storage="inline",
+                             routine=sink.routine)
     sink.targets.append(target)
     sink.motions.append(MotionUse(
-        m.group(1), source, "to", None, None, target, None, m.group(20), None, m.group(21),
-        None, False, sink.routine, m.span(1), (m.start(), m.start(22)), span))
+        instruction=m.group(1), source=source, role="to", inline=target,
+        tool=m.group(20), wobj=m.group(21), routine=sink.routine,
+        instruction_span=m.span(1), statement_span=(m.start(), m.start(22)),
+        target_span=span))
 
 
 _ARG_VAL = r"(-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|\*)"
@@ -517,6 +388,7 @@ def _items_regex(text: str, pos: int, end: int):
 
 LEXER_CALLBACKS = {
     "FAST_DECLS": _on_fast_decls, "FAST_CALLS": _on_fast_calls, "NAME": _on_name,
+
     "PROC": _enter_routine, "FUNC": _enter_routine, "TRAP": _enter_routine,
     "ENDPROC": _leave_routine, "ENDFUNC": _leave_routine, "ENDTRAP": _leave_routine}
 """Token callbacks (lark ``lexer_callbacks``): they run in text order, as tokens are read."""

@@ -22,15 +22,13 @@ from __future__ import annotations
 import functools
 import operator
 from dataclasses import dataclass
-from itertools import chain
 
 import numpy as np
 
-from ..kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
-                           pose_from_rotation_translation)
-from .grammar import no_gc
-from .targets import (QUAT_WXYZ, CartesianTarget, JointTarget, MotionUse, Program, ToolData,
-                      WorkObject)
+from ..kinematics.conventions import invert_pose
+from .target_values import (WRITTEN_COLUMNS, bad_values, target_poses,  # noqa: F401
+                            value_problem, written_values)
+from .targets import CartesianTarget, JointTarget, MotionUse, Program, ToolData, WorkObject
 
 IDENTITY = np.eye(4)
 IDENTITY.flags.writeable = False
@@ -112,6 +110,8 @@ class Resolution:
     shared : entry index groups of one target used with several pairs.
     unresolved : motion uses that name no literal target of the file, with the reason.
     frames : names of V+ transformations used as tool or frame, not as targets.
+    bad_value : (m,) the target's written values are no target a controller accepts (a
+        zero quaternion, a confdata that is not a plausible integer); its notes say why.
     warnings : one line each, starting with file:line.
     """
 
@@ -127,6 +127,7 @@ class Resolution:
     unresolved: tuple[tuple[MotionUse, str], ...]
     frames: tuple[str, ...]
     warnings: tuple[str, ...]
+    bad_value: np.ndarray | None = None
 
     @functools.cached_property
     def targets(self) -> tuple[ResolvedTarget, ...]:
@@ -173,242 +174,239 @@ class _Scope:
 
 def resolve(program: Program) -> Resolution:
     """Resolve every target of ``program`` with its tool and work object (see module doc)."""
-    with no_gc():
-        return _resolve(program)
+    resolver = _Resolver(program)
+    for use in program.motions:
+        resolver.assign_use(use)
+    entries = [e for t in sorted(program.targets + program.joint_targets, key=_SPAN)
+               for e in resolver.entries_of(t)]
+    return _columns(entries, resolver.pair_info, tuple(resolver.shared),
+                    tuple(resolver.unresolved), tuple(sorted(resolver.frame_names)),
+                    tuple(resolver.warnings))
 
 
-def _resolve(program: Program) -> Resolution:
-    vplus = program.dialect == "vplus"
-    targets = _Scope(program.targets + program.joint_targets)
-    tools = _Scope(program.tools)
-    wobjs = _Scope(program.wobjs)
-    params = {r.name: {p.lower() for p in r.parameters} for r in program.routines}
-    runtime_names = {r.base_name.lower() for r in program.runtime if r.base_name}
-    warnings: list[str] = []
-    unresolved: list[tuple[MotionUse, str]] = []
-    frame_names: set[str] = set()
-    groups: dict = {}  # id(target) -> [(pair key, use), ...] in text order
-    pair_info: dict = {}
+class _Resolver:
+    """The state of one resolution, built in steps: each motion use is assigned to the
+    literal target it moves to with its (tool, work object) pair (:meth:`assign_use`),
+    then each target becomes one entry per pair (:meth:`entries_of`).
 
-    def add(target, use, key, info):
-        found = groups.get(id(target))
-        if found is None:
-            groups[id(target)] = [(key, use)]
-        else:
-            found.append((key, use))
-        pair_info[key] = info
+    Lookups go through :class:`_Scope` tables built from the program's declarations; a
+    task of several modules will build them from every module's declarations.
+    """
 
-    # -- tools and work objects of every use (memoized: a program has few of them)
-    memo: dict = {}
+    def __init__(self, program: Program):
+        self.vplus = program.dialect == "vplus"
+        declared = [t for t in program.targets if t.storage != "assigned"]
+        self.targets = _Scope(declared + list(program.joint_targets))
+        self.assigned: dict = {}   # (lower name, routine) -> [(offset, literal or copy)]
+        for t in program.targets:
+            if t.storage == "assigned":
+                self.assigned.setdefault((t.name.lower(), t.routine), []).append(
+                    (t.span[0], t))
+        for c in program.copies:
+            self.assigned.setdefault((c.name.lower(), c.routine), []).append((c.offset, c))
+        self.tools = _Scope(program.tools)
+        self.wobjs = _Scope(program.wobjs)
+        self.params = {r.name: {p.lower() for p in r.parameters} for r in program.routines}
+        self.runtime_names = {r.base_name.lower() for r in program.runtime if r.base_name}
+        self.warnings: list[str] = []
+        self.unresolved: list[tuple[MotionUse, str]] = []
+        self.frame_names: set[str] = set()
+        self.groups: dict = {}     # id(target) -> [(pair key, use), ...] in text order
+        self.pair_info: dict = {}  # pair key -> ((tool name, tool), (wobj name, wobj))
+        self.indirect: dict = {}   # id(target) -> [(use, key, info)] through Offs()...
+        self.shared: list = []     # entry index groups of one target with several pairs
+        self.entry_count = 0
+        self._frames_memo: dict = {}
+        self.references = self._references(program)
+        self.changed = self._changed(program)
 
-    def frames_of(use: MotionUse):
+    # -- tools and work objects (memoized: a program has few of them)
+    def frames_of(self, use: MotionUse):
         """((tool key, wobj key), (tool info, wobj info)) of a use."""
         k = (use.tool, use.wobj, use.routine, id(use.tool_inline), id(use.wobj_inline))
-        got = memo.get(k)
+        got = self._frames_memo.get(k)
         if got is None:
-            (tk, tinfo), (wk, winfo) = tool_of(use), wobj_of(use)
-            got = memo[k] = ((tk, wk), (tinfo, winfo))
+            (tk, tinfo), (wk, winfo) = self.tool_of(use), self.wobj_of(use)
+            got = self._frames_memo[k] = ((tk, wk), (tinfo, winfo))
         return got
 
-    def tool_of(use: MotionUse):
+    def tool_of(self, use: MotionUse):
+        """(pair key part, (name, ToolData / V+ target / 'unknown' / None)) of a use."""
         if use.tool_inline is not None:
             return ("inline", use.tool_inline.span), ("<inline>", use.tool_inline)
-        name = use.tool
-        if name is None or (not vplus and name.lower() == "tool0" and not tools.get(name,
-                                                                                   use.routine)):
-            return ("tool0",), ("NULL" if vplus else "tool0", None)
-        if vplus:
-            found = targets.get(name, use.routine)
-            frame_names.add(name.lower())
-            return ("v", name.lower()), (name, found[0] if found else "unknown")
-        found = tools.get(name, use.routine)
-        return ("t", name.lower()), (name, found[0] if found else "unknown")
+        return self._frame(use.tool, use.routine, self.tools, "tool0", "NULL", "t")
 
-    def wobj_of(use: MotionUse):
+    def wobj_of(self, use: MotionUse):
+        """As :meth:`tool_of`, for the work object (V+: the compound frame)."""
         if use.wobj_inline is not None:
             return ("inline", use.wobj_inline.span), ("<inline>", use.wobj_inline)
-        name = use.wobj
-        if name is None or (not vplus and name.lower() == "wobj0" and not wobjs.get(name,
-                                                                                   use.routine)):
-            return ("wobj0",), ("base" if vplus else "wobj0", None)
-        if vplus:
-            found = targets.get(name, use.routine)
-            frame_names.add(name.lower())
-            return ("v", name.lower()), (name, found[0] if found else "unknown")
-        found = wobjs.get(name, use.routine)
-        return ("w", name.lower()), (name, found[0] if found else "unknown")
+        return self._frame(use.wobj, use.routine, self.wobjs, "wobj0", "base", "w")
 
-    indirect: dict = {}  # target id -> uses through Offs()/RelTool() (runtime base name)
-    plain_memo: dict = {}   # (tool, wobj, routine) -> frames_of() of uses without literals
-    table, elements = targets.table, targets.elements
-    for use in program.motions:
-        (_, _, _, name, index, inline, runtime, tool, tool_inline, wobj, wobj_inline, _,
-         routine, _, _, _) = use
-        if tool_inline is None and wobj_inline is None:
-            k = (tool, wobj, routine)
-            got = plain_memo.get(k)
-            if got is None:
-                got = plain_memo[k] = frames_of(use)
-            key, info = got
-        else:
-            key, info = frames_of(use)
-        if inline is not None:
-            add(inline, use, key, info)
-            continue
-        if runtime is not None:
-            base = runtime.base_name
-            found = targets.get(base, routine) if base else None
-            if found:
-                for t in found:
-                    indirect.setdefault(id(t), []).append((use, key, info))
-            unresolved.append((use, runtime.reason))
-            continue
+    def _frame(self, name, routine, scope, default: str, vplus_default: str, tag: str):
+        if name is None or (not self.vplus and name.lower() == default
+                            and not scope.get(name, routine)):
+            return (default,), (vplus_default if self.vplus else default, None)
+        if self.vplus:   # V+: tools and frames are transformations of the file
+            found = self.targets.get(name, routine)
+            self.frame_names.add(name.lower())
+            return ("v", name.lower()), (name, found[0] if found else "unknown")
+        found = scope.get(name, routine)
+        return (tag, name.lower()), (name, found[0] if found else "unknown")
+
+    # -- motion uses
+    def assign_use(self, use: MotionUse) -> None:
+        """Record which literal target ``use`` moves to, with its pair; or why none."""
+        key, info = self.frames_of(use)
+        if use.inline is not None:
+            self._add(use.inline, use, key, info)
+            return
+        if use.runtime is not None:
+            base = use.runtime.base_name
+            for t in (self.targets.get(base, use.routine) if base else None) or ():
+                self.indirect.setdefault(id(t), []).append((use, key, info))
+            self.unresolved.append((use, use.runtime.reason))
+            return
+        name, index, routine = use.target_name, use.target_index, use.routine
+        if self.assigned and name is not None and not isinstance(index, str):
+            name, index, literal = self._follow(name, index, routine, use.target_span[0])
+            if literal is not None:
+                self._add(literal, use, key, info)
+                return
         if name is not None and not isinstance(index, str):
             low = name.lower()   # one element: routine-local first, then module level
-            one = elements.get((low, routine if (low, routine) in table else None, index))
+            table = self.targets.table
+            one = self.targets.elements.get(
+                (low, routine if (low, routine) in table else None, index))
             if one is not None:
-                add(one, use, key, info)
-                continue
-        found = targets.get(name, use.routine) if name else None
+                self._add(one, use, key, info)
+                return
+        found = self.targets.get(name, routine) if name else None
         if not found:
-            if use.routine in params and name.lower() in params[use.routine]:
-                why = f"{name} is a parameter of {use.routine}: its value comes from the caller"
-            elif name.lower() in runtime_names:
-                why = f"{name} has no literal value (set at run time or in another module)"
-            else:
-                why = f"unknown target {name}"
-            unresolved.append((use, why))
-            continue
+            self.unresolved.append((use, self._why_unknown(name, routine)))
+            return
         if isinstance(index, str):
             chosen = [t for t in found if t.array_index is not None]
-            shown = f"{name}[{index}]" if vplus else f"{name}{{{index}}}"
-            warnings.append(f"{use.location}: {shown} has a run-time index: every element "
-                            f"of {name} is taken as used with this tool and work object")
+            shown = f"{name}[{index}]" if self.vplus else f"{name}{{{index}}}"
+            self.warnings.append(
+                f"{use.location}: {shown} has a run-time index: every element of {name} is "
+                f"taken as used with this tool and work object")
         else:
             chosen = [t for t in found if t.array_index == index]
         if not chosen:
-            unresolved.append((use, f"no element {index} in {name}"))
-            continue
+            self.unresolved.append((use, f"no element {index} in {name}"))
         for t in chosen:
-            add(t, use, key, info)
+            self._add(t, use, key, info)
 
-    refs: dict = {}
-    for r in program.references:
-        for t in targets.get(r.name, r.routine) or ():
-            refs.setdefault(id(t), []).append(r)
-    changed: dict = {}  # target id -> run-time changes (assignments, SearchL results)
-    for r in program.runtime:
-        if r.base_name and ("assigned" in r.reason or "written" in r.reason):
-            for t in targets.get(r.base_name, r.routine) or ():
-                changed.setdefault(id(t), []).append(r)
+    def _follow(self, name: str, index, routine, offset: int):
+        """(name, index, literal): what a motion at ``offset`` moves to after the
+        assignments before it in its routine, in text order: the robtarget literal last
+        assigned (``p := [...]``), or the variable last copied (``p := q``), followed."""
+        for _ in range(8):   # copies of copies, not for ever
+            last = None
+            for at, what in self.assigned.get((name.lower(), routine), ()):
+                held = what.array_index if type(what) is CartesianTarget else what.index
+                if at < offset and held == index and (last is None or at > last[0]):
+                    last = (at, what)
+            if last is None:
+                return name, index, None
+            what = last[1]
+            if type(what) is CartesianTarget:
+                return name, index, what
+            name, index, offset = what.source_name, what.source_index, what.offset
+        return name, index, None
 
-    entries: list = []  # (target, uses, pair key, notes)
-    shared: list = []
-    all_targets = sorted(program.targets + program.joint_targets, key=_SPAN)
-    default_key = (("tool0",), ("wobj0",))
-    default_info = (("NULL" if vplus else "tool0", None), ("base" if vplus else "wobj0", None))
-    no_notes = ()
-    for t in all_targets:
+    def _add(self, target, use, key, info) -> None:
+        found = self.groups.get(id(target))
+        if found is None:
+            self.groups[id(target)] = [(key, use)]
+        else:
+            found.append((key, use))
+        self.pair_info[key] = info
+
+    def _why_unknown(self, name: str, routine) -> str:
+        if routine in self.params and name.lower() in self.params[routine]:
+            return f"{name} is a parameter of {routine}: its value comes from the caller"
+        if name.lower() in self.runtime_names:
+            return f"{name} has no literal value (set at run time or in another module)"
+        return f"unknown target {name}"
+
+    def _references(self, program: Program) -> dict:
+        """id(target) -> the references passing it to a routine (not a motion)."""
+        refs: dict = {}
+        for r in program.references:
+            for t in self.targets.get(r.name, r.routine) or ():
+                refs.setdefault(id(t), []).append(r)
+        return refs
+
+    def _changed(self, program: Program) -> dict:
+        """id(target) -> its run-time changes (assignments, SearchL results)."""
+        changed: dict = {}
+        for r in program.runtime:
+            if r.base_name and ("assigned" in r.reason or "written" in r.reason):
+                for t in self.targets.get(r.base_name, r.routine) or ():
+                    changed.setdefault(id(t), []).append(r)
+        return changed
+
+    # -- entries
+    def entries_of(self, t) -> list:
+        """The entries (target, uses, pair key, notes) of target ``t``: one per pair."""
         tid = id(t)
-        used = groups.get(tid)
-        if vplus and t.name and t.name.lower() in frame_names:
+        used = self.groups.get(tid)
+        if self.vplus and t.name and t.name.lower() in self.frame_names:
             if used is None:
-                continue  # a tool or frame, not a target
-            warnings.append(f"{t.location}: {t.display_name} is used both as a target and as "
-                            f"a tool or frame")
-        if used is not None and len(used) == 1 and tid not in changed:   # the common case
+                return []  # a tool or frame, not a target
+            self.warnings.append(f"{t.location}: {t.display_name} is used both as a target "
+                                 f"and as a tool or frame")
+        if used is not None and len(used) == 1 and tid not in self.changed:  # common case
             key, use = used[0]
-            entries.append((t, (use,), key, no_notes))
-            continue
-        notes: list[str] = [f"changed at run time by {r.expression!r} (line "
-                            f"{r.location.line}): the literal is only its first value"
-                            for r in changed.get(tid, ())]
+            return self._counted([(t, (use,), key, ())])
+        notes = [f"changed at run time by {r.expression!r} (line {r.location.line}): the "
+                 f"literal is only its first value" for r in self.changed.get(tid, ())]
         pairs: dict = {}   # pair key -> uses, in order of first use
         for key, use in used or ():
             pairs.setdefault(key, []).append(use)
         if not pairs:
-            via = indirect.get(tid)
-            if via:
-                pairs = {}
-                for use, key, info in via:
-                    pairs.setdefault(key, []).append(use)
-                    pair_info[key] = info
-                notes.append("moved to only through " + ", ".join(sorted(
-                    {u.runtime.expression.split("(")[0] + "()" for u, _, _ in via})))
-            else:
-                pairs = {default_key: []}
-                pair_info.setdefault(default_key, default_info)
-                notes.append("unused")
-                for r in refs.get(tid, ()):
-                    warnings.append(f"{r.location}: {r.name} is passed to {r.context}: its "
-                                    f"tool and work object are unknown, "
-                                    f"{'tool0/wobj0' if not vplus else 'identity'} assumed")
+            pairs = self._pairs_if_not_moved_to(t, notes)
         if len(pairs) == 1:
             ((key, uses),) = pairs.items()
-            entries.append((t, tuple(uses), key, tuple(notes)))
-            continue
+            return self._counted([(t, tuple(uses), key, tuple(notes))])
         if isinstance(t, JointTarget):
             # joint values do not depend on the tool or work object: one entry
-            entries.append((t, tuple(u for us in pairs.values() for u in us),
-                            next(iter(pairs)), tuple(notes)))
-            continue
-        listed = "; ".join(f"{pair_info[k][0][0]}/{pair_info[k][1][0]} (line "
+            return self._counted([(t, tuple(u for us in pairs.values() for u in us),
+                                   next(iter(pairs)), tuple(notes))])
+        listed = "; ".join(f"{self.pair_info[k][0][0]}/{self.pair_info[k][1][0]} (line "
                            f"{us[0].location.line})" for k, us in pairs.items())
-        warnings.append(f"{t.location}: {t.display_name} is used with "
-                        f"{len(pairs)} tool/work-object pairs: {listed}")
-        shared.append(tuple(range(len(entries), len(entries) + len(pairs))))
-        for key, uses in pairs.items():
-            entries.append((t, tuple(uses), key, tuple(notes)))
-    return _columns(entries, pair_info, tuple(shared), tuple(unresolved),
-                    tuple(sorted(frame_names)), tuple(warnings))
+        self.warnings.append(f"{t.location}: {t.display_name} is used with {len(pairs)} "
+                             f"tool/work-object pairs: {listed}")
+        self.shared.append(tuple(range(self.entry_count, self.entry_count + len(pairs))))
+        return self._counted([(t, tuple(uses), key, tuple(notes))
+                              for key, uses in pairs.items()])
 
+    def _counted(self, entries: list) -> list:
+        self.entry_count += len(entries)
+        return entries
 
-WRITTEN_COLUMNS = 11
-
-
-def written_values(targets) -> np.ndarray:
-    """The leading numbers of Cartesian targets as written, (n, 11), converted in one batch:
-    position in mm (columns 0-2), orientation (3-6: quaternion w, x, y, z, or V+ Z-Y-Z
-    degrees then NaN) and RAPID confdata cf1, cf4, cf6, cfx (7-10; NaN for V+)."""
-    n = len(targets)
-    out = np.full((n, WRITTEN_COLUMNS), np.nan)
-    full = [i for i, t in enumerate(targets)
-            if t.orientation_kind == QUAT_WXYZ and len(t.texts) >= WRITTEN_COLUMNS]
-    if full:
-        out[full] = np.fromiter(
-            map(float, chain.from_iterable(targets[i].texts[:WRITTEN_COLUMNS] for i in full)),
-            float, WRITTEN_COLUMNS * len(full)).reshape(-1, WRITTEN_COLUMNS)
-    if len(full) < n:
-        done = set(full)
-        for i, t in enumerate(targets):
-            if i not in done:
-                width = 7 if t.orientation_kind == QUAT_WXYZ else 6
-                out[i, :width] = [float(x) for x in t.texts[:width]]
-                if width == 7 and len(t.texts) > 7:
-                    config = [float(x) for x in t.texts[7:WRITTEN_COLUMNS]]
-                    out[i, 7:7 + len(config)] = config
-    return out
-
-
-def target_poses(targets, values: np.ndarray | None = None) -> np.ndarray:
-    """wobj_T_target of Cartesian targets, (n, 4, 4), metres, computed in one batch.
-
-    values : their :func:`written_values`, when the caller has them already."""
-    n = len(targets)
-    poses = np.zeros((n, 4, 4))
-    if n == 0:
-        return poses
-    v = written_values(targets) if values is None else values
-    euler = np.fromiter((t.orientation_kind != QUAT_WXYZ for t in targets), bool, n)
-    if not euler.all():
-        quat = ~euler
-        poses[quat] = pose_from_rotation_translation(matrix_from_quat_wxyz(v[quat, 3:7]),
-                                                     v[quat, :3] * MM)
-    if euler.any():
-        a = np.deg2rad(v[euler, 3:6])
-        poses[euler] = pose_from_rotation_translation(
-            matrix_from_euler_zyz(a[:, 0], a[:, 1], a[:, 2]), v[euler, :3] * MM)
-    return poses
+    def _pairs_if_not_moved_to(self, t, notes: list) -> dict:
+        """The pairs of a target no motion moves to: those of the Offs()/RelTool() motions
+        built on it, else tool0/wobj0 with the note 'unused' (``notes`` is extended)."""
+        via = self.indirect.get(id(t))
+        if via:
+            pairs: dict = {}
+            for use, key, info in via:
+                pairs.setdefault(key, []).append(use)
+                self.pair_info[key] = info
+            notes.append("moved to only through " + ", ".join(sorted(
+                {u.runtime.expression.split("(")[0] + "()" for u, _, _ in via})))
+            return pairs
+        default_key = (("tool0",), ("wobj0",))
+        self.pair_info.setdefault(default_key, (
+            ("NULL" if self.vplus else "tool0", None), ("base" if self.vplus else "wobj0", None)))
+        notes.append("unused")
+        for r in self.references.get(id(t), ()):
+            self.warnings.append(
+                f"{r.location}: {r.name} is passed to {r.context}: its tool and work object "
+                f"are unknown, {'tool0/wobj0' if not self.vplus else 'identity'} assumed")
+        return {default_key: []}
 
 
 def _columns(entries, pair_info, shared, unresolved, frames, warnings) -> Resolution:
@@ -424,7 +422,9 @@ def _columns(entries, pair_info, shared, unresolved, frames, warnings) -> Resolu
     rows = np.flatnonzero(cart)
     cartesian = [targets[k] for k in rows.tolist()]
     written[rows] = written_values(cartesian)
-    wobj_T_target[rows] = target_poses(cartesian, written[rows])
+    bad_value = bad_values(written)
+    rows = rows[~bad_value[rows]]
+    wobj_T_target[rows] = target_poses([targets[k] for k in rows.tolist()], written[rows])
     base_T_flange = np.full((m, 4, 4), np.nan)
     for p, pair in enumerate(pairs):
         if pair.problem:
@@ -438,11 +438,13 @@ def _columns(entries, pair_info, shared, unresolved, frames, warnings) -> Resolu
                                  @ invert_pose(pair.base_T_wobj))
         else:
             base_T_flange[ks] = pair.base_T_wobj @ poses @ invert_pose(pair.flange_T_tool)
-    notes = tuple([e[3] + pairs[p].notes if pairs[p].notes else e[3]
-                   for e, p in zip(entries, pair_index.tolist())])
-    return Resolution(targets, tuple([e[1] for e in entries]), notes, pair_index, pairs,
-                      written, wobj_T_target, base_T_flange, shared, unresolved, frames,
-                      warnings)
+    notes = [e[3] + pairs[p].notes if pairs[p].notes else e[3]
+             for e, p in zip(entries, pair_index.tolist())]
+    for k in np.flatnonzero(bad_value).tolist():
+        notes[k] = (value_problem(targets[k]),) + notes[k]
+    return Resolution(targets, tuple([e[1] for e in entries]), tuple(notes), pair_index,
+                      pairs, written, wobj_T_target, base_T_flange, shared, unresolved,
+                      frames, warnings, bad_value)
 
 
 def _frame_pose(item) -> tuple[np.ndarray | None, str | None, bool | None]:

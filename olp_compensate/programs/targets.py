@@ -94,7 +94,8 @@ class CartesianTarget(NamedTuple):
     source : (file, line, column) where the target starts, as :attr:`location`.
     span : the literal's character span (the bracketed aggregate, the V+ number run, or
         the V+ ``TRANS(...)`` call).
-    storage : 'CONST', 'PERS', 'VAR', 'inline' (literal inside an instruction) or 'vplus'.
+    storage : 'CONST', 'PERS', 'VAR', 'inline' (literal inside an instruction),
+        'assigned' (RAPID literal assigned in a routine, ``p := [...];``) or 'vplus'.
     array_index : 1-based index tuple for an element of an array declaration, else None.
     routine : routine holding a local declaration or the inline literal; None at module level.
     type_span : for rewriting with ``--emit joints``: the type word (``robtarget``) of its
@@ -374,6 +375,39 @@ class NameReference:
     routine: str | None = None
 
 
+class TargetCopy(NamedTuple):
+    """A plain copy between target variables, ``name := source;`` inside a routine (RAPID):
+    a motion to ``name`` after it moves to what ``source`` held.
+
+    index, source_index : 1-based index tuples of array elements, else None.
+    offset : where the assignment starts in the text (copies apply to later motions).
+    """
+
+    name: str
+    index: tuple[int, ...] | None
+    source_name: str
+    source_index: tuple[int, ...] | None
+    routine: str | None
+    offset: int
+    location: SourceLocation
+
+
+class TargetProblem(NamedTuple):
+    """A target the parser found but that cannot be compensated, so that every target is
+    accounted for in the report.
+
+    target : its name as shown (``pWeld{3}``, ``<inline>``, the instruction's text).
+    status : 'bad_target' (a value no controller accepts, e.g. a zero quaternion) or
+        'unknown_instruction' (a motion instruction this parser does not know).
+    reason : why, in words.
+    """
+
+    target: str
+    location: SourceLocation
+    status: str
+    reason: str
+
+
 @dataclass(frozen=True, slots=True)
 class Routine:
     """A RAPID PROC/FUNC/TRAP or a V+ .PROGRAM; span covers its whole text."""
@@ -407,6 +441,8 @@ class Program:
     references: tuple[NameReference, ...] = ()
     routines: tuple[Routine, ...] = ()
     modules: tuple[str, ...] = field(default=())
+    problems: tuple[TargetProblem, ...] = ()
+    copies: tuple[TargetCopy, ...] = ()
 
     def target(self, name: str, index: tuple[int, ...] | None = None,
                routine: str | None = None) -> CartesianTarget | JointTarget:

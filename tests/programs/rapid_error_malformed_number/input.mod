@@ -1,0 +1,4 @@
+MODULE Bad
+  CONST robtarget p1:=[[900,0,800],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST robtarget p2:=[[900,1.2.3,800],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+ENDMODULE
