@@ -7,6 +7,8 @@ camera's pose in the board frame.
 - ``measure IMAGES... --camera camera.json --board board.json -o poses.csv``: one row per
   image, the camera frame in the board frame; with ``--joints joints.csv`` a measurement CSV
   for ``olp-cal identify`` (the board is the measuring device, the camera the tool).
+- ``assess IMAGES... --camera camera.json --board board.json --moves moves.csv``: accuracy
+  from views at known displacements (seed section 9, :mod:`.cal_camera_assess`).
 
 IMAGES: folders (their .png/.jpg/.jpeg files, any case, sorted by name) or files.
 Exit codes: 0 success; 1 bad input (one line on stderr).
@@ -67,6 +69,9 @@ def add_arguments(p) -> None:
     c.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are (default: correct the "
                         "perspective bias of circle centres)")
+    c.add_argument("--html", metavar="REPORT.html",
+                   help="also write an HTML report: parameters, reprojection error per view, "
+                        "each view with its dots and magnified residuals")
 
     m = sub.add_parser("measure", help="the camera's pose in the board frame, per image",
                        description="Measure the camera frame in the board frame in each image "
@@ -85,8 +90,15 @@ def add_arguments(p) -> None:
     m.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are")
 
+    from . import cal_camera_assess
+    cal_camera_assess.add_arguments(sub.add_parser(
+        "assess", help=cal_camera_assess.HELP, description=cal_camera_assess.HELP))
+
 
 def run(args) -> int:
+    if args.camera_command == "assess":
+        from . import cal_camera_assess
+        return cal_camera_assess.run(args)
     return {"board": _run_board, "calibrate": _run_calibrate,
             "measure": _run_measure}[args.camera_command](args)
 
@@ -209,6 +221,13 @@ def _run_calibrate(args) -> int:
               + f"   (RAC {getattr(cal.rac, name):.{digits}f})")
     write_camera(out, cal, board_to_dict(board))
     print(f"wrote {out}")
+    if args.html:
+        from ..report.camera_html import write_calibration_html
+        _check_output(Path(args.html), paths + [Path(args.board), out])
+        write_calibration_html(args.html, cal, board,
+                               {name: pix for name, pix, _, _ in found if pix is not None},
+                               {p.name: p for p in paths})
+        print(f"wrote {args.html}")
     return 0
 
 

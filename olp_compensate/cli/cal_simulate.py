@@ -12,6 +12,7 @@ from ..io.measurements import write_measurements
 from ..io.poses import check_within_limits, read_poses
 from ..kinematics.robot import load_robot
 from .common import refuse_clashes
+from .cal_simulate_camera import add_camera_arguments, run_camera
 from ..calibration.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
                         random_joints, scaled_effect)
 
@@ -51,6 +52,7 @@ def add_arguments(p) -> None:
                    help="measure the first K poses once more (same pose id: a noise floor)")
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
     p.add_argument("--truth", help="truth JSON to write (true errors, device pose, tools, effects)")
+    add_camera_arguments(p)
 
 
 def _numbers(text: str, option: str) -> list[float]:
@@ -111,6 +113,8 @@ def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | Non
 
 
 def run(args) -> int:
+    if args.camera:
+        return run_camera(args)
     refuse_clashes([("--joints", args.joints), ("--robot", args.robot)],
                    [("-o", args.output), ("--truth", args.truth)])
     if (args.poses is None) == (args.joints is None):
