@@ -173,10 +173,12 @@ def test_a_tool_fit_far_off_one_point_is_refused(tmp_path, capsys):
 
 
 def test_the_cli_constants_match_the_library():
+    from olp_compensate.compensation.files import DIALECTS, EXTENSIONS
     from olp_compensate.compensation.program import EMIT_MODES
-    from olp_compensate.programs import DIALECTS
+    from olp_compensate.programs import DIALECTS as TEXT_DIALECTS
 
     assert fix_cli.EMIT_MODES == EMIT_MODES and fix_cli.DIALECTS == DIALECTS
+    assert fix_cli.EXTENSIONS == EXTENSIONS and set(TEXT_DIALECTS) <= set(DIALECTS)
 
 
 @pytest.mark.parametrize("comment, line", [(b"! olp-robot: abb_irb2400\n", 2),

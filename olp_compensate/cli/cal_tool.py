@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +30,9 @@ from ..calibration.tool import (ToolCalibration, ToolRequest, calibrate_tool, ch
 from ..io.tool_marks import format_marks_csv, read_marks_csv
 from .common import refuse_clashes
 from .tool_wizard import BAD_POINT_MM, run_wizard
+
+if TYPE_CHECKING:            # the programs package loads only when a program is rewritten
+    from .. import programs
 
 HELP = "recalibrate a tool's TCP from touched marks (--marks) or with the interactive wizard"
 

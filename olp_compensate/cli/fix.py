@@ -1,8 +1,10 @@
-"""``olp-fix``: rewrite a robot program so the real (calibrated) robot reaches what it meant.
+"""``olp-fix``: rewrite robot programs so the real (calibrated) robot reaches what they meant.
 
-Exit codes: 0 every target compensated (joint targets need none); 2 some targets were not
-(each in the report); 1 bad input (parse error with file:line:column and a caret, unknown
-robot, a calibration of another robot).
+Each PATH is a program file, a task folder or a controller backup (searched for the program
+files of every dialect). Exit codes: 0 every target compensated (joint targets need none);
+2 some targets were not (each in the report); 1 bad input (parse error with
+file:line:column and a caret, unknown robot, a calibration of another robot); with several
+files, a file that fails is reported and the others go on (exit 1 at the end).
 """
 
 from __future__ import annotations
@@ -23,8 +25,13 @@ SHOWN_PROBLEMS = 20
 EMIT_MODES = ("pose", "joints")
 """As :data:`olp_compensate.compensation.program.EMIT_MODES` (a test checks), spelled here so
 that ``olp-fix --version`` and ``--help`` import nothing heavy."""
-DIALECTS = ("rapid", "vplus")
-"""As :data:`olp_compensate.programs.DIALECTS` (a test checks)."""
+DIALECTS = ("rapid", "vplus", "krl", "fanuc", "val3", "urscript")
+"""As :data:`olp_compensate.compensation.files.DIALECTS` (a test checks)."""
+EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
+              ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
+              ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
+              ".script": "urscript"}
+"""As :data:`olp_compensate.compensation.files.EXTENSIONS` (a test checks)."""
 ROBOT_COMMENT = re.compile(rb"^[ \t]*[!;][ \t]*olp-robot[ \t]*:[ \t]*([A-Za-z0-9_.+-]+)",
                            re.MULTILINE | re.IGNORECASE)
 """The comment that says which robot a program is for: ``! olp-robot: abb_irb2400`` in
@@ -35,11 +42,16 @@ ROBOT_COMMENT_SPAN = 65536
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="olp-fix", description=__doc__.splitlines()[0])
-    p.add_argument("program", help="ABB RAPID module (.mod .modx .prg .sys) or V+ location "
-                                   "file (.pg .v2 .lc .loc .as)")
+    p.add_argument("program", nargs="+", metavar="PATH",
+                   help="program files (RAPID .mod .modx .prg .sys; V+/AS .pg .v2 .lc .loc "
+                        ".as; KRL .src/.dat; FANUC .ls; VAL3 .dtx; URScript .script), task "
+                        "folders or controller backups")
     p.add_argument("--model", required=True, help="calib.json from olp-cal identify/nominal")
-    p.add_argument("-o", "--output", help="compensated program to write (default: beside the "
-                                          "input, NAME_compensated.EXT); never the input")
+    p.add_argument("-o", "--output", help="with one program: the compensated program to "
+                                          "write (KRL: OUT.src, and OUT.dat beside it); "
+                                          "with several or a folder: a folder mirroring the "
+                                          "input tree; default: beside each input, "
+                                          "NAME_compensated.EXT; never an input")
     p.add_argument("--emit", choices=EMIT_MODES, default="pose",
                    help="'pose': rewrite Cartesian targets (default); 'joints': turn them "
                         "into joint targets (jointtarget + MoveAbsJ, V+ precision points)")
@@ -47,6 +59,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dialect", choices=DIALECTS, help="default: from the file extension")
     p.add_argument("--robot", help="refuse a calibration that is not of this robot (bundled "
                                    "name or URDF path)")
+    p.add_argument("--taught-on", metavar="A.json",
+                   help="calibration of the robot the targets were taught on (robot-to-robot "
+                        "transfer: the real robot of --model reaches where that robot's real "
+                        "tool went); both of the same robot model")
+    p.add_argument("--config", metavar="$config.dat",
+                   help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]")
+    p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+                   help="programs compensated in N processes (default: the number of cores; "
+                        "one program runs in this process)")
     p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
                    help="targets never moved to in this file: leave them ('skip', default) "
                         "or compensate them with tool0/wobj0 ('tool0')")
@@ -90,58 +111,76 @@ def check_robot(path: Path, calibration, model: str) -> None:
 def run(args, retain: list | None = None) -> int:
     """Run olp-fix on parsed arguments; returns the exit code. ``retain``: a list that
     receives the run's program and report, so the caller decides when they are freed."""
-    path = Path(args.program)
-    out = Path(args.output) if args.output else default_output(path)
-    refuse_clashes([("program", path), ("--model", args.model), ("--robot", args.robot)],
-                   [("-o" if args.output else "the default output", out),
-                    ("--report", args.report)])
+    from .fix_inputs import plan_units
+
+    if args.jobs is not None and args.jobs < 1:
+        raise DataError(f"-j/--jobs: expected a positive number of processes, got {args.jobs}")
+    units = plan_units(args.program, args.dialect, args.output, EXTENSIONS)
+    refuse_clashes([*(("program", p) for u in units for p in u.paths), ("--model", args.model),
+                    ("--robot", args.robot), ("--taught-on", args.taught_on),
+                    ("--config", args.config)],
+                   [*(("-o" if args.output else "the default output", o)
+                      for u in units for o in u.outputs), ("--report", args.report)])
     # a short batch run over millions of small acyclic records: the cyclic collector's
     # full scans (each time it comes back on between stages) would only cost time
     with no_gc():
-        return _run(args, retain)
+        if len(units) == 1:
+            return _run_one(args, units[0], retain)
+        from .fix_batch import run_batch
+
+        return run_batch(args, units)
 
 
-def _run(args, retain: list | None) -> int:
-    started = time.perf_counter()
-    path = Path(args.program)
-    out = Path(args.output) if args.output else default_output(path)
-    from ..compensation.program import compensate_program
-    from ..io.atomic import write_files_atomic
+def load_calibrations(args):
+    """(calibration, taught-on calibration or None) of the arguments, checked."""
     from ..io.calibration_file import read_calibration
     from ..kinematics.robot import load_robot
-    from ..programs import ENCODING, dialect_for, load
 
-    dialect = args.dialect or dialect_for(path)
     robot = load_robot(args.robot) if args.robot else None
     calibration = read_calibration(args.model, robot)
-    check_robot(path, calibration, args.model)
+    taught_on = None
+    if args.taught_on:
+        taught_on = read_calibration(args.taught_on, calibration.robot)
+    return calibration, taught_on
+
+
+def _run_one(args, unit, retain: list | None) -> int:
+    started = time.perf_counter()
+    from ..compensation.files import ProgramFiles, compensate_files
+    from ..io.atomic import write_files_atomic
+
+    calibration, taught_on = load_calibrations(args)
+    for path in unit.paths:
+        check_robot(path, calibration, args.model)
     try:
-        program = load(path, dialect)
+        result = compensate_files(
+            ProgramFiles(dialect=unit.dialect, paths=unit.paths, names=unit.names),
+            calibration, emit=args.emit, unused=args.unused, taught_on=taught_on,
+            frames_path=args.config)
     except OlpError as exc:
-        if exc.context:
+        if getattr(exc, "context", None):
             print(exc.context, file=sys.stderr)
         raise
-    text, report = compensate_program(program, None, calibration, emit=args.emit,
-                                      unused=args.unused)
+    report = result.report
     if retain is not None:
-        retain += [program, text, report]
+        retain += [result, report]
     if not report.rows:
-        raise DataError(f"{path}: no robot target in the program (empty or cut short?); "
-                        f"nothing written")
-    files = [(out, text.encode(ENCODING))]
+        raise DataError(f"{unit.names[0]}: no robot target in the program (empty or cut "
+                        f"short?); nothing written")
+    files = list(zip(unit.outputs, result.data))
     if args.report:
         files.append((Path(args.report), report.to_csv().encode("utf-8")))
-    write_files_atomic(files)   # both or, on a failure, neither of a run's files renamed
+    write_files_atomic(files)   # all or, on a failure, none of a run's files renamed
     if not args.quiet:
         try:
-            _summary(report, out, args.report, time.perf_counter() - started,
+            _summary(report, unit.outputs, args.report, time.perf_counter() - started,
                      f"  robot {calibration.robot.name} (calibration {args.model})")
         except BrokenPipeError:   # `olp-fix ... | head`: the files are written all the same
             silence_stdout()
     return report.exit_code
 
 
-def _summary(report, out: Path, report_path: str | None, seconds: float,
+def _summary(report, outputs, report_path: str | None, seconds: float,
              robot_line: str) -> None:
     from ..compensation.pose import COMPENSATED
     from ..compensation.program import KEPT
@@ -175,7 +214,8 @@ def _summary(report, out: Path, report_path: str | None, seconds: float,
         print(f"  ... and {len(problems) - SHOWN_PROBLEMS} more (see --report)")
     for w in report.warnings[:SHOWN_PROBLEMS]:
         print(f"  warning: {w}")
-    print(f"  wrote {out}" + (f" and {report_path}" if report_path else ""))
+    print(f"  wrote {' and '.join(str(o) for o in outputs)}"
+          + (f" and {report_path}" if report_path else ""))
 
 
 def main(argv: list[str] | None = None) -> int:

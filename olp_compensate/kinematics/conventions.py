@@ -183,3 +183,58 @@ def rotation_angle_between(rotation_a, rotation_b):
     rel = np.swapaxes(rotation_a, -1, -2) @ rotation_b
     cos = np.clip((np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
     return np.arccos(cos)
+
+
+def matrix_from_euler_zyx(a, b, c):
+    """Rotation matrices for KUKA ``A, B, C`` (radians): about z by A, then the new y by B,
+    then the new x by C: ``Rz(A) Ry(B) Rx(C)``. FANUC's ``W, P, R`` (about the fixed x, y,
+    z axes, in that order) give the same matrix as ``(A, B, C) = (R, P, W)``."""
+    return rot_z(a) @ rot_y(b) @ rot_x(c)
+
+
+def euler_zyx_from_matrix(rotation, reference=None):
+    """KUKA ``(A, B, C)`` in radians from a rotation ``(3, 3)``, B in [-pi/2, pi/2].
+
+    Two angle triples give each rotation (B and pi - B); with ``reference`` (3,) rad the
+    triple nearest to it (each angle taken modulo 2 pi) is returned. At B = +-pi/2
+    (gimbal lock) only A -+ C is defined: A is kept at the reference's (or 0)."""
+    r = np.asarray(rotation, dtype=float)
+    ref = np.zeros(3) if reference is None else np.asarray(reference, dtype=float)
+    cb = np.hypot(r[0, 0], r[1, 0])
+    if cb < 1e-9:
+        a = ref[0]
+        if r[2, 0] < 0:          # B = +90 deg: R = Rz(A - C) ... about the same axis
+            b = np.pi / 2
+            c = a - np.arctan2(-r[0, 1], r[1, 1])
+        else:
+            b = -np.pi / 2
+            c = np.arctan2(-r[0, 1], r[1, 1]) - a
+        candidates = [np.array([a, b, c])]
+    else:
+        a = np.arctan2(r[1, 0], r[0, 0])
+        b = np.arctan2(-r[2, 0], cb)
+        c = np.arctan2(r[2, 1], r[2, 2])
+        candidates = [np.array([a, b, c]), np.array([a + np.pi, np.pi - b, c + np.pi])]
+    best = None
+    for cand in candidates:
+        near = ref + np.remainder(cand - ref + np.pi, 2 * np.pi) - np.pi
+        dist = np.sum((near - ref) ** 2)
+        if best is None or dist < best[0]:
+            best = (dist, near)
+    return best[1]
+
+
+def matrix_from_euler_xyz(rx, ry, rz):
+    """Rotation matrices for Staubli VAL3 ``rx, ry, rz`` (radians): about x by rx, then the
+    new y by ry, then the new z by rz: ``Rx(rx) Ry(ry) Rz(rz)``."""
+    return rot_x(rx) @ rot_y(ry) @ rot_z(rz)
+
+
+def euler_xyz_from_matrix(rotation, reference=None):
+    """VAL3 ``(rx, ry, rz)`` in radians from a rotation ``(3, 3)``; the triple nearest
+    ``reference`` (rad) of the two that give it (see :func:`euler_zyx_from_matrix`)."""
+    r = np.asarray(rotation, dtype=float)
+    # Rx Ry Rz = (Rz^T Ry^T Rx^T)^T: the transpose read as z-y-x angles, negated
+    ref = None if reference is None else -np.asarray(reference, dtype=float)[::-1]
+    zyx = euler_zyx_from_matrix(r.T, ref)
+    return -zyx[::-1]

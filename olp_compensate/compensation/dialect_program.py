@@ -1,0 +1,314 @@
+"""Compensation of a program of a pose dialect (KRL, FANUC TP, VAL3, URScript).
+
+For each target a motion uses, as for RAPID (:mod:`.program`): the pose the program means
+(base frame x target x tool), the joints the dialect's controller takes for it (its written
+configuration picks the branch: :mod:`.dialect_rules`), the joints at which the calibrated
+arm puts its real tool there on that branch, and the target the nominal controller turns
+into exactly those joints, written back in place of the original numbers (configuration
+numbers updated where the solution's differ). Every target is compensated or reported with
+its file, line, column and reason.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..calibration.calibration import Calibration
+from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
+                                      pose_from_rotation_translation, rotation_angle_between)
+from ..programs import format_like, splice
+from ..programs.pose_dialects import JOINTS, PoseProgram, PoseTarget
+from ..programs.targets import Edit
+from .dialect_rules import ArmGeometry, DialectRules
+from .ik import closed_form_inverse
+from .pose import Compensator, explain_failures
+from .report import CompensationReport, TargetReport
+
+_GEOMETRY: dict[int, ArmGeometry] = {}
+
+
+@dataclass(frozen=True)
+class FrameLookup:
+    """Where a tool or base reference of the program gets its pose: the program's own
+    frame data (``program.frames``, file units), then a calibrated tool of that name."""
+
+    program: PoseProgram
+    rules: DialectRules
+    calibration: Calibration
+
+    def program_frame(self, key: str | None, kind: str) -> tuple[np.ndarray | None, str]:
+        """(pose (4, 4) m or None, why not)."""
+        if key is None:
+            return np.eye(4), f"no {kind} set before the motion: the {kind} frame taken as " \
+                              f"the {'flange' if kind == 'tool' else 'robot base'}"
+        if key in self.program.frames:
+            return self.rules.convention.pose(np.array(self.program.frames[key])), ""
+        if self.rules.is_identity(key):
+            return np.eye(4), ""
+        tool = self._calibrated(key)
+        if tool is not None:
+            return tool, ""
+        hint = ("$config.dat (--config)" if self.rules.name == "krl"
+                else "the program nor the frames given")
+        return None, f"{kind} {key} unknown: not defined in {hint} nor a calibrated tool " \
+                     f"of that name in calib.json"
+
+    def _calibrated(self, key: str) -> np.ndarray | None:
+        for name in _names_of(key):
+            for cal_name, tool in self.calibration.tools.items():
+                if cal_name.lower() == name.lower():
+                    rotation = (np.eye(3) if tool.quat_wxyz is None
+                                else matrix_from_quat_wxyz(tool.quat_wxyz))
+                    return pose_from_rotation_translation(rotation, tool.xyz_m)
+        return None
+
+    def real_tool(self, key: str | None, program_tool: np.ndarray) -> tuple[np.ndarray, str]:
+        """The real tool: a calibrated tool of the reference's name (its point; the program
+        tool's orientation where the calibration has none), else the program's."""
+        if key is None:
+            return program_tool, ""
+        for name in _names_of(key):
+            for cal_name, tool in self.calibration.tools.items():
+                if cal_name.lower() == name.lower():
+                    rotation = (program_tool[:3, :3] if tool.quat_wxyz is None
+                                else matrix_from_quat_wxyz(tool.quat_wxyz))
+                    return (pose_from_rotation_translation(rotation, tool.xyz_m),
+                            f"real TCP of {key} from the calibration")
+        return program_tool, ""
+
+
+def _names_of(key: str) -> list[str]:
+    """Names a calibrated tool may carry for a program's tool reference: the reference
+    itself, and ``toolN`` for a numbered tool (KRL ``TOOL_DATA[N]``, FANUC ``UTN``)."""
+    names = [key]
+    numbered = re.fullmatch(r"(?:TOOL_DATA\[(\d+)\]|UT(\d+))", key, re.I)
+    if numbered:
+        names.append(f"tool{int(numbered.group(1) or numbered.group(2))}")
+    return names
+
+
+def _geometry(comp: Compensator) -> ArmGeometry:
+    key = id(comp.robot)
+    if key not in _GEOMETRY:
+        _GEOMETRY[key] = ArmGeometry(comp.robot)
+    return _GEOMETRY[key]
+
+
+@dataclass
+class _Job:
+    """One target to solve: where it is, what the program asks, in metres."""
+
+    index: int
+    target: PoseTarget
+    tool_key: str | None
+    base_key: str | None
+    base: np.ndarray
+    tool: np.ndarray
+    real_tool: np.ndarray
+    wobj_T_target: np.ndarray
+    note: str
+
+
+def compensate_pose_program(program: PoseProgram, rules: DialectRules,
+                            calibration: Calibration | Compensator,
+                            taught_on: Calibration | Compensator | None = None
+                            ) -> tuple[dict[str, str], CompensationReport]:
+    """Compensate every target of ``program``; returns the new text of each file and the
+    report. ``taught_on``: the calibration of the robot the targets were taught on (robot
+    to robot transfer): the pose to reach is where that robot's real tool went."""
+    comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
+    teacher = (None if taught_on is None else taught_on if isinstance(taught_on, Compensator)
+               else Compensator(taught_on))
+    geometry = _geometry(comp)
+    frames = FrameLookup(program, rules, comp.calibration)
+    rows: list[TargetReport] = []
+    jobs = _jobs(program, rules, frames, rows)
+    edits: dict[str, list[Edit]] = defaultdict(list)
+    if jobs:
+        _solve(comp, teacher, geometry, rules, jobs, rows, edits)
+    texts = {file: (splice(text, edits[file]) if edits.get(file) else text)
+             for file, text in program.texts.items()}
+    rows.sort(key=lambda r: (r.file, r.line, r.column))
+    report = CompensationReport(file=next(iter(program.texts), "<string>"), rows=tuple(rows),
+                                warnings=tuple(program.notes), n_joints=comp.robot.n_joints,
+                                edits=sum(len(e) for e in edits.values()))
+    return texts, report
+
+
+def _row(target: PoseTarget, status: str, note: str, tool: str = "", base: str = "",
+         config_before: str = "") -> TargetReport:
+    file, line, column = target.source
+    return TargetReport(target=target.name or "<inline>", file=file, line=line, column=column,
+                        status=status, tool=tool or "", wobj=base or "",
+                        config_before=config_before, note=note)
+
+
+def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
+          rows: list[TargetReport]) -> list[_Job]:
+    """The targets to solve; rows for the others (unused, joints, run-time, unknown
+    instructions, unresolved frames, several tools)."""
+    by_name: dict[str, list[int]] = defaultdict(list)
+    for k, t in enumerate(program.targets):
+        if t.name is not None:
+            by_name[t.name.upper()].append(k)
+    uses: dict[int, set] = defaultdict(set)
+    first_use: dict[int, int] = {}
+    for order, motion in enumerate(program.motions):
+        if motion.runtime is not None:
+            rows.append(TargetReport(target=motion.target or "<inline>", file=motion.source[0],
+                                     line=motion.source[1], column=motion.source[2],
+                                     status="runtime", tool=motion.tool or "",
+                                     wobj=motion.base or "", note=motion.runtime))
+            if motion.inline is not None:
+                uses[motion.inline].add(("runtime", None))
+            continue
+        found = ([motion.inline] if motion.inline is not None
+                 else by_name.get((motion.target or "").upper(), []))
+        if not found:
+            rows.append(TargetReport(target=motion.target or "<target>", file=motion.source[0],
+                                     line=motion.source[1], column=motion.source[2],
+                                     status="unresolved", tool=motion.tool or "",
+                                     wobj=motion.base or "",
+                                     note=f"{motion.target} is declared in no file given"))
+        for k in found:
+            uses[k].add((motion.tool, motion.base))
+            first_use.setdefault(k, order)
+    for where, instruction in program.unknown:
+        rows.append(TargetReport(target=instruction, file=where[0], line=where[1],
+                                 column=where[2], status="unknown_instruction",
+                                 note=f"{instruction}: a motion whose target could not be read"))
+    jobs = []
+    for k, target in enumerate(program.targets):
+        pairs = uses.get(k, set())
+        config = rules.config_words(rules.written(target))
+        if ("runtime", None) in pairs:
+            continue
+        if target.kind == JOINTS:
+            rows.append(_row(target, "joint_target", "axis values kept as written"))
+            continue
+        if not target.numbers:
+            rows.append(_row(target, "runtime", "the aggregate leaves some of the pose to the "
+                                                "position at run time"))
+            continue
+        if not pairs:
+            rows.append(_row(target, "unused", "not moved to in the files given: tool and base "
+                                               "unknown, left as written",
+                             config_before=config))
+            continue
+        if len(pairs) > 1:
+            rows.append(_row(target, "ambiguous", "used with several tools/bases needing "
+                                                  "different corrections; left as written",
+                             config_before=config))
+            continue
+        (tool_key, base_key), = pairs
+        tool, why_tool = frames.program_frame(tool_key, "tool")
+        base, why_base = frames.program_frame(base_key, "base")
+        if tool is None or base is None:
+            rows.append(_row(target, "unresolved", why_tool if tool is None else why_base,
+                             tool_key or "", base_key or "", config))
+            continue
+        real, real_note = frames.real_tool(tool_key, tool)
+        note = "; ".join(x for x in (why_tool, why_base, real_note) if x)
+        values = np.array([n.value for n in target.numbers])
+        jobs.append(_Job(index=k, target=target, tool_key=tool_key, base_key=base_key,
+                         base=base, tool=tool, real_tool=real,
+                         wobj_T_target=rules.convention.pose(values), note=note))
+    # in program order (the order the controller meets them): the previous joints of a
+    # target are those of the target moved to before it
+    jobs.sort(key=lambda job: first_use.get(job.index, len(program.motions)))
+    return jobs
+
+
+def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry,
+           rules: DialectRules, jobs: list[_Job], rows: list[TargetReport],
+           edits: dict[str, list[Edit]]) -> None:
+    robot = comp.robot
+    requested = np.array([j.base @ j.wobj_T_target @ invert_pose(j.tool) for j in jobs])
+    branches = closed_form_inverse(comp.family, requested)                  # (m, 8, n) URDF
+    m, k, n = branches.shape
+    branches_ctrl = robot.controller_from_joints(branches.reshape(-1, n)).reshape(m, k, n)
+    chosen, keep = [], []
+    previous = None
+    for i, job in enumerate(jobs):
+        q, reason, *note = rules.choose(geometry, job.target, branches_ctrl[i], previous)
+        if note and note[0]:
+            job.note = "; ".join(x for x in (note[0], job.note) if x)
+        if q is None:
+            changed = any(w in reason for w in ("status", "turn", "configuration"))
+            rows.append(_row(job.target, "branch_changed" if changed else "unreachable", reason,
+                             job.tool_key or "", job.base_key or "",
+                             rules.config_words(rules.written(job.target))))
+            continue
+        chosen.append(q)
+        keep.append(i)
+        previous = q
+    if not keep:
+        return
+    jobs = [jobs[i] for i in keep]
+    requested = requested[keep]
+    q_nominal = np.array(chosen)
+    q_nominal_urdf = robot.joints_from_controller(q_nominal)
+    confdata = comp.confdata(q_nominal_urdf)
+    meant = requested @ np.array([j.tool for j in jobs])                     # TCP poses
+    if teacher is not None:                     # where the teaching robot's real tool went
+        taught_tool = np.array([FrameLookup(None, rules, teacher.calibration)  # type: ignore[arg-type]
+                                .real_tool(j.tool_key, j.tool)[0] for j in jobs])
+        real_flange, _ = teacher.real_flange_and_jacobian(q_nominal_urdf)
+        meant = real_flange @ taught_tool
+    desired = meant @ invert_pose(np.array([j.real_tool for j in jobs]))
+    q, flange, solution, _ = comp.compensate_flanges(desired, None, confdata)
+    failures = explain_failures(comp, solution, desired, confdata)
+    for i, job in enumerate(jobs):
+        before = rules.config_words(rules.written(job.target))
+        if not solution.success[i]:
+            failure = failures[i]
+            row = _row(job.target, str(solution.reason[i]),
+                       "; ".join(x for x in (failure.note if failure else "", job.note) if x),
+                       job.tool_key or "", job.base_key or "", before)
+            if failure is not None and np.all(np.isfinite(failure.joints)):
+                row.joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
+            rows.append(row)
+            continue
+        q_ctrl = robot.controller_from_joints(q[i][None])[0]
+        new_target = invert_pose(job.base) @ flange[i] @ job.tool
+        original = np.array([nb.value for nb in job.target.numbers])
+        numbers = rules.convention.numbers(new_target, original)
+        config = rules.config(geometry, q_ctrl, job.target)
+        file = job.target.source[0]
+        edits[file].extend(_number_edits(job.target, numbers, rules))
+        edits[file].extend(rules.config_edits(job.target, config))
+        shift = (new_target[:3, 3] - job.wobj_T_target[:3, 3]) / MM
+        turn = float(np.degrees(rotation_angle_between(new_target[:3, :3],
+                                                       job.wobj_T_target[:3, :3])))
+        change = robot.to_degrees_or_mm((q_ctrl - q_nominal[i])[None])[0]
+        rows.append(TargetReport(
+            target=job.target.name or "<inline>", file=file, line=job.target.source[1],
+            column=job.target.source[2], status=str(solution.reason[i]),
+            tool=job.tool_key or "", wobj=job.base_key or "",
+            correction_mm=tuple(float(v) for v in shift), correction_deg=turn,
+            joint_change=float(np.max(np.abs(change))), config_before=before,
+            config_after=rules.config_words(config),
+            joints=tuple(robot.to_degrees_or_mm(q_ctrl[None])[0].tolist()), note=job.note))
+
+
+def _decimals(text: str) -> int:
+    mantissa = text.lower().split("e")[0]
+    return len(mantissa) - mantissa.find(".") - 1 if "." in mantissa else 0
+
+
+def _number_edits(target: PoseTarget, numbers: np.ndarray, rules: DialectRules) -> list[Edit]:
+    """Edits for the pose numbers whose value changes at the resolution written (at least
+    the convention's)."""
+    out = []
+    for k, (number, value) in enumerate(zip(target.numbers, numbers)):
+        floor = rules.convention.position_decimals if k < 3 else rules.convention.angle_decimals
+        decimals = max(_decimals(number.text), floor)
+        if abs(value - number.value) >= 0.5 * 10.0 ** -decimals:
+            text = (format_like(number.text, value, decimals) if rules.format_number is None
+                    else rules.format_number(number, value, decimals, k))
+            out.append(Edit(number.start, number.end, text))
+    return out

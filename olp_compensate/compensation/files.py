@@ -1,0 +1,128 @@
+"""Compensation of program files as a controller holds them: one module, a KRL ``.src``
+with its ``.dat``, a VAL3 data file, a URScript, a FANUC ``.ls``.
+
+:func:`compensate_files` reads the files of one :class:`ProgramFiles` together (latin-1,
+every byte kept), compensates them with the dialect's machinery (RAPID and V+/AS:
+:mod:`.program`; KRL, FANUC TP, VAL3, URScript: :mod:`.dialect_program`) and returns the
+new bytes of each file and one report whose rows name the files as the user knows them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..calibration.calibration import Calibration
+from ..errors import DataError, ParseError
+from .pose import Compensator
+from .report import CompensationReport
+
+ENCODING = "latin-1"
+POSE_DIALECTS = ("krl", "fanuc", "val3", "urscript")
+TEXT_DIALECTS = ("rapid", "vplus")
+DIALECTS = TEXT_DIALECTS + POSE_DIALECTS
+EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
+              ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
+              ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
+              ".script": "urscript"}
+"""File extension (any case) -> dialect."""
+
+
+@dataclass(frozen=True)
+class ProgramFiles:
+    """Files read and compensated together.
+
+    dialect : one of :data:`DIALECTS`.
+    paths : the files, in the order their outputs are returned (KRL: ``.src`` then ``.dat``).
+    names : how the report names each file (as given, or relative to the folder given).
+    """
+
+    dialect: str
+    paths: tuple[Path, ...]
+    names: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class FilesResult:
+    """The new bytes of each file (same order as ``ProgramFiles.paths``) and the report."""
+
+    data: tuple[bytes, ...]
+    report: CompensationReport
+
+
+def dialect_of(path: str | Path) -> str:
+    """The dialect of a file from its extension (:data:`EXTENSIONS`)."""
+    ext = Path(path).suffix.lower()
+    if ext not in EXTENSIONS:
+        raise ParseError(f"unknown program extension {ext or '(none)'!r}; expected one of "
+                         f"{', '.join(sorted(EXTENSIONS))} or an explicit dialect", str(path))
+    return EXTENSIONS[ext]
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_bytes().decode(ENCODING)
+    except OSError as exc:
+        raise ParseError(f"cannot read the file: {exc.strerror or exc}", str(path)) from None
+
+
+def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator, *,
+                     emit: str = "pose", unused: str = "skip",
+                     taught_on: Calibration | Compensator | None = None,
+                     frames_path: str | Path | None = None) -> FilesResult:
+    """Compensate the files of ``files`` (see the module docstring).
+
+    emit, unused : as :func:`.program.compensate_program` (RAPID and V+ only).
+    taught_on : the calibration of the robot the targets were taught on: the pose to reach
+        is where that robot's real tool went (robot-to-robot transfer).
+    frames_path : KRL ``$config.dat`` with ``TOOL_DATA`` and ``BASE_DATA``.
+    """
+    comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
+    texts = [_read(p) for p in files.paths]
+    if files.dialect in TEXT_DIALECTS:
+        from ..programs import loads
+        from .program import compensate_program
+
+        program = loads(texts[0], files.dialect, files.names[0])
+        options = {} if taught_on is None else {"taught_on": taught_on}
+        text, report = compensate_program(program, None, comp, emit=emit, unused=unused,
+                                          **options)
+        return FilesResult(data=(text.encode(ENCODING),), report=report)
+    if emit != "pose":
+        raise DataError(f"{files.names[0]}: --emit {emit}: joint targets are written for "
+                        f"RAPID and V+ programs only")
+    from .dialect_program import compensate_pose_program
+
+    program, rules = _parse_pose_dialect(files, texts, frames_path)
+    new, report = compensate_pose_program(program, rules, comp, taught_on=taught_on)
+    return FilesResult(data=tuple(new[name].encode(ENCODING) for name in files.names),
+                       report=report)
+
+
+def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
+    """(PoseProgram, DialectRules) of the files of a pose dialect."""
+    names = files.names
+    if files.dialect == "krl":
+        from ..programs.krl import parse_krl
+        from .dialect_rules import KRL
+
+        by_ext = {Path(n).suffix.lower(): (n, t) for n, t in zip(names, texts)}
+        src, dat = by_ext.get(".src", (None, None)), by_ext.get(".dat", (None, None))
+        config = None if frames_path is None else _read(Path(frames_path))
+        program = parse_krl(src[1], dat[1], src[0] or "<src>", dat[0] or "<dat>", config,
+                            str(frames_path) if frames_path else "$config.dat")
+        return program, KRL
+    if files.dialect == "fanuc":
+        from ..programs.fanuc_tp import parse_fanuc_tp
+        from .rules_fanuc import fanuc_rules
+
+        return parse_fanuc_tp(texts[0], names[0]), fanuc_rules()
+    if files.dialect == "val3":
+        from ..programs.val3 import parse_val3
+        from .rules_val3 import VAL3
+
+        return parse_val3(dict(zip(names, texts))), VAL3
+    from ..programs.urscript import parse_urscript
+    from .rules_urscript import URSCRIPT
+
+    return parse_urscript(texts[0], names[0]), URSCRIPT

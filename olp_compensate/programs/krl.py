@@ -1,0 +1,335 @@
+"""KUKA KRL programs: a ``.src`` module and its ``.dat`` data list, read together.
+
+What is read (KUKA System Software 8 programming manual, "Data types" and "Motion
+programming"; the formats seen in controller backups):
+
+- declarations ``DECL [GLOBAL] E6POS|POS|FRAME NAME={X 1.0,Y 2.0,Z 3.0,A 0.0,B 90.0,C 0.0,
+  S 2,T 10,E1 0.0,...}`` (mm; A about z, then B about the new y, then C about the new x,
+  degrees; S status and T turn as integers or ``'B010'`` binary literals), array elements
+  ``NAME[3]={...}``, and the same aggregates written inline in a motion
+  (``LIN {X 10,Y 0,Z 5,A 0,B 90,C 0}``); ``E6AXIS``/``AXIS`` targets (axis values, kept as
+  written);
+- ``DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE,...}``: the tool and base a motion
+  uses once ``FDAT_ACT=FP1`` and ``BAS(#PTP_PARAMS|#CP_PARAMS, ...)`` load it; also
+  ``BAS(#TOOL, n)``, ``BAS(#BASE, n)``, ``$TOOL=TOOL_DATA[n]``, ``$BASE=BASE_DATA[n]``;
+- motions ``PTP``, ``LIN``, ``CIRC`` (auxiliary and end point), ``SPTP``, ``SLIN``,
+  ``SCIRC``; ``..._REL`` motions and system variables (``$POS_ACT``...) are run-time targets;
+- ``$config.dat``-style ``TOOL_DATA[n]={X ..,Y ..,Z ..,A ..,B ..,C ..}`` and ``BASE_DATA[n]``
+  when such a file is given (frames of the program's tools and bases).
+
+The tool and base in force are tracked in text order through the ``.src`` (branches and
+loops are not followed: a tool chosen inside a branch stays chosen after it). ``FDAT``,
+``PDAT`` and ``LDAT`` values are kept as written. Comments start with ``;``.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..errors import ParseError
+from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
+                            line_starts_of)
+from .targets import Number
+
+POSE_TYPES = {"E6POS", "POS", "FRAME"}
+AXIS_TYPES = {"E6AXIS", "AXIS"}
+MOTIONS = ("PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC")
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_FIELD = re.compile(rf"([A-Za-z_][A-Za-z0-9_]*)\s+({_NUMBER}|'[BbHh][0-9A-Fa-f]*'|#\w+|\"[^\"]*\")")
+_DECL = re.compile(r"^[ \t]*DECL[ \t]+(?:GLOBAL[ \t]+)?([A-Za-z_]\w*)[ \t]+([A-Za-z_$]\w*)"
+                   r"[ \t]*(\[[^\]]*\])?[ \t]*=[ \t]*\{", re.I | re.M)
+_ELEMENT = re.compile(r"^[ \t]*([A-Za-z_$]\w*)[ \t]*\[([^\]]*)\][ \t]*=[ \t]*\{", re.M)
+_FDAT_ACT = re.compile(r"\bFDAT_ACT\s*=\s*([A-Za-z_]\w*)", re.I)
+_BAS_PARAMS = re.compile(r"\bBAS\s*\(\s*#(PTP_PARAMS|CP_PARAMS|TOOL|BASE)\s*(?:,\s*(\d+))?", re.I)
+_TOOL_SET = re.compile(r"\$TOOL\s*=\s*(TOOL_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME)", re.I)
+_BASE_SET = re.compile(r"\$BASE\s*=\s*(BASE_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME|\$WORLD)", re.I)
+_WITH_FDAT = re.compile(r"\bSTOOL2\s*\(\s*([A-Za-z_]\w*)\s*\)|\b([A-Za-z_]\w*)\.(?:BASE_NO|TOOL_NO)\b",
+                        re.I)
+_MOTION = re.compile(r"^[ \t]*(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\b[ \t]*", re.I | re.M)
+_NAME_ARG = re.compile(r"([A-Za-z_$][\w$]*(?:\[[^\]]*\])?)")
+
+POSE_FIELDS = ("X", "Y", "Z", "A", "B", "C")
+AXIS_FIELDS = ("A1", "A2", "A3", "A4", "A5", "A6")
+
+
+def strip_comments(text: str) -> str:
+    """``text`` with every comment (``;`` to the end of the line, outside strings) replaced
+    by spaces, so offsets stay those of the original."""
+    out = list(text)
+    in_string = False
+    k = 0
+    n = len(text)
+    while k < n:
+        c = text[k]
+        if c == '"':
+            in_string = not in_string
+        elif c in "\r\n":
+            in_string = False
+        elif c == ";" and not in_string:
+            while k < n and text[k] not in "\r\n":
+                out[k] = " "
+                k += 1
+            continue
+        k += 1
+    return "".join(out)
+
+
+def _aggregate_end(text: str, start: int, file: str, starts: list[int]) -> int:
+    """Offset just past the ``}`` closing the aggregate whose ``{`` is at ``start``."""
+    depth = 0
+    for k in range(start, len(text)):
+        if text[k] == "{":
+            depth += 1
+        elif text[k] == "}":
+            depth -= 1
+            if depth == 0:
+                return k + 1
+        elif text[k] in "\r\n" and depth:
+            continue
+    line, column = line_column(text, start, starts)
+    raise ParseError("aggregate '{' is never closed", file, line, column)
+
+
+def _fields(text: str, lo: int, hi: int) -> dict[str, Number]:
+    """The ``NAME value`` fields of the aggregate ``text[lo:hi]`` (upper-case names)."""
+    found = {}
+    for m in _FIELD.finditer(text, lo, hi):
+        found[m.group(1).upper()] = Number(m.start(2), m.end(2), m.group(2))
+    return found
+
+
+def _target(text: str, file: str, starts: list[int], name: str | None, typ: str,
+            lo: int, hi: int) -> PoseTarget | None:
+    fields = _fields(text, lo, hi)
+    where = (file, *line_column(text, lo, starts))
+    if typ in AXIS_TYPES:
+        numbers = tuple(fields[f] for f in AXIS_FIELDS if f in fields)
+        return PoseTarget(name=name, source=where, kind=JOINTS, numbers=numbers)
+    missing = [f for f in POSE_FIELDS if f not in fields]
+    if missing:
+        return PoseTarget(name=name, source=where, kind=POSE, numbers=(),
+                          config=())               # partial aggregate: a run-time target
+    config = tuple(fields[f] for f in ("S", "T") if f in fields)
+    for number in config:
+        try:
+            status_value(number)
+        except ValueError:
+            line, column = line_column(text, number.start, starts)
+            raise ParseError(f"status/turn {number.text} is not an integer from 0 to 65535",
+                             file, line, column) from None
+    for number in fields.values():
+        if number.text[:1] not in "'#\"" and not _finite(number.text):
+            line, column = line_column(text, number.start, starts)
+            raise ParseError(f"{number.text} is not a finite number", file, line, column)
+    return PoseTarget(name=name, source=where, kind=POSE,
+                      numbers=tuple(fields[f] for f in POSE_FIELDS), config=config)
+
+
+def _declarations(text: str, file: str, program: PoseProgram, types: dict[str, str],
+                  fdat: dict[str, dict[str, Number]], frames: dict) -> None:
+    """Targets, FDATs and frame data declared in ``text`` (a .dat, a .src or $config.dat)."""
+    clean = strip_comments(text)
+    starts = line_starts_of(text)
+    for m in _DECL.finditer(clean):
+        typ, name = m.group(1).upper(), m.group(2)
+        lo = m.end() - 1
+        hi = _aggregate_end(clean, lo, file, starts)
+        types[name.upper()] = typ
+        if typ in POSE_TYPES or typ in AXIS_TYPES:
+            target = _target(text, file, starts, name, typ, lo, hi)
+            if target is not None:
+                program.targets.append(target)
+        elif typ == "FDAT":
+            fdat[name.upper()] = _fields(text, lo, hi)
+    for m in _ELEMENT.finditer(clean):
+        name, index = m.group(1), m.group(2).strip()
+        lo = m.end() - 1
+        hi = _aggregate_end(clean, lo, file, starts)
+        upper = name.upper()
+        if upper in ("TOOL_DATA", "BASE_DATA"):
+            fields = _fields(text, lo, hi)
+            if all(f in fields for f in POSE_FIELDS):
+                frames[f"{upper}[{int(index)}]"] = tuple(fields[f].value for f in POSE_FIELDS)
+            continue
+        typ = types.get(upper)
+        if typ in POSE_TYPES or typ in AXIS_TYPES:
+            target = _target(text, file, starts, f"{name}[{index}]", typ, lo, hi)
+            if target is not None:
+                program.targets.append(target)
+
+
+def read_frames(text: str, file: str) -> dict[str, tuple[float, ...]]:
+    """``TOOL_DATA[n]`` and ``BASE_DATA[n]`` of a ``$config.dat`` text: name -> (X, Y, Z mm,
+    A, B, C deg)."""
+    program = PoseProgram("krl", {file: text}, [], [])
+    frames: dict = {}
+    _declarations(text, file, program, {}, {}, frames)
+    return frames
+
+
+class _Frames:
+    """The tool and base in force while the ``.src`` is read in text order."""
+
+    def __init__(self, fdat: dict[str, dict[str, Number]]):
+        self.fdat = fdat
+        self.active: str | None = None
+        self.tool: str | None = None
+        self.base: str | None = None
+
+    def load_fdat(self) -> None:
+        fields = self.fdat.get((self.active or "").upper())
+        if fields is None:
+            return
+        if "TOOL_NO" in fields:
+            self.tool = f"TOOL_DATA[{int(fields['TOOL_NO'].value)}]"
+        if "BASE_NO" in fields:
+            self.base = f"BASE_DATA[{int(fields['BASE_NO'].value)}]"
+        ipo = fields.get("IPO_FRAME")
+        if ipo is not None and ipo.text.upper() == "#TCP":
+            self.tool = "external TCP (IPO_FRAME #TCP)"
+
+    def with_clause(self, statement: str) -> None:
+        """A spline motion's ``WITH $TOOL=STOOL2(FP1), $BASE=...(FP1.BASE_NO)``: the FDAT
+        named there gives its tool and base."""
+        m = _WITH_FDAT.search(statement)
+        if m:
+            self.active = m.group(1) or m.group(2)
+            self.load_fdat()
+
+    def statement(self, line: str) -> None:
+        m = _FDAT_ACT.search(line)
+        if m:
+            self.active = m.group(1)
+        for m in _BAS_PARAMS.finditer(line):
+            kind, number = m.group(1).upper(), m.group(2)
+            if kind in ("PTP_PARAMS", "CP_PARAMS"):
+                self.load_fdat()
+            elif kind == "TOOL" and number is not None:
+                self.tool = f"TOOL_DATA[{int(number)}]"
+            elif kind == "BASE" and number is not None:
+                self.base = f"BASE_DATA[{int(number)}]"
+        m = _TOOL_SET.search(line)
+        if m:
+            self.tool = f"TOOL_DATA[{int(m.group(2))}]" if m.group(2) else "TOOL_DATA[0]"
+        m = _BASE_SET.search(line)
+        if m:
+            self.base = f"BASE_DATA[{int(m.group(2))}]" if m.group(2) else "BASE_DATA[0]"
+
+
+def _statement_text(clean: str, start: int) -> str:
+    """The statement starting at ``start``, continued over lines that end with a comma
+    (a ``WITH`` clause spread over several lines)."""
+    end = start
+    while True:
+        nl = clean.find("\n", end)
+        if nl < 0:
+            return clean[start:]
+        if not clean[end:nl].rstrip().endswith(","):
+            return clean[start:nl]
+        end = nl + 1
+
+
+def _motions(text: str, file: str, program: PoseProgram, frames: _Frames) -> None:
+    """The motions of a ``.src`` text, with the tool and base in force at each."""
+    clean = strip_comments(text)
+    starts = line_starts_of(text)
+    motion_at = {m.start(): m for m in _MOTION.finditer(clean)}
+    line_bounds = list(zip(starts, starts[1:] + [len(clean)]))
+    for lo, hi in line_bounds:
+        line = clean[lo:hi]
+        frames.statement(line)
+        m = _MOTION.match(clean, lo)
+        if m is None or m.start() not in motion_at or m.end() > hi + 1:
+            continue
+        instruction = m.group(1).upper() + (m.group(2) or "").upper()
+        where = (file, *line_column(text, m.start(1), starts))
+        if instruction[0] == "S":
+            frames.with_clause(_statement_text(clean, m.start()))
+        args = []
+        k = m.end()
+        for _ in range(2 if instruction.startswith(("CIRC", "SCIRC")) else 1):
+            while k < len(clean) and clean[k] in " \t,":
+                k += 1
+            if k < len(clean) and clean[k] == "{":
+                end = _aggregate_end(clean, k, file, starts)
+                target = _target(text, file, starts, None, "E6POS", k, end)
+                program.targets.append(target)
+                args.append((None, len(program.targets) - 1, k))
+                k = end
+                continue
+            name = _NAME_ARG.match(clean, k)
+            if name is None:
+                break
+            args.append((name.group(1), None, k))
+            k = name.end()
+        if not args:
+            program.unknown.append((where, instruction))
+            continue
+        for name, inline, _ in args:
+            runtime = None
+            if instruction.endswith("_REL"):
+                runtime = f"{instruction} moves relative to where the robot is at run time"
+            elif name is not None and name.startswith("$"):
+                runtime = f"{name} is a system variable, known only at run time"
+            elif inline is not None and not program.targets[inline].numbers:
+                runtime = "the aggregate leaves some of X, Y, Z, A, B, C to the current position"
+            program.motions.append(PoseMotion(instruction=instruction, target=name, source=where,
+                                              tool=frames.tool, base=frames.base,
+                                              inline=inline, runtime=runtime))
+
+
+def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>",
+              dat_file: str = "<dat>", config_text: str | None = None,
+              config_file: str = "$config.dat") -> PoseProgram:
+    """Read a KRL module (either text may be None: a ``.dat`` alone holds targets but no
+    motion) and, optionally, a ``$config.dat`` with the tool and base data."""
+    texts = {}
+    if src_text is not None:
+        texts[src_file] = src_text
+    if dat_text is not None:
+        texts[dat_file] = dat_text
+    program = PoseProgram(dialect="krl", texts=texts, targets=[], motions=[])
+    types: dict[str, str] = {}
+    fdat: dict[str, dict[str, Number]] = {}
+    if config_text is not None:
+        program.frames.update(read_frames(config_text, config_file))
+    if dat_text is not None:
+        _declarations(dat_text, dat_file, program, types, fdat, program.frames)
+    if src_text is not None:
+        _declarations(src_text, src_file, program, types, fdat, program.frames)
+        _motions(src_text, src_file, program, _Frames(fdat))
+    return program
+
+
+def _finite(text: str) -> bool:
+    try:
+        value = float(text)
+    except ValueError:
+        return False
+    return value == value and abs(value) != float("inf")
+
+
+def status_text(original: Number, value: int) -> str:
+    """``value`` written as ``original`` wrote S or T: decimal, ``'B0110'`` (as many digits
+    as the original, more if needed) or ``'H1A'``."""
+    text = original.text
+    if text.startswith("'") and text[1:2].upper() == "B":
+        digits = len(text) - 3
+        return f"'{text[1]}{value:0{digits}b}'"
+    if text.startswith("'") and text[1:2].upper() == "H":
+        digits = len(text) - 3
+        return f"'{text[1]}{value:0{digits}X}'"
+    return str(int(value))
+
+
+def status_value(number: Number) -> int:
+    """The integer of an S or T as written (decimal, ``'B...'`` or ``'H...'``)."""
+    text = number.text
+    if text.startswith("'"):
+        base = 2 if text[1:2].upper() == "B" else 16
+        return int(text[2:-1] or "0", base)
+    value = float(text)
+    if value != int(value) or not 0 <= value < 1 << 16:
+        raise ValueError(f"{text} is not a status or turn value")
+    return int(value)

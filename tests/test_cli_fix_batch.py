@@ -1,0 +1,111 @@
+"""olp-fix over several programs: folders and backups mirrored into -o, dialects detected per
+file, KRL .src/.dat pairs written together, -j N processes giving the same bytes as one,
+a failing file reported while the others go on."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import pytest
+
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.cli.fix import main
+from olp_compensate.io.calibration_file import write_calibration
+from olp_compensate.kinematics.robot import load_robot
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+@pytest.fixture(scope="module")
+def backup(tmp_path_factory):
+    """A controller-backup-like tree of several dialects, and the IRB 2400 nominal model."""
+    root = tmp_path_factory.mktemp("backup")
+    tree = root / "BACKUP"
+    (tree / "RAPID" / "TASK1" / "PROGMOD").mkdir(parents=True)
+    (tree / "KRL" / "R1" / "Program").mkdir(parents=True)
+    shutil.copy(SAMPLES / "cell_a.mod", tree / "RAPID" / "TASK1" / "PROGMOD" / "cell_a.mod")
+    shutil.copy(SAMPLES / "cell_b.pg", tree / "cell_b.pg")
+    from test_programs_krl import _program_joints, _targets_at, krl_module
+
+    src, dat = krl_module(_targets_at(_program_joints(3, 4)))
+    (tree / "KRL" / "R1" / "Program" / "Cell.src").write_bytes(src.encode("latin-1"))
+    (tree / "KRL" / "R1" / "Program" / "Cell.dat").write_bytes(dat.encode("latin-1"))
+    (tree / "notes.txt").write_text("not a program")
+    model = root / "nominal.json"
+    write_calibration(model, nominal_calibration(load_robot("abb_irb2400")))
+    return tree, model
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_folder_is_mirrored_into_the_output_folder(backup, tmp_path, capsys):
+    tree, model = backup
+    out = tmp_path / "out"
+    code = main([str(tree), "--model", str(model), "-o", str(out), "--report",
+                 str(tmp_path / "r.csv"), "-j", "1"])
+    assert code == 2                      # cell_a has joint_limit targets
+    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert written == ["KRL/R1/Program/Cell.dat", "KRL/R1/Program/Cell.src",
+                       "RAPID/TASK1/PROGMOD/cell_a.mod", "cell_b.pg"]
+    # nominal calibration: every program comes back byte for byte
+    for rel in written:
+        assert (out / rel).read_bytes() == (tree / rel).read_bytes(), rel
+    files = {r["file"] for r in _rows(tmp_path / "r.csv")}
+    assert {"RAPID/TASK1/PROGMOD/cell_a.mod", "cell_b.pg", "KRL/R1/Program/Cell.dat"} <= files
+    text = capsys.readouterr().out
+    assert "3 programs" in text and "statuses:" in text
+
+
+def test_two_processes_write_what_one_writes(backup, tmp_path):
+    tree, model = backup
+    for jobs in ("1", "2"):
+        assert main([str(tree), "--model", str(model), "-o", str(tmp_path / jobs), "--report",
+                     str(tmp_path / f"{jobs}.csv"), "-j", jobs, "-q"]) == 2
+    one = sorted(p.relative_to(tmp_path / "1") for p in (tmp_path / "1").rglob("*.*"))
+    for rel in one:
+        assert (tmp_path / "1" / rel).read_bytes() == (tmp_path / "2" / rel).read_bytes()
+    assert (tmp_path / "1.csv").read_bytes() == (tmp_path / "2.csv").read_bytes()
+
+
+def test_a_krl_pair_named_by_its_src_is_written_as_a_pair(backup, tmp_path):
+    tree, _ = backup
+    model = tmp_path / "kr16.json"
+    write_calibration(model, nominal_calibration(load_robot("kuka_kr16_2")))
+    config = tmp_path / "$config.dat"
+    from test_programs_krl import CONFIG_DAT
+
+    config.write_text(CONFIG_DAT)
+    src = tree / "KRL" / "R1" / "Program" / "Cell.src"
+    out = tmp_path / "Fixed.src"
+    assert main([str(src), "--model", str(model), "-o", str(out), "--config", str(config),
+                 "-q"]) == 0
+    assert out.read_bytes() == src.read_bytes()
+    assert (tmp_path / "Fixed.dat").read_bytes() == src.with_suffix(".dat").read_bytes()
+
+
+def test_a_failing_program_is_reported_and_the_others_go_on(backup, tmp_path, capsys):
+    tree, model = backup
+    broken = tmp_path / "in"
+    shutil.copytree(tree, broken)
+    (broken / "bad.mod").write_text("MODULE bad\n  PROC main()\n    MoveL [[1,2,3],;\nENDMODULE\n")
+    out = tmp_path / "out"
+    assert main([str(broken), "--model", str(model), "-o", str(out), "-j", "1", "-q"]) == 1
+    assert not (out / "bad.mod").exists()
+    assert (out / "cell_b.pg").read_bytes() == (broken / "cell_b.pg").read_bytes()
+    assert "bad.mod" in capsys.readouterr().err
+
+
+def test_an_output_folder_on_the_inputs_is_refused(backup, tmp_path, capsys):
+    tree, model = backup
+    copy = tmp_path / "in"
+    shutil.copytree(tree, copy)
+    before = {p: p.read_bytes() for p in copy.rglob("*") if p.is_file()}
+    assert main([str(copy), "--model", str(model), "-o", str(copy), "-q"]) == 1
+    assert "refusing to overwrite" in capsys.readouterr().err
+    assert {p: p.read_bytes() for p in before} == before
+    assert sorted(p for p in copy.rglob("*") if p.is_file()) == sorted(before)

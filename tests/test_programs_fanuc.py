@@ -1,0 +1,304 @@
+"""FANUC TP: .ls programs read and written back losslessly; the whole loop on a virtual
+R-2000iC/165F (identify, compensate, run the written targets through a nominal FANUC
+controller of the test's own, reach within 0.05 mm where the untouched program misses by
+more)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
+from olp_compensate.calibration.identify import IdentificationOptions, identify
+from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.compensation.dialect_program import compensate_pose_program
+from olp_compensate.compensation.dialect_rules import ArmGeometry
+from olp_compensate.compensation.ik import closed_form_inverse, fit_family
+from olp_compensate.compensation.rules_fanuc import (FANUC_TP, fanuc_letters, fanuc_rules,
+                                                     turn_number)
+from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert_pose,
+                                                   matrix_from_euler_zyx)
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
+
+ROBOT = load_robot("fanuc_r2000ic_165f")
+TOOL_MM = (12.0, -5.0, 380.0, 0.0, 0.0, 0.0)
+
+HEADER = """/PROG  CELL
+/ATTR
+OWNER\t\t= MNEDITOR;
+COMMENT\t\t= "Pick cell";
+PROG_SIZE\t= 2310;
+CREATE\t\t= DATE 24-03-11  TIME 10:12:00;
+MODIFIED\t= DATE 24-03-11  TIME 10:20:48;
+FILE_NAME\t= ;
+VERSION\t\t= 0;
+LINE_COUNT\t= {lines};
+MEMORY_SIZE\t= 2790;
+PROTECT\t\t= READ_WRITE;
+TCD:  STACK_SIZE\t= 0,
+      TASK_PRIORITY\t= 50,
+      TIME_SLICE\t= 0,
+      BUSY_LAMP_OFF\t= 0,
+      ABORT_REQUEST\t= 0,
+      PAUSE_REQUEST\t= 0;
+DEFAULT_GROUP\t= 1,*,*,*,*;
+CONTROL_CODE\t= 00000000 00000000;
+/MN"""
+
+
+def _f(value: float) -> str:
+    """A number as FANUC writes it: 3 decimals, no leading zero, right-aligned in 9."""
+    s = f"{value:.3f}"
+    if s.startswith("0."):
+        s = s[1:]
+    elif s.startswith("-0."):
+        s = "-" + s[2:]
+    return f"{s:>9}"
+
+
+def ls_program(targets, uf=0, ut=4, extra_mn=()):
+    """A .ls text (CR LF) moving to P[1]..P[m] (J, L, and a C pair), plus a joint HOME."""
+    mn = [f"  UFRAME_NUM={uf} ;", f"  UTOOL_NUM={ut} ;", "  !Approach the cell ;",
+          "J P[99:HOME] 100% FINE    ;"]
+    m = len(targets)
+    k = 1
+    while k <= m:
+        if k + 1 <= m and k % 4 == 3:
+            mn.append(f"C P[{k}]    ")
+            mn.append(f"    :  P[{k + 1}] 200mm/sec CNT50    ;")
+            k += 2
+            continue
+        mn.append(f"J P[{k}] 100% FINE    ;" if k % 2 else
+                  f"L P[{k}:\"PT{k}\"] 500mm/sec CNT100    ;".replace('"', ""))
+        k += 1
+    mn += list(extra_mn)
+    mn.append("J P[99:HOME] 100% FINE    ;")
+    numbered = []
+    n = 0
+    for line in mn:
+        if line.startswith("    :"):
+            numbered.append(line)
+            continue
+        n += 1
+        numbered.append(f"{n:4d}:{line}" if line[0] != " " else f"{n:4d}:{line}")
+    pos = ["/POS"]
+    for k, (values, letters, turns) in enumerate(targets, 1):
+        x, y, z, w, p, r = values
+        label = f':"PT{k}"' if k % 2 == 0 else ""
+        pos += [f"P[{k}{label}]{{", "   GP1:",
+                f"\tUF : {uf}, UT : {ut},\t\tCONFIG : '{' '.join(letters)}, "
+                f"{', '.join(str(t) for t in turns)}',",
+                f"\tX = {_f(x)}  mm,\tY = {_f(y)}  mm,\tZ = {_f(z)}  mm,",
+                f"\tW = {_f(w)} deg,\tP = {_f(p)} deg,\tR = {_f(r)} deg", "};"]
+    pos += ["P[99:\"HOME\"]{", "   GP1:", f"\tUF : {uf}, UT : {ut},",
+            f"\tJ1= {_f(0)} deg,\tJ2= {_f(0)} deg,\tJ3= {_f(0)} deg,",
+            f"\tJ4= {_f(0)} deg,\tJ5= {_f(-90)} deg,\tJ6= {_f(0)} deg", "};", "/END"]
+    lines = [HEADER.format(lines=n)] + numbered + pos
+    return "\r\n".join(lines) + "\r\n"
+
+
+class FanucController:
+    """The nominal FANUC controller of this test: the closed form fitted on pinocchio's
+    forward kinematics of the data-sheet URDF; the branch with the written letters, J4, J5,
+    J6 moved into the written revolutions."""
+
+    def __init__(self):
+        n = ROBOT.n_joints
+        self.nominal = VirtualRobot(ROBOT, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
+        self.family = fit_family(lambda q: self.nominal.flange_poses(
+            ROBOT.controller_from_joints(q)))
+        self.geometry = ArmGeometry(ROBOT)
+
+    def joints(self, base_T_flange, letters, turns):
+        branches = ROBOT.controller_from_joints(closed_form_inverse(self.family,
+                                                                    base_T_flange[None])[0])
+        for q in branches:
+            if np.all(np.isfinite(q)) and fanuc_letters(self.geometry, q) == tuple(letters):
+                q = q.copy()
+                for a, t in zip((3, 4, 5), turns):
+                    q[a] = math.remainder(q[a], 2 * math.pi) + 2 * math.pi * t
+                return q
+        raise AssertionError(f"no branch with {letters}")
+
+
+def _wpr(pose):
+    abc = np.degrees(euler_zyx_from_matrix(pose[:3, :3]))
+    return np.concatenate([pose[:3, 3] * 1e3, abc[::-1]])
+
+
+def _targets_at(q_ctrl, tool_mm=TOOL_MM, controller=None):
+    controller = controller or FanucController()
+    tool = FANUC_TP.convention.pose(np.array(tool_mm))
+    out = []
+    for q in q_ctrl:
+        pose = controller.nominal.flange_poses(q[None])[0] @ tool
+        out.append((_wpr(pose), fanuc_letters(controller.geometry, q),
+                    tuple(turn_number(math.degrees(v)) for v in q[3:6])))
+    return out
+
+
+def _program_joints(m, seed):
+    q = random_joints(ROBOT, 8 * m, np.random.default_rng(seed), margin=0.3)
+    q = q[np.abs(np.sin(q[:, 4])) > math.sin(math.radians(20))][:m].copy()
+    # J4 and J6 turn +-360 deg: some targets in the next revolution (turn numbers +-1)
+    for k in range(1, len(q), 3):
+        axis = 5 if k % 2 else 3
+        q[k, axis] -= math.copysign(2 * math.pi, q[k, axis])
+    return q
+
+
+def test_wpr_is_about_fixed_x_then_y_then_z():
+    rot = FANUC_TP.convention.rotation
+    assert np.allclose(rot(np.array([90.0, 0, 0])) @ [0, 1, 0], [0, 0, 1])   # W about x
+    assert np.allclose(rot(np.array([0, 90.0, 0])) @ [0, 0, 1], [1, 0, 0])   # P about y
+    # fixed axes: W then P is Ry(P) Rx(W)
+    both = rot(np.array([90.0, 90.0, 0.0]))
+    assert np.allclose(both, matrix_from_euler_zyx(0, math.pi / 2, 0)
+                       @ matrix_from_euler_zyx(0, 0, math.pi / 2))
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        wpr = rng.uniform(-170, 170, 3) * [1, 0.5, 1]
+        back = FANUC_TP.convention.angles(rot(wpr), wpr + 1.0)
+        assert np.allclose(back, wpr, atol=1e-9)
+
+
+def test_turn_numbers_and_letters_of_known_poses():
+    assert [turn_number(v) for v in (-540.0, -200.0, -179.9, 0.0, 179.9, 180.0, 539.9)] == \
+        [-2, -1, 0, 0, 0, 1, 1]
+    geometry = ArmGeometry(ROBOT)
+    # J5 = -90: faceplate down (W, P, R = 180, 0, 0) with J4 = 0: 'N U T'
+    q = np.radians([0.0, 0.0, 0.0, 0.0, -90.0, 0.0])
+    assert fanuc_letters(geometry, q) == ("N", "U", "T")
+    assert fanuc_letters(geometry, q * [1, 1, 1, 1, -1, 1]) == ("F", "U", "T")
+    # J2 arm leaning back, J3 arm up: the wrist point behind J1 (back, 'B')
+    assert fanuc_letters(geometry, np.radians([0.0, -60.0, 60.0, 0.0, -90.0, 0.0])) == \
+        ("N", "U", "B")
+    # J2 arm leaning back, J3 arm pointing down: the wrist above the J2-J3 line ('D')
+    assert fanuc_letters(geometry, np.radians([0.0, -75.0, -60.0, 0.0, -90.0, 0.0])) == \
+        ("N", "D", "T")
+    pose = FanucController().nominal.flange_poses(q[None])[0]
+    assert np.allclose(np.abs(_wpr(pose)[3:]), [180.0, 0.0, 0.0], atol=1e-6)
+
+
+def test_parse_reads_records_motions_and_spans():
+    text = ls_program(_targets_at(_program_joints(6, 1)))
+    program = parse_fanuc_tp(text, "CELL.ls")
+    names = [t.name for t in program.targets]
+    assert names == [f"P[{k}]" for k in range(1, 7)] + ["P[99]"]
+    assert program.targets[-1].kind == "joints" and len(program.targets[-1].numbers) == 6
+    moves = [(m.instruction, m.target, m.tool, m.base) for m in program.motions]
+    assert moves[0] == ("J", "P[99]", "UT4", "UF0")
+    assert ("C", "P[3]", "UT4", "UF0") in moves and ("C", "P[4]", "UT4", "UF0") in moves
+    p2 = program.targets[1]
+    for number in p2.numbers + p2.config:
+        assert text[number.start:number.end] == number.text
+    assert [n.text for n in p2.config][:3] in (["N", "U", "T"], ["F", "U", "T"], ["N", "D", "T"],
+                                               ["F", "D", "T"], ["N", "U", "B"], ["F", "U", "B"],
+                                               ["N", "D", "B"], ["F", "D", "B"])
+    assert p2.source[1] == text[:p2.numbers[0].start].count("\n") + 1
+
+
+def test_nominal_calibration_gives_the_bytes_back():
+    text = ls_program(_targets_at(_program_joints(8, 2)))
+    program = parse_fanuc_tp(text, "CELL.ls", frames={"UT4": TOOL_MM})
+    texts, report = compensate_pose_program(program, FANUC_TP, nominal_calibration(ROBOT))
+    assert texts["CELL.ls"] == text
+    statuses = [r.status for r in report.rows]
+    assert statuses.count("ok") + statuses.count("singular") == 8, report.rows
+    assert statuses.count("joint_target") == 1
+    assert all(r.config_before == r.config_after for r in report.rows if r.status == "ok")
+
+
+def test_runtime_unknown_and_unresolved_are_reported_never_dropped():
+    extra = ["L PR[3:pounce] 500mm/sec FINE    ;", "L P[2] 100mm/sec FINE Offset,PR[5]    ;",
+             "J P[R[7]] 50% FINE    ;", "L P[42] 100mm/sec FINE    ;"]
+    text = ls_program(_targets_at(_program_joints(2, 3)), extra_mn=extra)
+    program = parse_fanuc_tp(text, "CELL.ls")                 # UT4 defined nowhere
+    _, report = compensate_pose_program(program, FANUC_TP, nominal_calibration(ROBOT))
+    by_status = {}
+    for r in report.rows:
+        by_status.setdefault(r.status, []).append(r)
+    assert len(by_status["runtime"]) == 3, by_status      # PR, Offset, P[R[7]]
+    assert [r.target for r in by_status["unresolved"]].count("P[42]") == 1
+    unresolved = [r for r in by_status["unresolved"] if r.target == "P[1]"]
+    assert unresolved and "UT4 unknown" in unresolved[0].note
+    assert report.exit_code == 2
+    # a user frame without data is unresolved with its name
+    text = ls_program(_targets_at(_program_joints(1, 4)), uf=3)
+    _, report = compensate_pose_program(parse_fanuc_tp(text, "CELL.ls", frames={"UT4": TOOL_MM}),
+                                        FANUC_TP, nominal_calibration(ROBOT))
+    notes = [r.note for r in report.rows if r.status == "unresolved"]
+    assert notes and "UF3 unknown" in notes[0]
+
+
+def test_a_configuration_the_pose_cannot_have_is_reported():
+    targets = _targets_at(_program_joints(1, 5))
+    values, letters, turns = targets[0]
+    other = ("N" if letters[0] == "F" else "F", letters[1], letters[2])
+    text = ls_program([(values, other, (9, 0, 0))])
+    _, report = compensate_pose_program(parse_fanuc_tp(text, "CELL.ls", frames={"UT4": TOOL_MM}),
+                                        FANUC_TP, nominal_calibration(ROBOT))
+    row = next(r for r in report.rows if r.target == "P[1]")
+    assert row.status == "branch_changed" and "turn" in row.note
+
+
+def test_turn_axes_are_a_setting():
+    rules = fanuc_rules(turn_axes=(1, 4, 6))
+    geometry = ArmGeometry(ROBOT)
+    q = np.radians([10.0, 0.0, 0.0, 200.0, -60.0, -190.0])
+    targets = _targets_at(q[None])
+    program = parse_fanuc_tp(ls_program(targets), "CELL.ls")
+    assert rules.config(geometry, q, program.targets[0]) == ("N", "U", "T", 0, 1, -1)
+    assert FANUC_TP.config(geometry, q, program.targets[0]) == ("N", "U", "T", 1, 0, -1)
+
+
+@pytest.fixture(scope="module")
+def fanuc_world():
+    virtual = make_virtual_robot(ROBOT, seed=11, n_points=3)
+    rng = np.random.default_rng(11)
+    meas = virtual.measure(random_joints(ROBOT, 60, rng), 0.01e-3, rng)
+    cal = identify(ROBOT, meas, IdentificationOptions(folds=0)).calibration
+    tools = dict(cal.tools)
+    tools["UT4"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
+    return virtual, cal.__class__(**{**cal.__dict__, "tools": tools})
+
+
+def test_compensated_fanuc_reaches_its_targets_on_the_virtual_robot(fanuc_world):
+    virtual, cal = fanuc_world
+    q = _program_joints(10, 7)
+    tool_mm = tuple(np.round(virtual.tools["tcp"] * 1e4) / 10) + (0.0, 0.0, 0.0)
+    tool = FANUC_TP.convention.pose(np.array(tool_mm))
+    controller = FanucController()
+    written = _targets_at(q, tool_mm, controller)
+    text = ls_program(written)
+    program = parse_fanuc_tp(text, "CELL.ls", frames={"UT4": tool_mm})
+    texts, report = compensate_pose_program(program, FANUC_TP, cal)
+    assert report.exit_code == 0, [(r.target, r.status, r.note) for r in report.rows]
+    again = {t.name: t for t in parse_fanuc_tp(texts["CELL.ls"], "CELL.ls").targets}
+    before_mm, after_mm = [], []
+    for k, (values, letters, turns) in enumerate(written, 1):
+        values = np.array([float(_f(v)) for v in values])          # as written in the file
+        meant = (cal.device_T_base @ FANUC_TP.convention.pose(values))[:3, 3]
+        before = controller.joints(FANUC_TP.convention.pose(values) @ invert_pose(tool),
+                                   letters, turns)
+        target = again[f"P[{k}]"]
+        new_values = np.array([n.value for n in target.numbers])
+        new_config = [n.text for n in target.config]
+        after = controller.joints(FANUC_TP.convention.pose(new_values) @ invert_pose(tool),
+                                  new_config[:3], [int(t) for t in new_config[3:]])
+        reached = virtual.true_frames(np.array([before, after]), ["tcp", "tcp"])[:, :3, 3]
+        before_mm.append(np.linalg.norm(reached[0] - meant) * 1e3)
+        after_mm.append(np.linalg.norm(reached[1] - meant) * 1e3)
+    print(f"FANUC R-2000iC/165F: untouched program misses by {min(before_mm):.2f}.."
+          f"{max(before_mm):.2f} mm, compensated by at most {max(after_mm):.4f} mm")
+    assert max(after_mm) < 0.05, after_mm
+    assert min(before_mm) > 0.5, before_mm
+    # only the /POS numbers of P[1..10] changed; the /MN and header are untouched
+    old_lines, new_lines = text.split("\r\n"), texts["CELL.ls"].split("\r\n")
+    assert len(old_lines) == len(new_lines)
+    changed = [a for a, b in zip(new_lines, old_lines) if a != b]
+    assert changed and all(line.startswith(("\tX =", "\tW =", "\tUF :")) for line in changed)
+    assert texts["CELL.ls"].split("/POS")[0] == text.split("/POS")[0]
