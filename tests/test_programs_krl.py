@@ -232,3 +232,29 @@ def test_compensated_krl_reaches_its_targets_on_the_virtual_robot(kuka_world):
     assert texts["CELL.src"] == src
     changed = [a for a, b in zip(texts["CELL.dat"].split("\r\n"), dat.split("\r\n")) if a != b]
     assert changed and all(line.startswith("DECL E6POS XP") for line in changed)
+
+
+def test_taught_on_the_same_robot_gives_the_bytes_back(kuka_world):
+    """Robot-to-robot transfer with A = B: the pose to reach is where A's real tool went at
+    A's nominal joints for the target; B = A reaches it at the same joints, whose nominal
+    forward kinematics is the written target."""
+    _, cal = kuka_world
+    q = _program_joints(5, 9)
+    tool_mm = np.array([0.0, 0.0, 180.0, 0.0, 0.0, 0.0])
+    config = CONFIG_DAT.replace("{X 12.0,Y -5.0,Z 180.0,", "{X 0.0,Y 0.0,Z 180.0,")
+    controller = KukaController()
+    tool = KRL.convention.pose(tool_mm)
+    written = []
+    for qk in q:
+        pose = controller.nominal.flange_poses(qk[None])[0] @ tool
+        values = np.concatenate([pose[:3, 3] * 1e3,
+                                 np.degrees(euler_zyx_from_matrix(pose[:3, :3]))])
+        written.append((values, krl_status(controller.geometry, qk), krl_turn(qk)))
+    src, dat = krl_module(written)
+    program = parse_krl(src, dat, "CELL.src", "CELL.dat", config, "$config.dat")
+    texts, report = compensate_pose_program(program, KRL, cal, taught_on=cal)
+    assert report.exit_code == 0, [(r.target, r.status, r.note) for r in report.rows]
+    assert texts["CELL.dat"] == dat and texts["CELL.src"] == src
+    # and transferring to the nominal robot changes them (the real A is not the nominal)
+    moved, _ = compensate_pose_program(program, KRL, nominal_calibration(ROBOT), taught_on=cal)
+    assert moved["CELL.dat"] != dat
