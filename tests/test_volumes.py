@@ -101,3 +101,31 @@ def test_programs_visit_every_pose_in_degrees():
     for text, dialect in ((rapid, "rapid"), (vplus, "vplus")):
         program = programs.loads(text, dialect)
         assert len(program.joint_targets) == 12 and len(program.motions) == 12
+
+
+def test_plan_volume_command_writes_joints_and_a_program(tmp_path, capsys):
+    """olp-cal plan --volume cube: the joints file holds the pose set's points (each reached
+    by the nominal arm, checked here through its own forward kinematics) and the program
+    visits them."""
+    from olp_compensate.calibration.calibration import nominal_calibration
+    from olp_compensate.cli.cal import main
+    from olp_compensate.io.poses import read_poses
+    from olp_compensate.kinematics.robot import load_robot
+
+    out, program = tmp_path / "cube.csv", tmp_path / "cube.mod"
+    assert main(["plan", "--robot", "abb_irb2400", "--volume", "cube", "--centre",
+                 "1200,0,800", "--size", "400", "--layout", "grid", "-o", str(out),
+                 "--program", str(program)]) == 0
+    robot = load_robot("abb_irb2400")
+    poses = read_poses(out, [j.unit for j in robot.joints])
+    assert len(poses.joints) == 27 and not robot.outside_ranges(poses.joints).any()
+    flange = nominal_calibration(robot).flange_poses(poses.joints)
+    reached = flange[:, :3, :3] @ np.array([0.05, 0.0, 0.15]) + flange[:, :3, 3]
+    grid = np.array([[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1)])
+    expected = np.array([1.2, 0.0, 0.8]) + 0.2 * grid
+    assert np.allclose(np.sort(reached, axis=0), np.sort(expected, axis=0), atol=1e-6)
+    assert program.read_text().count("MoveAbsJ") == 27
+    with pytest.raises(SystemExit):
+        main(["plan", "--robot", "abb_irb2400", "--volume", "sphere", "-o", str(out)])
+    assert main(["plan", "--robot", "abb_irb2400", "--volume", "cube", "-o", str(out)]) == 1
+    assert "--centre" in capsys.readouterr().err

@@ -19,7 +19,18 @@ CRITERION_NAMES = {"d": "D-optimal (largest log det of the information)",
 
 def add_arguments(p) -> None:
     p.add_argument("--robot", required=True, help="bundled robot name or path to a URDF")
-    p.add_argument("--poses", type=int, required=True, help="number of poses to plan")
+    p.add_argument("--poses", type=int, help="number of poses to plan (not with --volume)")
+    p.add_argument("--volume", choices=("cube",),
+                   help="plan the seed's pose set of a calibration volume instead: points on "
+                        "the faces of a cube or a 3x3x3 grid, each reached with the "
+                        "orientation the criterion prefers among those inside the axis ranges")
+    p.add_argument("--centre", metavar="X,Y,Z", help="--volume: the cube's centre, mm, base frame")
+    p.add_argument("--size", type=float, metavar="MM", help="--volume: the cube's edge, mm")
+    p.add_argument("--layout", choices=("faces", "grid"), default="faces",
+                   help="--volume: 12 points on the faces (default) or a 3x3x3 grid of 27")
+    p.add_argument("--program", metavar="PROGRAM",
+                   help="--volume: also write a program that visits the poses: .mod (RAPID "
+                        "MoveAbsJ) or .pg (V+ precision points)")
     p.add_argument("--candidates", type=int, default=DEFAULT_CANDIDATES,
                    help="number of random candidate poses inside the joint limits")
     p.add_argument("--from", dest="candidates_file", metavar="CSV",
@@ -42,20 +53,24 @@ def add_arguments(p) -> None:
     p.add_argument("-o", "--output", required=True, help="pose CSV to write")
 
 
-def parse_tool(text: str) -> np.ndarray:
-    """(3,) metres from ``X,Y,Z`` in mm."""
+def parse_tool(text: str, flag: str = "--tool") -> np.ndarray:
+    """(3,) metres from ``X,Y,Z`` in mm (``flag`` names the option in the message)."""
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         values = []
     if len(values) != 3 or not np.all(np.isfinite(values)):
-        raise DataError(f"--tool: expected X,Y,Z in mm, got '{text}'")
+        raise DataError(f"{flag}: expected X,Y,Z in mm, got '{text}'")
     return np.array(values) * 1e-3
 
 
 def run(args) -> int:
     refuse_clashes([("--from", args.candidates_file), ("--robot", args.robot)],
-                   [("-o", args.output)])
+                   [("-o", args.output), ("--program", args.program)])
+    if args.volume:
+        return _run_volume(args)
+    if args.poses is None:
+        raise DataError("give --poses N (or --volume cube with --centre and --size)")
     if args.poses < 1 or args.candidates < 1 or not args.min_distance_deg >= 0:
         raise DataError("--poses and --candidates must be positive, --min-distance-deg not "
                         "negative")
@@ -102,4 +117,35 @@ def run(args) -> int:
     print(f"wrote {args.poses} poses to {args.output} (pose, "
           f"{', '.join([f'q1_{units[0]}', '...', f'q{len(units)}_{units[-1]}'])}; "
           f"controller axes)")
+    return 0
+
+
+def _run_volume(args) -> int:
+    """``--volume cube``: the seed's pose set of one calibration volume (section 6.1)."""
+    from ..calibration.volumes import cube_pose_set, joint_program, pose_set_metadata
+    from ..io.atomic import write_text_atomic
+    from ..programs import dialect_for
+
+    if args.centre is None or args.size is None or not args.size > 0:
+        raise DataError("--volume cube needs --centre X,Y,Z (mm) and a positive --size (mm)")
+    if args.poses is not None or args.candidates_file:
+        raise DataError("--volume plans its own points: leave out --poses and --from")
+    robot = load_robot(args.robot)
+    units = [j.unit for j in robot.joints]
+    centre = parse_tool(args.centre, "--centre")
+    tool = parse_tool(args.tool[0]) if args.tool else np.array(DEFAULT_TOOL_M)
+    dialect = dialect_for(args.program) if args.program else None
+    pose_set = cube_pose_set(robot, centre, args.size * 1e-3, args.layout, tool_m=tool,
+                             criterion=args.criterion, seed=args.seed)
+    write_poses(args.output, pose_set.joints, units, pose_ids=pose_set.names,
+                metadata=[f"# robot: {robot.name}"] + pose_set_metadata(pose_set))
+    if args.program:
+        write_text_atomic(args.program, joint_program(pose_set, robot, dialect))
+    degrees = robot.to_degrees_or_mm(pose_set.joints)
+    print(f"robot {robot.name}: {len(pose_set.names)} poses of a {args.size:g} mm cube at "
+          f"({args.centre}) mm, layout {args.layout}, {CRITERION_NAMES[args.criterion]}")
+    for name, point, q in zip(pose_set.names, pose_set.points_m, degrees):
+        print(f"  {name}: point ({', '.join(f'{v * 1e3:.1f}' for v in point)}) mm, joints "
+              f"({', '.join(f'{v:.2f}' for v in q)}) deg")
+    print(f"wrote {args.output}" + (f" and {args.program}" if args.program else ""))
     return 0
