@@ -28,8 +28,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
-from olp_compensate.calibration.identify import (IdentificationOptions, IdentificationProblem,  # noqa: E402
-                                     _fit, identify)
+from olp_compensate.calibration.identify import IdentificationOptions, identify, solve  # noqa: E402
+from olp_compensate.calibration.problem import IdentificationProblem  # noqa: E402
 from olp_compensate.calibration.pose_planning import plan_poses, planning_space  # noqa: E402
 from olp_compensate.kinematics.robot import load_robot  # noqa: E402
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints  # noqa: E402
@@ -102,7 +102,7 @@ def speed(poses: int) -> None:
                              method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12)
 
     def fit():  # our LM alone, from the peer's start, as identify runs it
-        return _fit(problem, x0, options)
+        return solve(problem, x0, options)
 
     times = best_times({"ours": lambda: identify(ROBOT, meas, options), "fit": fit,
                         "peer": peer, "trf": trf})
@@ -121,7 +121,8 @@ def speed(poses: int) -> None:
             calls[name] += 1
             return method(x)
         setattr(counted, name, count)
-    x_fit, steps, _, _ = _fit(counted, x0, options)
+    fitted = solve(counted, x0, options)
+    x_fit, steps = fitted.x, fitted.iterations
     fit_cost = 0.5 * float(np.sum(problem.residuals(x_fit) ** 2))
     print(f"{'':>6}        fit only, same start: ours LM {lm * 1e3:7.1f} ms ({steps} steps; "
           f"{calls['residuals_and_jacobian']} residual+Jacobian, {calls['residuals']} residual-only "

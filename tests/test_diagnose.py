@@ -184,3 +184,10 @@ def test_simulate_bad_effect_gives_one_clear_line(tmp_path, capsys, spec, messag
                  "-o", str(tmp_path / "m.csv")])
     err = capsys.readouterr().err
     assert code == 1 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_library_errors_name_the_option_field_not_a_flag():
+    meas, _ = hidden_case(0, [], poses=20)
+    with pytest.raises(DataError, match=r"DiagnoseOptions\.noise_m must be positive") as error:
+        diagnose(ROBOT, meas, DiagnoseOptions(noise_m=-1e-5))
+    assert "--" not in str(error.value)

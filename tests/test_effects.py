@@ -13,8 +13,8 @@ from olp_compensate.calibration.effects import (Backlash, Conditions, GearHarmon
                                     make_effect)
 from olp_compensate.errors import DataError, ModelError
 from olp_compensate.calibration.gravity import gravity_model
-from olp_compensate.calibration.identify import (IdentificationOptions, IdentificationProblem, identify,
-                                     measurement_inputs)
+from olp_compensate.calibration.identify import IdentificationOptions, identify, measurement_inputs
+from olp_compensate.calibration.problem import IdentificationProblem
 from olp_compensate.io.calibration_file import (calibration_from_dict, calibration_to_dict,
                                                 dumps_calibration)
 from olp_compensate.kinematics.model import build_model

@@ -5,7 +5,9 @@ import pytest
 
 from olp_compensate.kinematics.conventions import rotation_from_rotvec
 from olp_compensate.errors import DataError
+from olp_compensate.calibration.cross_validation import pose_folds
 from olp_compensate.calibration.identify import IdentificationOptions, identify
+from olp_compensate.calibration.unknowns import UnknownLayout
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 
@@ -125,3 +127,81 @@ def test_too_few_equations_is_a_clear_error():
     rng = np.random.default_rng(1)
     with pytest.raises(DataError, match="equations"):
         identify(robot, virtual.measure(random_joints(robot, 8, rng), NOISE, rng))
+
+
+def _folds_by_membership(pose_ids, k):
+    """The fold assignment as first published (README figures rest on it): the sorted
+    distinct ids, permuted with seed 0, cut into k near-equal parts; a row is in the fold
+    whose part holds its id (one membership test per row and fold)."""
+    unique = sorted(set(pose_ids.tolist()))
+    order = np.random.default_rng(0).permutation(len(unique))
+    parts = np.array_split(np.array(unique, dtype=object)[order], k)
+    return [np.array([pid in set(part.tolist()) for pid in pose_ids]) for part in parts]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_pose_folds_keep_the_published_assignment(seed):
+    rng = np.random.default_rng(seed)
+    n_poses = int(rng.integers(2, 60))
+    # ids as a user writes them: numbers (lexical order differs from numeric), names
+    ids = [str(v) for v in rng.choice(10_000, n_poses, replace=False)]
+    ids = [f"P{v}" if rng.random() < 0.3 else v for v in ids]
+    rows = rng.permutation(np.repeat(ids, rng.integers(1, 4, n_poses)))  # repeated poses
+    for dtype in (object, str):
+        pose_ids = np.array(rows, dtype=dtype)
+        for k in sorted({2, 3, 5, n_poses}):
+            folds = pose_folds(pose_ids, k)
+            expected = _folds_by_membership(pose_ids, k)
+            assert len(folds) == k
+            for got, want in zip(folds, expected):
+                np.testing.assert_array_equal(got, want)
+            assert np.array_equal(np.sum(folds, axis=0), np.ones(len(rows)))  # a partition
+
+
+def test_unknown_layout_names_every_unknown_once_in_order():
+    layout = UnknownLayout.build(geometry_names=["j1.a", "j2.beta"], tool_names=["p2", "tcp"],
+                                 rotated_tools=["tcp"],
+                                 effect_names=[["joint_compliance j2.c"],
+                                               ["gear_harmonic k=1 j3.a",
+                                                "gear_harmonic k=1 j3.b"]])
+    names = layout.names()
+    assert layout.size == len(names) == 6 + 2 + 6 + 3 + 3
+    groups = [layout.registration, layout.geometry, layout.tool_points, layout.tool_rotations,
+              *layout.effects]
+    covered = np.concatenate([np.arange(layout.size)[g] for g in groups])
+    np.testing.assert_array_equal(covered, np.arange(layout.size))  # in order, no gap, no overlap
+    assert names[layout.geometry] == ["j1.a", "j2.beta"]
+    assert names[layout.tool_point(1)] == ["tool.tcp.x", "tool.tcp.y", "tool.tcp.z"]
+    assert names[layout.tool_rotation(0)] == ["tool.tcp.rx", "tool.tcp.ry", "tool.tcp.rz"]
+    assert names[layout.registration_rotation] == ["base.rx", "base.ry", "base.rz"]
+    assert names[layout.effects[1]] == ["gear_harmonic k=1 j3.a", "gear_harmonic k=1 j3.b"]
+    assert layout.n_geometric == layout.effect_block.start == 6 + 2 + 6 + 3
+    assert [layout.count(g) for g in groups] == [6, 2, 6, 3, 1, 2]
+
+
+def test_result_layout_places_the_tool_deviations():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=21, n_points=2)
+    rng = np.random.default_rng(22)
+    result = identify(robot, virtual.measure(random_joints(robot, 20, rng), NOISE, rng),
+                      IdentificationOptions(folds=0))
+    layout = result.layout
+    names = result.unknown_names
+    assert names[layout.tool_point(0)] == ["tool.p2.x", "tool.p2.y", "tool.p2.z"]
+    std = result.calibration.tools["tcp"].std_m
+    np.testing.assert_array_equal(result.unknown_std[layout.tool_point(1)], std)
+    free = ~np.isnan(result.calibration.std)
+    assert list(np.array(result.calibration.model.names)[free]) == names[layout.geometry]
+
+
+def test_an_unknown_parameter_to_freeze_is_named_in_library_terms():
+    robot = load_robot("abb_irb2400")
+    virtual = make_virtual_robot(robot, seed=1)
+    rng = np.random.default_rng(1)
+    meas = virtual.measure(random_joints(robot, 20, rng), NOISE, rng)
+    with pytest.raises(DataError, match=r"IdentificationOptions\.freeze: no parameter named "
+                                        r"'j9\.zz'") as error:
+        identify(robot, meas, IdentificationOptions(freeze=("j9.zz",)))
+    assert "--" not in str(error.value)
+    with pytest.raises(DataError, match=r"IdentificationOptions\.solver"):
+        identify(robot, meas, IdentificationOptions(solver="newton"))

@@ -11,8 +11,8 @@ from olp_compensate.kinematics.conventions import (matrix_from_quat_wxyz, quat_w
                                         rotation_angle_between, rotvec_from_rotation)
 from olp_compensate.calibration.effects import GearHarmonic, JointCompliance, JointScale, ThermalExpansion
 from olp_compensate.errors import DataError
-from olp_compensate.calibration.identify import (IdentificationOptions, IdentificationProblem, identify,
-                                     measurement_inputs)
+from olp_compensate.calibration.identify import IdentificationOptions, identify, measurement_inputs
+from olp_compensate.calibration.problem import IdentificationProblem
 from olp_compensate.io.calibration_file import calibration_from_dict, calibration_to_dict
 from olp_compensate.io.measurements import (format_measurements, parse_measurements,
                                             read_measurements)
@@ -69,9 +69,9 @@ def test_orientation_jacobian_matches_central_differences():
     x = problem.pack(problem.model.nominal, problem.unpack(np.zeros(problem.n_unknowns))[1],
                      np.array([virtual.tools[t] for t in problem.tool_names]))
     x = x + np.random.default_rng(6).normal(0, 1e-3, len(x)) * np.abs(x).clip(1e-3)
-    x[3:6] = [0.3, -0.2, 0.4]                         # registration far from its reference
-    start = problem.rotation_start
-    x[start:start + 3] = [0.2, 0.1, -0.25]            # tool rotation far from its reference
+    layout = problem.layout
+    x[layout.registration_rotation] = [0.3, -0.2, 0.4]   # registration far from its reference
+    x[layout.tool_rotation(0)] = [0.2, 0.1, -0.25]       # tool rotation far from its reference
     residual, jac = problem.residuals_and_jacobian(x)
     assert jac.shape == (3 * meas.n_rows + 3 * problem.n_oriented, problem.n_unknowns)
     np.testing.assert_array_equal(residual, problem.residuals(x))

@@ -161,3 +161,28 @@ def test_fixed_chain_is_the_model_at_fixed_values(name):
         np.testing.assert_allclose(frames, joint_frames(model, values, np.zeros(6)), atol=1e-12)
         np.testing.assert_allclose(flange, forward(model, values, np.zeros((1, 6))).flange[0],
                                    atol=1e-12)
+
+
+def test_a_reusable_array_is_never_handed_out_while_something_refers_to_it():
+    from olp_compensate.kinematics.buffers import reusable_array
+    first = reusable_array("test-pool", (4, 5), slots=2)
+    view = first[1:]
+    second = reusable_array("test-pool", (4, 5), slots=2)
+    assert second is not first                # `first` itself is still held
+    del first
+    assert reusable_array("test-pool", (4, 5), slots=2) is not view.base  # the view holds it
+    del view, second
+    again = reusable_array("test-pool", (4, 5), slots=2)
+    assert reusable_array("test-pool", (4, 5), slots=2) is not again
+
+
+def test_forward_jacobians_of_two_evaluations_do_not_share_memory():
+    robot = load_robot("abb_irb2400")
+    model = build_model(robot)
+    rng = np.random.default_rng(3)
+    q1, q2 = rng.uniform(-1, 1, (2, 50, 6))
+    a = forward(model, model.nominal, q1, jacobian=True)
+    kept = a.dpoint_dparam.copy()
+    b = forward(model, model.nominal, q2, jacobian=True)
+    np.testing.assert_array_equal(a.dpoint_dparam, kept)  # b did not write into a's block
+    assert not np.shares_memory(a.dpoint_dparam, b.dpoint_dparam)

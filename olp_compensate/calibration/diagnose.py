@@ -3,13 +3,13 @@
 1. Fit the geometric model (:func:`olp_compensate.calibration.identify.identify`) with k-fold
    cross-validation by pose.
 2. Noise floor: the spread of repeated measurements of one pose (rows sharing ``pose`` and
-   ``point``) when there are any, else ``noise_m`` (``--noise-mm``), else the residual of
+   ``point``) when there are any, else ``DiagnoseOptions.noise_m``, else the residual of
    the final model (an upper bound).
-3. Scan: every candidate of :func:`olp_compensate.calibration.effects.candidate_effects` that the data
-   can test (its term is not zero and not a combination of the geometry, see
-   :func:`olp_compensate.calibration.identify.effect_separation`) is added to the current model and
-   both models are cross-validated on the same folds. The fits are Gauss-Newton steps from
-   the current full-data solution (the problem is linear to far below the noise there), so
+3. Scan (:mod:`.effect_scan`): every candidate of :func:`.effects.candidate_effects` that
+   the data can test (its term is not zero and not a combination of the geometry, see
+   :func:`.identifiability.effect_separation`) is added to the current model and both models
+   are cross-validated on the same folds. The fits are Gauss-Newton steps from the current
+   full-data solution (the problem is linear to far below the noise there), so
    the whole scan costs a few least-squares solves per candidate.
 4. Test: G = held-out sum of squared errors of the current model minus that of the model
    with the candidate (the held-out gain). Given the training folds, G is a sum of
@@ -35,13 +35,15 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from .effects import (Effect, EffectInputs, GearHarmonic, JointCompliance, ThermalExpansion,
                       candidate_effects)
 from ..errors import DataError
-from .identify import (IdentificationOptions, IdentificationResult, effect_separation,
-                       identify, measurement_inputs, pose_folds, problem_at)
+from .cross_validation import pose_folds
+from .effect_scan import CandidateResult, EffectScan, choose_candidate, drift_warning
+from .identify import (IdentificationOptions, IdentificationResult, identify,
+                       measurement_inputs)
+from .problem import problem_at
 from .measurements import Measurements
 from ..kinematics.robot import Robot
 
@@ -74,23 +76,6 @@ class NoiseFloor:
 
     sigma_m: float
     source: str
-
-
-@dataclass(frozen=True)
-class CandidateResult:
-    """One candidate in one round: ``status`` 'tested', 'no effect' or 'inseparable' (with
-    ``reason``); for tested ones the held-out sum of squares (m^2) of the extended model,
-    the share of the current model's held-out sum of squares it removes (``gain``), the
-    test statistic ``t`` (z) and its one-sided p-value."""
-
-    effect: Effect
-    status: str
-    reason: str = ""
-    heldout_sse: float = float("nan")
-    gain: float = float("nan")
-    t: float = float("nan")
-    p_value: float = float("nan")
-    significant: bool = False
 
 
 @dataclass(frozen=True)
@@ -167,150 +152,22 @@ def noise_floor(meas: Measurements, noise_m: float | None, residual_sigma: float
     if dof >= 9:
         sse = sum(float(np.sum((meas.points[rows] - meas.points[rows].mean(axis=0)) ** 2))
                   for rows in repeated)
-        return NoiseFloor(float(np.sqrt(sse / dof)),
-                          f"repeated poses ({len(repeated)} repeated, {dof} degrees of freedom)")
+        return NoiseFloor(sigma_m=float(np.sqrt(sse / dof)),
+                          source=f"repeated poses ({len(repeated)} repeated, {dof} degrees "
+                                 f"of freedom)")
     if noise_m is not None:
-        return NoiseFloor(float(noise_m), "stated (--noise-mm)")
-    return NoiseFloor(float(residual_sigma), "residual of the final model (an upper bound: "
-                                             "measure some poses twice for a real one)")
+        return NoiseFloor(sigma_m=float(noise_m), source="stated (--noise-mm)")
+    return NoiseFloor(sigma_m=float(residual_sigma),
+                      source="residual of the final model (an upper bound: measure some "
+                             "poses twice for a real one)")
 
 
-def _kept_columns(jac: np.ndarray) -> np.ndarray:
-    norms = np.linalg.norm(jac, axis=0)
-    return norms > 1e-12 * norms.max()
-
-
-@dataclass(frozen=True)
-class _Heldout:
-    """Held-out residuals (m, 3) of one linearized model and its in-sample noise estimate
-    (per-axis variance, m^2)."""
-
-    residuals: np.ndarray
-    sigma2: float
-
-    @property
-    def sse(self) -> float:
-        return float(np.sum(self.residuals**2))
-
-
-class _Scan:
-    """Linearized k-fold cross-validation of candidates at one model.
-
-    State: the current model's residual r (3m,) and unit-scaled Jacobian J at its full-data
-    solution, and per fold the SVD of the training rows of J (for the leverage term of the
-    test's variance)."""
-
-    def __init__(self, result: IdentificationResult, meas: Measurements, inputs: EffectInputs,
-                 folds: list[np.ndarray]):
-        problem, x = problem_at(result.calibration, meas, inputs)
-        self.residual, jac = problem.residuals_and_jacobian(x)
-        kept = _kept_columns(jac)
-        self.jac = jac[:, kept]
-        self.names = [n for n, k in zip(problem.names(), kept) if k]
-        self.scaled = self.jac / np.linalg.norm(self.jac, axis=0)
-        self.meas, self.inputs, self.result, self.folds = meas, inputs, result, folds
-        self.training = []
-        for test in folds:
-            eq = np.repeat(test, 3)
-            _, s, vt = np.linalg.svd(self.scaled[~eq], full_matrices=False)
-            ok = s > 1e-10 * s[0]
-            self.training.append((eq, vt[ok], s[ok]))
-        self.base = self.heldout(self.scaled)
-
-    def heldout(self, jac: np.ndarray) -> _Heldout:
-        """Held-out residuals of r + jac dx refitted without each fold (jac scaled)."""
-        out = np.empty(len(self.residual))
-        for eq, _, _ in self.training:
-            dx, *_ = np.linalg.lstsq(jac[~eq], -self.residual[~eq], rcond=1e-10)
-            out[eq] = self.residual[eq] + jac[eq] @ dx
-        dx, *_ = np.linalg.lstsq(jac, -self.residual, rcond=1e-10)
-        rss = float(np.sum((self.residual + jac @ dx) ** 2))
-        return _Heldout(out.reshape(-1, 3), rss / max(len(self.residual) - jac.shape[1], 1))
-
-    def gain_test(self, reference: _Heldout, candidate: _Heldout) -> tuple[float, float, float]:
-        """(gain, z, p): the held-out gain G = SSE(reference) - SSE(candidate), m^2, and the
-        one-sided test of G > 0. Given the training folds, G = sum(2 e.D - |D|^2) over the
-        held-out rows, D the change of prediction and e the reference's held-out residual,
-        whose covariance is sigma^2 (I + H), H the test rows' leverage under the reference
-        fit; so var(G) = 4 sigma^2 (|D|^2 + D'HD), with sigma^2 from the candidate's
-        in-sample residual (a safe value under either hypothesis)."""
-        delta = (reference.residuals - candidate.residuals).ravel()
-        gain = reference.sse - candidate.sse
-        leverage = 0.0
-        for eq, vt, s in self.training:
-            leverage += float(np.sum(((vt @ (self.scaled[eq].T @ delta[eq])) / s) ** 2))
-        variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
-        if variance <= 0:
-            return gain, 0.0, 1.0
-        z = gain / np.sqrt(variance)
-        return float(gain), float(z), float(stats.norm.sf(z))
-
-    def columns(self, effect: Effect) -> np.ndarray:
-        """Jacobian columns (3m, p) of ``effect`` added at zero to the current model."""
-        problem, x = problem_at(self.result.calibration, self.meas, self.inputs, [effect])
-        _, jac = problem.residuals_and_jacobian(x)
-        return jac[:, problem.effect_slices[-1]]
-
-    def evaluate(self, effect: Effect) -> tuple[CandidateResult, _Heldout | None]:
-        """The candidate's result and its held-out residuals (None when not testable)."""
-        block = self.columns(effect)
-        reason = effect_separation(self.jac, block, self.names)
-        if reason is not None:
-            status = "no effect" if reason.startswith("has no effect") else "inseparable"
-            return CandidateResult(effect, status, reason), None
-        held = self.heldout(np.hstack([self.scaled, block / np.linalg.norm(block, axis=0)]))
-        gain, z, p = self.gain_test(self.base, held)
-        return CandidateResult(effect, "tested", heldout_sse=held.sse,
-                               gain=gain / self.base.sse, t=z, p_value=p), held
-
-
-def _choose(scan: _Scan, tested: list[tuple[CandidateResult, _Heldout]], threshold: float,
-            prefer_simpler_alpha: float):
-    """(chosen candidate or None, labels of the alternatives); see the module docstring."""
-    significant = [item for item in tested if item[0].p_value < threshold]
-    if not significant:
-        return None, []
-    best = min(significant, key=lambda item: item[1].sse)
-
-    def not_better(item, than) -> bool:
-        """``item`` is not significantly better than ``than`` on held-out data."""
-        return scan.gain_test(than[1], item[1])[2] >= prefer_simpler_alpha
-
-    simpler = [item for item in significant
-               if item[0].effect.n_parameters < best[0].effect.n_parameters
-               and not_better(best, item)]
-    chosen = (min(simpler, key=lambda it: (it[0].effect.n_parameters, it[1].sse))
-              if simpler else best)
-    alternatives = [c.effect.label for c, held in significant
-                    if c is not chosen[0] and not_better(chosen, (c, held))]
-    return chosen[0], alternatives
-
-
-def _drift(scan: _Scan, alpha: float) -> str | None:
-    """A warning when the residuals drift with ``time_s`` (the device or the base moved, or
-    the arm warmed up), tested like a candidate; None when they do not (or no time)."""
-    time = scan.meas.time_s
-    if time is None or np.ptp(time) == 0:
-        return None
-    block = np.zeros((scan.meas.n_rows, 3, 3))
-    for axis in range(3):
-        block[:, axis, axis] = time - time.mean()
-    block = block.reshape(-1, 3)
-    held = scan.heldout(np.hstack([scan.scaled, block / np.linalg.norm(block, axis=0)]))
-    _, _, p = scan.gain_test(scan.base, held)
-    if p >= alpha:
-        return None
-    return (f"the remaining residuals drift with time_s (p = {p:.1e}): the device or the "
-            f"robot base moved, or the arm warmed up; add a temperature_c column")
-
-
-def diagnose(robot: Robot, meas: Measurements,
-             options: DiagnoseOptions = DiagnoseOptions()) -> Diagnosis:
-    """Diagnose the measurements of ``robot`` (see the module docstring)."""
+def _checked_folds(meas: Measurements, options: DiagnoseOptions) -> int:
+    """The number of folds; DataError for options out of their domain."""
     if not 0 < options.alpha < 1:
         raise DataError(f"alpha must lie in (0, 1), got {options.alpha}")
     if options.noise_m is not None and not options.noise_m > 0:
-        raise DataError(f"--noise-mm must be positive, got {options.noise_m * 1e3}")
+        raise DataError(f"DiagnoseOptions.noise_m must be positive, got {options.noise_m} m")
     folds_k = min(options.folds, meas.n_poses)
     if folds_k < 2:
         raise DataError(f"{meas.source}: the diagnosis needs at least 2 poses and 2 folds")
@@ -318,6 +175,61 @@ def diagnose(robot: Robot, meas: Measurements,
     if "thermal_expansion" in asked and meas.temperature_c is None:
         raise DataError(f"{meas.source}: thermal_expansion needs the 'temperature_c' column, "
                         f"which the measurements do not have")
+    return folds_k
+
+
+def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: float,
+                prefer_simpler_alpha: float) -> tuple[Round, CandidateResult | None, dict]:
+    """One round: every candidate not in ``skip`` (keys) tested at the scan's model;
+    (the round, the chosen candidate or None, label -> reason of the untestable ones)."""
+    results, tested, untestable = [], [], {}
+    for candidate in candidates:
+        if candidate.key in skip:
+            continue
+        result, held = scan.evaluate(candidate)
+        results.append(result)
+        if held is not None:
+            tested.append((result, held))
+        else:
+            untestable[candidate.label] = result.reason
+    threshold = alpha / max(len(tested), 1)
+    marked = {id(r): dataclasses.replace(r, significant=r.p_value < threshold)
+              for r, _ in tested}
+    results = [marked.get(id(r), r) for r in results]
+    tested = [(marked[id(r)], held) for r, held in tested]
+    chosen, alternatives = choose_candidate(scan, tested, threshold, prefer_simpler_alpha)
+    round_ = Round(threshold=threshold, candidates=results,
+                   chosen=None if chosen is None else chosen.effect,
+                   alternatives=alternatives, heldout_sse=scan.base.sse)
+    return round_, chosen, untestable
+
+
+def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
+                  kept: list[tuple[Effect, float, list[str]]]) -> list[KeptEffect]:
+    """Each kept effect with how far it alone moves the measured points: the extended
+    problem ``after`` at ``x_after`` with only that effect switched on, minus with none."""
+    x_plain = x_after.copy()  # the extended model with its effects switched off
+    for cols in after.layout.effects:
+        x_plain[cols] = 0.0
+    plain = after.predict(x_plain, jacobian=False)[-1]
+    out = []
+    for cols, fitted, (_, p_value, alternatives) in zip(
+            after.layout.effects, extended.calibration.effects, kept):
+        x_one = x_plain.copy()
+        x_one[cols] = x_after[cols]
+        displacement = after.predict(x_one, jacobian=False)[-1] - plain
+        moved = np.linalg.norm(displacement, axis=1)
+        out.append(KeptEffect(effect=fitted, p_value=p_value,
+                              point_rms_m=float(np.sqrt(np.mean(moved**2))),
+                              point_max_m=float(moved.max()), alternatives=alternatives,
+                              displacement=displacement))
+    return out
+
+
+def diagnose(robot: Robot, meas: Measurements,
+             options: DiagnoseOptions = DiagnoseOptions()) -> Diagnosis:
+    """Diagnose the measurements of ``robot`` (see the module docstring)."""
+    folds_k = _checked_folds(meas, options)
     base_options = IdentificationOptions(convention=options.convention, folds=folds_k)
     geometric = identify(robot, meas, base_options)
     tools = {n: t.xyz_m for n, t in geometric.calibration.tools.items()}
@@ -332,28 +244,14 @@ def diagnose(robot: Robot, meas: Measurements,
     kept: list[tuple[Effect, float, list[str]]] = []
     rounds: list[Round] = []
     untestable: dict[str, str] = {}
-    scan = _Scan(current, meas, inputs, folds)
+    scan = EffectScan(current, meas, inputs, folds)
     while len(kept) < options.max_effects:
-        keys = {e.key for e, _, _ in kept}
-        results, tested = [], []
-        for candidate in candidates:
-            if candidate.key in keys:
-                continue
-            result, held = scan.evaluate(candidate)
-            results.append(result)
-            if held is not None:
-                tested.append((result, held))
-            elif not rounds:
-                untestable[candidate.label] = result.reason
-        threshold = options.alpha / max(len(tested), 1)
-        marked = {id(r): dataclasses.replace(r, significant=r.p_value < threshold)
-                  for r, _ in tested}
-        results = [marked.get(id(r), r) for r in results]
-        tested = [(marked[id(r)], held) for r, held in tested]
-        chosen, alternatives = _choose(scan, tested, threshold, options.prefer_simpler_alpha)
-        rounds.append(Round(threshold=threshold, candidates=results,
-                            chosen=None if chosen is None else chosen.effect,
-                            alternatives=alternatives, heldout_sse=scan.base.sse))
+        round_, chosen, not_testable = _scan_round(
+            scan, candidates, {e.key for e, _, _ in kept}, options.alpha,
+            options.prefer_simpler_alpha)
+        if not rounds:
+            untestable = not_testable
+        rounds.append(round_)
         if chosen is None:
             break
         effects = tuple(e for e, _, _ in kept) + (chosen.effect,)
@@ -361,11 +259,11 @@ def diagnose(robot: Robot, meas: Measurements,
         if refit.dropped_effects:  # the non-linear fit disagrees with the scan: stop here
             rounds[-1] = dataclasses.replace(rounds[-1], chosen=None)
             break
-        kept.append((chosen.effect, chosen.p_value, alternatives))
+        kept.append((chosen.effect, chosen.p_value, round_.alternatives))
         current = refit
-        scan = _Scan(current, meas, inputs, folds)
+        scan = EffectScan(current, meas, inputs, folds)
 
-    drift = _drift(scan, options.alpha)
+    drift = drift_warning(scan, options.alpha)
     extended = current
     before, x_before = problem_at(geometric.calibration, meas, inputs)
     after, x_after = problem_at(extended.calibration, meas, inputs)
@@ -375,26 +273,12 @@ def diagnose(robot: Robot, meas: Measurements,
     coupling = (np.eye(robot.n_joints) if robot.urdf_from_controller is None
                 else robot.urdf_from_controller)
     dpoint_dq = np.einsum("ij,mjk,kl->mil", rotation, chain.dpoint_dq, coupling)
-    x_plain = x_after.copy()  # the extended model with its effects switched off
-    for sl in after.effect_slices:
-        x_plain[sl] = 0.0
-    plain = after.predict(x_plain, jacobian=False)[-1]
-
-    kept_effects = []
-    for index, (fitted, (_, p_value, alternatives)) in enumerate(
-            zip(extended.calibration.effects, kept)):
-        x_one = x_plain.copy()
-        x_one[after.effect_slices[index]] = x_after[after.effect_slices[index]]
-        displacement = after.predict(x_one, jacobian=False)[-1] - plain
-        moved = np.linalg.norm(displacement, axis=1)
-        kept_effects.append(KeptEffect(fitted, p_value, float(np.sqrt(np.mean(moved**2))),
-                                       float(moved.max()), alternatives, displacement))
     residual_after = after.measured - predicted_after
     dof = max(extended.n_equations - extended.n_unknowns, 1)
     residual_sigma = float(np.sqrt(np.sum(residual_after**2) / dof))
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
-                     effects=kept_effects, rounds=rounds,
+                     effects=_kept_effects(after, x_after, extended, kept), rounds=rounds,
                      noise=noise_floor(meas, options.noise_m, residual_sigma),
                      untestable=untestable, drift=drift,
                      residual_before=before.measured - predicted_before,

@@ -14,7 +14,7 @@ confirming evaluation once that is negligible.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dpotrs
@@ -71,7 +71,6 @@ def levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray
     jtr = jac.T @ r
     scale = np.sqrt(np.diag(normal))
     scale[scale == 0] = 1.0
-    identity = np.eye(len(x))
     mu = mu0
     message = "maximum number of iterations reached"
     success = False
@@ -87,29 +86,15 @@ def levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray
         if info == 0 and 0.5 * float(gradient @ dpotrs(factor, gradient)[0]) <= ftol * cost:
             message, success = "predicted decrease of the cost below tolerance", True
             break
-        failed = 0  # trials rejected at this Jacobian
-        while True:
-            factor, info = dpotrf(scaled + mu * identity)
-            if info == 0:  # else not positive definite to working precision: damp more
-                step_scaled = -dpotrs(factor, gradient)[0]
-                x_new = x + step_scaled / scale
-                if failed < 2 or residuals is None:
-                    r_new, jac_new = fun(x_new)
-                else:
-                    r_new, jac_new = residuals(x_new), None
-                evaluations += 1
-                cost_new = 0.5 * float(r_new @ r_new)
-                if np.isfinite(cost_new) and cost_new < cost:
-                    break
-                failed += 1
-            mu *= growth
-            if mu > 1e16:
-                return LMResult(x, cost, r, jac, steps, evaluations, True,
-                                "no further decrease possible (at a minimum to machine precision)",
-                                normal)
-        if jac_new is None:
-            r_new, jac_new = fun(x_new)
-            evaluations += 1
+        trial = _damped_step(fun, residuals, x, cost, scaled, gradient, scale, mu, growth)
+        evaluations += trial.evaluations
+        if trial.x is None:
+            return LMResult(x=x, cost=cost, residuals=r, jacobian=jac, iterations=steps,
+                            evaluations=evaluations, success=True,
+                            message="no further decrease possible (at a minimum to machine "
+                                    "precision)", normal=normal)
+        x_new, r_new, jac_new, cost_new = trial.x, trial.residuals, trial.jacobian, trial.cost
+        step_scaled, mu = trial.step_scaled, trial.mu
         steps += 1
         decrease = cost - cost_new
         x, r, jac, cost_old, cost = x_new, r_new, jac_new, cost, cost_new
@@ -122,4 +107,52 @@ def levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray
         if np.linalg.norm(step_scaled) <= xtol * (xtol + np.linalg.norm(x * scale)):
             message, success = "relative step below tolerance", True
             break
-    return LMResult(x, cost, r, jac, steps, evaluations, success, message, normal)
+    return LMResult(x=x, cost=cost, residuals=r, jacobian=jac, iterations=steps,
+                    evaluations=evaluations, success=success, message=message, normal=normal)
+
+
+class _Trial(NamedTuple):
+    """An accepted damped step: the new ``x`` (None when the damping ran out), its
+    residuals, Jacobian and cost, the scaled step, the damping ``mu`` that gave it, and the
+    evaluations it took."""
+
+    x: np.ndarray | None
+    residuals: np.ndarray | None
+    jacobian: np.ndarray | None
+    cost: float
+    step_scaled: np.ndarray | None
+    mu: float
+    evaluations: int
+
+
+def _damped_step(fun, residuals, x: np.ndarray, cost: float, scaled: np.ndarray,
+                 gradient: np.ndarray, scale: np.ndarray, mu: float, growth: float) -> _Trial:
+    """Marquardt's trials at one Jacobian: solve ``(J^T J + mu I) step = -g`` on the scaled
+    variables, multiplying mu by ``growth`` until the cost decreases (see
+    :func:`levenberg_marquardt` for when ``fun`` or ``residuals`` is called)."""
+    identity = np.eye(len(x))
+    failed = 0  # trials rejected at this Jacobian
+    evaluations = 0
+    while True:
+        factor, info = dpotrf(scaled + mu * identity)
+        if info == 0:  # else not positive definite to working precision: damp more
+            step_scaled = -dpotrs(factor, gradient)[0]
+            x_new = x + step_scaled / scale
+            if failed < 2 or residuals is None:
+                r_new, jac_new = fun(x_new)
+            else:
+                r_new, jac_new = residuals(x_new), None
+            evaluations += 1
+            cost_new = 0.5 * float(r_new @ r_new)
+            if np.isfinite(cost_new) and cost_new < cost:
+                break
+            failed += 1
+        mu *= growth
+        if mu > 1e16:
+            return _Trial(x=None, residuals=None, jacobian=None, cost=cost, step_scaled=None,
+                          mu=mu, evaluations=evaluations)
+    if jac_new is None:
+        r_new, jac_new = fun(x_new)
+        evaluations += 1
+    return _Trial(x=x_new, residuals=r_new, jacobian=jac_new, cost=cost_new,
+                  step_scaled=step_scaled, mu=mu, evaluations=evaluations)

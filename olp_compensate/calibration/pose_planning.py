@@ -5,7 +5,7 @@ unknowns are exactly those :func:`olp_compensate.calibration.identify.identify` 
 registration (6), the geometric parameters left free by the same structural freezing
 (and by the rank test on the candidate set), and 3 per measured tool point. Each candidate
 pose contributes a block ``J_k`` (3 rows per tool point) of the column-scaled identification
-Jacobian (:class:`olp_compensate.calibration.identify.IdentificationProblem`, device frame = base
+Jacobian (:class:`olp_compensate.calibration.problem.IdentificationProblem`, device frame = base
 frame; the information is invariant to where the device stands). A design (a set of
 poses) has the information matrix ``M = sum_k J_k^T J_k``; with noise sigma per axis the
 covariance of the unknowns is ``sigma^2 M^-1``.
@@ -55,7 +55,9 @@ import numpy as np
 from scipy.linalg import qr
 
 from ..errors import DataError
-from .identify import RANK_TOLERANCE, IdentificationProblem, structural_freeze
+from .identifiability import RANK_TOLERANCE, structural_freeze
+from .problem import IdentificationProblem
+from .unknowns import UnknownLayout
 from .measurements import Measurements
 from ..kinematics.model import build_model
 from ..kinematics.robot import Robot
@@ -149,10 +151,11 @@ class PosePlan:
 
 
 def _jacobian_blocks(robot: Robot, model, free: np.ndarray, joints: np.ndarray,
-                     tool_names: list[str], tools: np.ndarray) -> tuple[np.ndarray, list[str]]:
+                     tool_names: list[str], tools: np.ndarray
+                     ) -> tuple[np.ndarray, UnknownLayout]:
     """(m, 3T, u) identification Jacobian of every tool point at each controller joint
     vector of ``joints`` (m, n), at the nominal model, device frame = base frame; and the
-    names of the u unknowns."""
+    layout of the u unknowns."""
     m, per = len(joints), len(tool_names)
     q = np.repeat(robot.joints_from_controller(joints), per, axis=0)
     names = np.array(list(tool_names) * m, dtype=object)
@@ -162,7 +165,7 @@ def _jacobian_blocks(robot: Robot, model, free: np.ndarray, joints: np.ndarray,
                                     urdf_from_controller=robot.urdf_from_controller)
     x = problem.pack(model.nominal, np.eye(4), tools)
     _, jac = problem.residuals_and_jacobian(x)
-    return jac.reshape(m, 3 * per, -1), problem.names()
+    return jac.reshape(m, 3 * per, -1), problem.layout
 
 
 def planning_space(robot: Robot, candidates: np.ndarray | None = None,
@@ -201,16 +204,18 @@ def planning_space(robot: Robot, candidates: np.ndarray | None = None,
     probe = Measurements(joints=urdf[:1], points=np.zeros((1, 3)),
                          pose_ids=np.array(["1"], dtype=object),
                          point_names=np.array(tool_names[:1], dtype=object))
-    frozen = dict(structural_freeze(model, probe, tool_names, tuple(freeze)))
+    frozen = dict(structural_freeze(model, probe, tool_names, tuple(freeze), option="freeze"))
     free = np.array([k for k, p in enumerate(model.parameters) if p.name not in frozen], int)
 
     # Geometry that no candidate separates from the rest stays frozen, as identify would
     # freeze it: pivoted QR of the unit-scaled geometric columns once the registration and
     # tool columns (always fitted) are projected out.
-    blocks, names = _jacobian_blocks(robot, model, free, candidates, tool_names, tool_xyz)
+    blocks, layout = _jacobian_blocks(robot, model, free, candidates, tool_names, tool_xyz)
+    names = layout.names()
     flat = blocks.reshape(-1, blocks.shape[2])
     norms = np.linalg.norm(flat, axis=0)
-    geometric = np.array([n in model.names for n in names])
+    geometric = np.zeros(layout.size, dtype=bool)
+    geometric[layout.geometry] = True
     dead = geometric & (norms <= 1e-12 * norms.max())
     for k in np.flatnonzero(dead):
         frozen[names[k]] = "has no effect on the measured points at any candidate pose"
@@ -227,7 +232,7 @@ def planning_space(robot: Robot, candidates: np.ndarray | None = None,
         frozen[names[alive[col]]] = "cannot be separated at any candidate pose"
     drop = set(frozen)
     free = np.array([k for k in free if model.parameters[k].name not in drop], int)
-    blocks, names = _jacobian_blocks(robot, model, free, candidates, tool_names, tool_xyz)
+    blocks, layout = _jacobian_blocks(robot, model, free, candidates, tool_names, tool_xyz)
 
     scale = np.sqrt(np.mean(np.sum(blocks**2, axis=1), axis=0))
     scale[scale == 0] = 1.0
@@ -237,7 +242,8 @@ def planning_space(robot: Robot, candidates: np.ndarray | None = None,
     rows = rows.reshape(-1, rows.shape[2]) / scale
     information = rows.T @ rows / (n_test * len(tool_names))
     return PlanningSpace(robot=robot, candidates=candidates, blocks=blocks, scale=scale,
-                         test_information=information, unknown_names=names, frozen=frozen,
+                         test_information=information, unknown_names=layout.names(),
+                         frozen=frozen,
                          tool_names=tool_names, tools_m=tool_xyz)
 
 

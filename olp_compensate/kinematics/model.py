@@ -26,13 +26,13 @@ Jacobians (inverse kinematics).
 from __future__ import annotations
 
 import math
-import sys
-import threading
 from dataclasses import dataclass
 
 import numpy as np
 
+from .buffers import reusable_array
 from .conventions import invert_pose
+from .fixed_chain import FixedChain  # re-exported: made by fixed_chain() below
 from .robot import Robot
 
 PARALLEL_BELOW_DEG = 45.0
@@ -278,47 +278,6 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
                           conventions=tuple(conventions), convention=convention)
 
 
-_SPARES = threading.local()
-SPARE_BYTES = 16 << 20
-"""Arrays up to this size are kept by :func:`reusable_array` for reuse."""
-
-
-def _free_reference_count() -> int:
-    """What ``sys.getrefcount`` reports, in :func:`reusable_array`'s loop, for an array that
-    only its pool refers to (measured, not assumed: interpreters count loop variables and
-    arguments differently)."""
-    for spare in [np.empty(0)]:
-        return sys.getrefcount(spare)
-    raise AssertionError
-
-
-_FREE = _free_reference_count()
-
-
-def reusable_array(tag: str, shape: tuple[int, ...], slots: int = 1) -> np.ndarray:
-    """An uninitialized float array of ``shape``: one of the last ``slots`` arrays handed
-    out under ``tag`` in this thread, when it has that shape and nothing refers to it any
-    more, not even a view (a view refers to it, so its reference count shows it), else a
-    new one.
-
-    For the large arrays a fit fills again at every evaluation (the chain's derivatives, the
-    Jacobian): fresh memory costs a page fault per 4 KiB, which at a thousand poses takes
-    longer than the arithmetic that fills it."""
-    pool = getattr(_SPARES, tag, None)
-    if pool is None:
-        pool = []
-        setattr(_SPARES, tag, pool)
-    for spare in pool:
-        if spare.shape == shape and sys.getrefcount(spare) == _FREE:
-            return spare
-    array = np.empty(shape)
-    if array.nbytes <= SPARE_BYTES:
-        pool.append(array)
-        if len(pool) > slots:
-            del pool[0]
-    return array
-
-
 def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
             tool_points: np.ndarray | None = None, jacobian: bool = False) -> ChainResult:
     """Forward kinematics of the model for m joint vectors.
@@ -377,32 +336,61 @@ def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
             cols[j], cols[k] = c * cols[j] + s_ * cols[k], c * cols[k] - s_ * cols[j]
         else:
             origin = origin + value * cols[step.axis]
-    # the flange: the last frame times the constant last_T_flange, one (4, 4) @ (4, 3m) product
-    # on the rows (x, y, z axes, origin)
-    if jacobian and n_rows >= 8:  # the scratch rows are free until the cross products
-        last, flange_rows = scratch[:4], scratch[4:8]
+    spare = scratch[:8] if jacobian and n_rows >= 8 else None  # free until the cross products
+    flange, p = _flange_and_point(model.last_T_flange, cols, origin, tool_points, m, spare)
+    points = np.ascontiguousarray(p.T)
+    if not jacobian:
+        return ChainResult(points=points, flange=flange)
+
+    translations = [row_of[s] for s, step in enumerate(steps) if not step.rotation]
+    _twists_to_columns(dpoint, drot, scratch, p, translations)
+    if direct:
+        dp_dpar, dr_dpar = dpoint, drot
+    else:  # several steps share a parameter: sum their columns
+        dp_dpar, dr_dpar = (np.zeros((n_par, 3, m)) for _ in range(2))
+        np.add.at(dp_dpar, by_parameter, dpoint)
+        np.add.at(dr_dpar, by_parameter, drot)
+    dp_dq, dr_dq = _joint_columns(dpoint, drot, [steps[s].joint for s in moving],
+                                  [row_of[s] for s in moving], n_q)
+    # (m, 3, k) views of the (k, 3, m) arrays; ``.transpose(2, 1, 0)`` gives the contiguous
+    # (k, 3, m) layout back.
+    return ChainResult(points=points, flange=flange,
+                       dpoint_dparam=dp_dpar.transpose(2, 1, 0),
+                       drot_dparam=dr_dpar.transpose(2, 1, 0),
+                       dpoint_dq=dp_dq.transpose(2, 1, 0), drot_dq=dr_dq.transpose(2, 1, 0))
+
+
+def _flange_and_point(last_T_flange: np.ndarray, cols: list[np.ndarray], origin: np.ndarray,
+                      tool_points: np.ndarray | None, m: int, spare: np.ndarray | None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(flange poses (m, 4, 4), tool points (3, m)), base frame: the last joint frame
+    (axes ``cols``, ``origin``, (3, m) or (3, 1) each) times the constant ``last_T_flange``, one
+    (4, 4) @ (4, 3m) product on the rows (x, y, z axes, origin); ``tool_points`` (m, 3) in
+    the flange frame (default its origin); ``spare``: (8, 3, m) free memory or None."""
+    if spare is not None:
+        last, flange_rows = spare[:4], spare[4:8]
     else:
         last, flange_rows = np.empty((4, 3, m)), np.empty((4, 3, m))
     last[0], last[1], last[2], last[3] = cols[0], cols[1], cols[2], origin
-    np.matmul(model.last_T_flange.T, last.reshape(4, -1), out=flange_rows.reshape(4, -1))
+    np.matmul(last_T_flange.T, last.reshape(4, -1), out=flange_rows.reshape(4, -1))
     flange_cols, flange_origin = flange_rows[:3], flange_rows[3]
     flange = np.zeros((m, 4, 4))
     flange[:, :3, :] = flange_rows.transpose(2, 1, 0)
     flange[:, 3, 3] = 1.0
     if tool_points is None:
-        p = flange_origin.copy()
-    else:
-        tool = np.asarray(tool_points, dtype=float).reshape(-1, 3).T
-        p = (flange_origin + flange_cols[0] * tool[0] + flange_cols[1] * tool[1]
-             + flange_cols[2] * tool[2])
-    points = np.ascontiguousarray(p.T)
-    if not jacobian:
-        return ChainResult(points=points, flange=flange)
+        return flange, flange_origin.copy()
+    tool = np.asarray(tool_points, dtype=float).reshape(-1, 3).T
+    return flange, (flange_origin + flange_cols[0] * tool[0] + flange_cols[1] * tool[1]
+                    + flange_cols[2] * tool[2])
 
-    # dpoint = w x (p - o) for every row (a translation's row, o = 0 here, is fixed below),
-    # in place, with the scratch rows for the intermediate products.
-    translations = [row_of[s] for s, step in enumerate(steps) if not step.rotation]
-    if translations:
+
+def _twists_to_columns(dpoint: np.ndarray, drot: np.ndarray, scratch: np.ndarray,
+                       p: np.ndarray, translations: list[int]) -> None:
+    """In place: rows (k, 3, m) holding each step's axis w (``drot``) and, for rotations,
+    its origin o (``dpoint``) become the derivatives of the point p (3, m) and of the
+    flange's rotation: ``w x (p - o)`` and w for a rotation, w and 0 for the translations
+    (rows ``translations``); ``scratch`` (k, 3, m) holds the intermediate products."""
+    if translations:  # o = 0 here; fixed below
         dpoint[translations] = 0.0
     np.subtract(p, dpoint, out=dpoint)
     w0, w1, w2 = drot[:, 0], drot[:, 1], drot[:, 2]
@@ -417,32 +405,24 @@ def forward(model: KinematicModel, values: np.ndarray, q: np.ndarray,
         np.take(drot, translations, axis=0, out=scratch[:len(translations)])
         dpoint[translations] = scratch[:len(translations)]
         drot[translations] = 0.0
-    if direct:
-        dp_dpar, dr_dpar = dpoint, drot
-    else:  # several steps share a parameter: sum their columns
-        dp_dpar, dr_dpar = (np.zeros((n_par, 3, m)) for _ in range(2))
-        np.add.at(dp_dpar, by_parameter, dpoint)
-        np.add.at(dr_dpar, by_parameter, drot)
-    joints = [steps[s].joint for s in moving]
-    rows = [row_of[s] for s in moving]
+
+
+def _joint_columns(dpoint: np.ndarray, drot: np.ndarray, joints: list[int], rows: list[int],
+                   n_q: int) -> tuple[np.ndarray, np.ndarray]:
+    """Derivatives (n_q, 3, m) with respect to the joints: the rows of their moving steps
+    (``joints[i]`` moves the step in row ``rows[i]``), as strided views when each joint
+    moves one step, else summed."""
+    m = dpoint.shape[2]
     if sorted(joints) == list(range(n_q)):  # one moving step per joint: its rows, as views
         order = [rows[i] for i in sorted(range(n_q), key=joints.__getitem__)]
         stride = order[1] - order[0] if n_q > 1 else 1
         if stride > 0 and order == list(range(order[0], order[0] + stride * n_q, stride)):
-            dp_dq = dpoint[order[0]:order[-1] + 1:stride]
-            dr_dq = drot[order[0]:order[-1] + 1:stride]
-        else:
-            dp_dq, dr_dq = dpoint[order], drot[order]
-    else:
-        dp_dq, dr_dq = (np.zeros((n_q, 3, m)) for _ in range(2))
-        np.add.at(dp_dq, joints, dpoint[rows])
-        np.add.at(dr_dq, joints, drot[rows])
-    # (m, 3, k) views of the (k, 3, m) arrays; ``.transpose(2, 1, 0)`` gives the contiguous
-    # (k, 3, m) layout back.
-    return ChainResult(points=points, flange=flange,
-                       dpoint_dparam=dp_dpar.transpose(2, 1, 0),
-                       drot_dparam=dr_dpar.transpose(2, 1, 0),
-                       dpoint_dq=dp_dq.transpose(2, 1, 0), drot_dq=dr_dq.transpose(2, 1, 0))
+            return (dpoint[order[0]:order[-1] + 1:stride], drot[order[0]:order[-1] + 1:stride])
+        return dpoint[order], drot[order]
+    dp_dq, dr_dq = (np.zeros((n_q, 3, m)) for _ in range(2))
+    np.add.at(dp_dq, joints, dpoint[rows])
+    np.add.at(dr_dq, joints, drot[rows])
+    return dp_dq, dr_dq
 
 
 def joint_frames(model: KinematicModel, values: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -467,77 +447,6 @@ def joint_frames(model: KinematicModel, values: np.ndarray, q: np.ndarray) -> np
     return frames
 
 
-_FIXED_CHAIN_BLOCK = 4096   # poses per pass of FixedChain.flange
-
-
-@dataclass(frozen=True)
-class FixedChain:
-    """The model at fixed parameter values, for a 6R arm: the constant steps between two
-    joints fused into one link, so a pass costs six turns about z and six 4x4 products
-    (:func:`forward` evaluates every elementary step, for identification). Joint k's frame
-    (z on its axis, before its motion) is ``first`` for k = 1, else the previous frame
-    times ``Rz(q) links[k - 2]``; the flange is the last frame times ``Rz(q6) links[5]``.
-    ``first`` (4, 4), ``links`` (6, 4, 4), m. Made by :func:`fixed_chain`."""
-
-    first: np.ndarray
-    links: np.ndarray
-
-    def flange_and_jacobian(self, q: np.ndarray):
-        """Flange poses (m, 4, 4) for joints q (m, 6) rad, and the geometric Jacobian
-        (m, 6, 6) (flange-origin velocity, then angular velocity, base frame). Both are
-        built with the batch last and handed out as transposed views."""
-        return self._pass(q, jacobian=True)
-
-    def flange(self, q: np.ndarray) -> np.ndarray:
-        """Flange poses (m, 4, 4) for joints q (m, 6) rad, in blocks of a few thousand (the
-        arrays of a block stay in the processor's cache)."""
-        out = np.empty((len(q), 4, 4))
-        for start in range(0, len(q), _FIXED_CHAIN_BLOCK):
-            out[start:start + _FIXED_CHAIN_BLOCK] = self._pass(q[start:start + _FIXED_CHAIN_BLOCK])[0]
-        return out
-
-    def _pass(self, q: np.ndarray, jacobian: bool = False):
-        """Flange poses, and with ``jacobian`` the Jacobian, as transposed views of arrays
-        with the batch last: (4, 4, m) and (joint, twist row, m)."""
-        m = len(q)
-        angle = np.ascontiguousarray(q.T)
-        c, s = np.cos(angle), np.sin(angle)
-        frame = np.empty((4, 3, m))                  # rows: x, y, z axes and the origin
-        frame[:] = self.first[:3, :, None].transpose(1, 0, 2)
-        turned = np.empty((4, 3, m))                 # the frame turned about its z axis
-        scratch = np.empty((3, m))
-        if jacobian:
-            jac = np.empty((6, 6, m))                # (joint, twist row, pose)
-            points = np.empty((6, 3, m))
-        for k in range(6):
-            if jacobian:
-                jac[k, 3:], points[k] = frame[2], frame[3]
-            np.multiply(c[k], frame[0], out=turned[0])
-            turned[0] += np.multiply(s[k], frame[1], out=scratch)
-            np.multiply(c[k], frame[1], out=turned[1])
-            turned[1] -= np.multiply(s[k], frame[0], out=scratch)
-            turned[2:] = frame[2:]
-            np.matmul(self.links[k].T, turned.reshape(4, -1), out=frame.reshape(4, -1))
-        flange = np.zeros((4, 4, m))
-        flange[:3] = frame.transpose(1, 0, 2)
-        flange[3, 3] = 1.0
-        if not jacobian:
-            return flange.transpose(2, 0, 1), None
-        r = frame[3] - points                         # flange origin from each axis
-        w = jac[:, 3:]
-        jac[:, 0] = w[:, 1] * r[:, 2] - w[:, 2] * r[:, 1]
-        jac[:, 1] = w[:, 2] * r[:, 0] - w[:, 0] * r[:, 2]
-        jac[:, 2] = w[:, 0] * r[:, 1] - w[:, 1] * r[:, 0]
-        return flange.transpose(2, 0, 1), jac.transpose(2, 1, 0)
-
-    def frames(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint frames at zero (6, 4, 4) and the flange at zero (4, 4), base frame, m."""
-        frames = [self.first]
-        for link in self.links[:5]:
-            frames.append(frames[-1] @ link)
-        return np.array(frames), frames[-1] @ self.links[5]
-
-
 def fixed_chain(model: KinematicModel, values: np.ndarray) -> FixedChain | None:
     """The chain of the model with parameter ``values``, or None unless the model is six
     revolute joints each turning its frame about z (checked at a few joint vectors)."""
@@ -546,7 +455,8 @@ def fixed_chain(model: KinematicModel, values: np.ndarray) -> FixedChain | None:
     frames = joint_frames(model, values, np.zeros(6))
     flange = forward(model, values, np.zeros((1, 6))).flange[0]
     links = [invert_pose(frames[k]) @ frames[k + 1] for k in range(5)]
-    chain = FixedChain(frames[0], np.array(links + [invert_pose(frames[5]) @ flange]))
+    links.append(invert_pose(frames[5]) @ flange)
+    chain = FixedChain(first=frames[0], links=np.array(links))
     q = np.random.default_rng(0).uniform(-np.pi, np.pi, (8, 6))
     pose, jac = chain.flange_and_jacobian(q)
     expected = forward(model, values, q, jacobian=True)

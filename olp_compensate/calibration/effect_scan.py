@@ -1,0 +1,166 @@
+"""The scan of :func:`olp_compensate.calibration.diagnose.diagnose`: candidate effects
+cross-validated against the current model, linearized at its full-data solution, and the
+test of their held-out gain (see the diagnose module's docstring, steps 3-5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from .effects import Effect, EffectInputs
+from .identifiability import effect_separation
+from .identify import IdentificationResult
+from .problem import problem_at
+from .measurements import Measurements
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One candidate in one round: ``status`` 'tested', 'no effect' or 'inseparable' (with
+    ``reason``); for tested ones the held-out sum of squares (m^2) of the extended model,
+    the share of the current model's held-out sum of squares it removes (``gain``), the
+    test statistic ``t`` (z) and its one-sided p-value."""
+
+    effect: Effect
+    status: str
+    reason: str = ""
+    heldout_sse: float = float("nan")
+    gain: float = float("nan")
+    t: float = float("nan")
+    p_value: float = float("nan")
+    significant: bool = False
+
+
+
+
+def _kept_columns(jac: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(jac, axis=0)
+    return norms > 1e-12 * norms.max()
+
+
+@dataclass(frozen=True)
+class Heldout:
+    """Held-out residuals (m, 3) of one linearized model and its in-sample noise estimate
+    (per-axis variance, m^2)."""
+
+    residuals: np.ndarray
+    sigma2: float
+
+    @property
+    def sse(self) -> float:
+        return float(np.sum(self.residuals**2))
+
+
+class EffectScan:
+    """Linearized k-fold cross-validation of candidates at one model.
+
+    State: the current model's residual r (3m,) and unit-scaled Jacobian J at its full-data
+    solution, and per fold the SVD of the training rows of J (for the leverage term of the
+    test's variance)."""
+
+    def __init__(self, result: IdentificationResult, meas: Measurements, inputs: EffectInputs,
+                 folds: list[np.ndarray]):
+        problem, x = problem_at(result.calibration, meas, inputs)
+        self.residual, jac = problem.residuals_and_jacobian(x)
+        kept = _kept_columns(jac)
+        self.jac = jac[:, kept]
+        self.names = [n for n, k in zip(problem.names(), kept) if k]
+        self.scaled = self.jac / np.linalg.norm(self.jac, axis=0)
+        self.meas, self.inputs, self.result, self.folds = meas, inputs, result, folds
+        self.training = []
+        for test in folds:
+            eq = np.repeat(test, 3)
+            _, s, vt = np.linalg.svd(self.scaled[~eq], full_matrices=False)
+            ok = s > 1e-10 * s[0]
+            self.training.append((eq, vt[ok], s[ok]))
+        self.base = self.heldout(self.scaled)
+
+    def heldout(self, jac: np.ndarray) -> Heldout:
+        """Held-out residuals of r + jac dx refitted without each fold (jac scaled)."""
+        out = np.empty(len(self.residual))
+        for eq, _, _ in self.training:
+            dx, *_ = np.linalg.lstsq(jac[~eq], -self.residual[~eq], rcond=1e-10)
+            out[eq] = self.residual[eq] + jac[eq] @ dx
+        dx, *_ = np.linalg.lstsq(jac, -self.residual, rcond=1e-10)
+        rss = float(np.sum((self.residual + jac @ dx) ** 2))
+        return Heldout(residuals=out.reshape(-1, 3),
+                       sigma2=rss / max(len(self.residual) - jac.shape[1], 1))
+
+    def gain_test(self, reference: Heldout, candidate: Heldout) -> tuple[float, float, float]:
+        """(gain, z, p): the held-out gain G = SSE(reference) - SSE(candidate), m^2, and the
+        one-sided test of G > 0. Given the training folds, G = sum(2 e.D - |D|^2) over the
+        held-out rows, D the change of prediction and e the reference's held-out residual,
+        whose covariance is sigma^2 (I + H), H the test rows' leverage under the reference
+        fit; so var(G) = 4 sigma^2 (|D|^2 + D'HD), with sigma^2 from the candidate's
+        in-sample residual (a safe value under either hypothesis)."""
+        delta = (reference.residuals - candidate.residuals).ravel()
+        gain = reference.sse - candidate.sse
+        leverage = 0.0
+        for eq, vt, s in self.training:
+            leverage += float(np.sum(((vt @ (self.scaled[eq].T @ delta[eq])) / s) ** 2))
+        variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
+        if variance <= 0:
+            return gain, 0.0, 1.0
+        z = gain / np.sqrt(variance)
+        return float(gain), float(z), float(stats.norm.sf(z))
+
+    def columns(self, effect: Effect) -> np.ndarray:
+        """Jacobian columns (3m, p) of ``effect`` added at zero to the current model."""
+        problem, x = problem_at(self.result.calibration, self.meas, self.inputs, [effect])
+        _, jac = problem.residuals_and_jacobian(x)
+        return jac[:, problem.layout.effects[-1]]
+
+    def evaluate(self, effect: Effect) -> tuple[CandidateResult, Heldout | None]:
+        """The candidate's result and its held-out residuals (None when not testable)."""
+        block = self.columns(effect)
+        reason = effect_separation(self.jac, block, self.names)
+        if reason is not None:
+            status = "no effect" if reason.startswith("has no effect") else "inseparable"
+            return CandidateResult(effect=effect, status=status, reason=reason), None
+        held = self.heldout(np.hstack([self.scaled, block / np.linalg.norm(block, axis=0)]))
+        gain, z, p = self.gain_test(self.base, held)
+        return CandidateResult(effect=effect, status="tested", heldout_sse=held.sse,
+                               gain=gain / self.base.sse, t=z, p_value=p), held
+
+
+def choose_candidate(scan: EffectScan, tested: list[tuple[CandidateResult, Heldout]],
+                     threshold: float, prefer_simpler_alpha: float):
+    """(chosen candidate or None, labels of the alternatives); see the module docstring."""
+    significant = [item for item in tested if item[0].p_value < threshold]
+    if not significant:
+        return None, []
+    best = min(significant, key=lambda item: item[1].sse)
+
+    def not_better(item, than) -> bool:
+        """``item`` is not significantly better than ``than`` on held-out data."""
+        return scan.gain_test(than[1], item[1])[2] >= prefer_simpler_alpha
+
+    simpler = [item for item in significant
+               if item[0].effect.n_parameters < best[0].effect.n_parameters
+               and not_better(best, item)]
+    chosen = (min(simpler, key=lambda it: (it[0].effect.n_parameters, it[1].sse))
+              if simpler else best)
+    alternatives = [c.effect.label for c, held in significant
+                    if c is not chosen[0] and not_better(chosen, (c, held))]
+    return chosen[0], alternatives
+
+
+def drift_warning(scan: EffectScan, alpha: float) -> str | None:
+    """A warning when the residuals drift with ``time_s`` (the device or the base moved, or
+    the arm warmed up), tested like a candidate; None when they do not (or no time)."""
+    time = scan.meas.time_s
+    if time is None or np.ptp(time) == 0:
+        return None
+    block = np.zeros((scan.meas.n_rows, 3, 3))
+    for axis in range(3):
+        block[:, axis, axis] = time - time.mean()
+    block = block.reshape(-1, 3)
+    held = scan.heldout(np.hstack([scan.scaled, block / np.linalg.norm(block, axis=0)]))
+    _, _, p = scan.gain_test(scan.base, held)
+    if p >= alpha:
+        return None
+    return (f"the remaining residuals drift with time_s (p = {p:.1e}): the device or the "
+            f"robot base moved, or the arm warmed up; add a temperature_c column")
