@@ -8,6 +8,7 @@ import csv
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
@@ -109,3 +110,30 @@ def test_an_output_folder_on_the_inputs_is_refused(backup, tmp_path, capsys):
     assert "refusing to overwrite" in capsys.readouterr().err
     assert {p: p.read_bytes() for p in before} == before
     assert sorted(p for p in copy.rglob("*") if p.is_file()) == sorted(before)
+
+
+def test_a_calibration_with_regions_and_region_forcing(tmp_path, capsys):
+    """olp-fix with a calibration holding a local model: --region forces it (a nominal
+    local model gives the input back), an unknown region is one line naming the known."""
+    import dataclasses
+
+    from olp_compensate.calibration.calibration import RegionBox, RegionCalibration
+
+    robot = load_robot("abb_irb2400")
+    nominal = nominal_calibration(robot)
+    region = RegionCalibration(name="fixture", box=RegionBox(min_m=np.array([0.5, -0.5, 0.0]),
+                                                             max_m=np.array([1.5, 0.5, 1.2])),
+                               calibration=nominal)
+    model = tmp_path / "regions.json"
+    write_calibration(model, dataclasses.replace(nominal, regions=(region,)))
+    program = SAMPLES / "cell_a.mod"
+    out = tmp_path / "a.mod"
+    for forced in ("fixture", "global"):
+        assert main([str(program), "--model", str(model), "--region", forced, "-o", str(out),
+                     "-q"]) == 2
+        assert out.read_bytes() == program.read_bytes()
+    assert main([str(program), "--model", str(model), "--region", "nowhere", "-o",
+                 str(tmp_path / "b.mod"), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "nowhere" in err and "fixture" in err
+    assert not (tmp_path / "b.mod").exists()

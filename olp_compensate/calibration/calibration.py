@@ -1,4 +1,5 @@
-"""A calibrated robot: the model, its identified values, the device frame and the tools."""
+"""A calibrated robot: the model, its identified values, the device frame and the tools;
+optionally local models of the regions where the robot works (seed section 10)."""
 
 from __future__ import annotations
 
@@ -47,6 +48,78 @@ class Validation:
     heldout_orientation_max_deg: float | None = None
 
 
+GLOBAL_MODEL = "global"
+"""Name of the global model where regions are named (reserved: no region takes it)."""
+
+
+@dataclass(frozen=True)
+class RegionBox:
+    """An axis-aligned box in the base frame: corners ``min_m`` and ``max_m`` (3,), m;
+    ``margin_m``: how far it was grown beyond the measured points that define it."""
+
+    min_m: np.ndarray
+    max_m: np.ndarray
+    margin_m: float = 0.0
+
+    def __post_init__(self):
+        low, high = (np.asarray(v, dtype=float) for v in (self.min_m, self.max_m))
+        if low.shape != (3,) or high.shape != (3,):
+            raise DataError(f"region box: expected 3 coordinates per corner, got "
+                            f"{low.shape} and {high.shape}")
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low <= high)):
+            raise DataError(f"region box: expected finite corners with min <= max, got min "
+                            f"{low.tolist()} and max {high.tolist()} m")
+        object.__setattr__(self, "min_m", low)
+        object.__setattr__(self, "max_m", high)
+
+    @property
+    def centre_m(self) -> np.ndarray:
+        """(3,) the box's centre, base frame, m."""
+        return 0.5 * (self.min_m + self.max_m)
+
+    def contains(self, points_base_m: np.ndarray) -> np.ndarray:
+        """(m,) bool: which points (m, 3), base frame, m, lie inside (faces included)."""
+        points = np.asarray(points_base_m, dtype=float).reshape(-1, 3)
+        return np.all((points >= self.min_m) & (points <= self.max_m), axis=1)
+
+
+@dataclass(frozen=True)
+class RegionCalibration:
+    """A local model of the region ``name``: identified from that region's measurements
+    alone, used for targets inside ``box`` (base frame of the global calibration).
+
+    ``calibration`` holds the region's parameters, device frame, tools and validation
+    figures (its ``regions`` empty); ``global_heldout_rms_mm`` / ``global_heldout_max_mm``:
+    the global model's held-out errors on the same rows, mm (None without folds), so the
+    two can be compared. It is also a calibration volume of
+    :func:`olp_compensate.calibration.validation.validate` (``name``, ``centre_m``,
+    ``contains``)."""
+
+    name: str
+    box: RegionBox
+    calibration: "Calibration"
+    global_heldout_rms_mm: float | None = None
+    global_heldout_max_mm: float | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise DataError(f"region name: expected a non-empty text, got {self.name!r}")
+        if self.name == GLOBAL_MODEL:
+            raise DataError(f"region name: '{GLOBAL_MODEL}' names the global model; rename "
+                            f"the region")
+        if self.calibration.regions:
+            raise DataError(f"region {self.name}: a region's calibration has no regions")
+
+    @property
+    def centre_m(self) -> np.ndarray:
+        """(3,) the centre of the region's box, base frame, m."""
+        return self.box.centre_m
+
+    def contains(self, points_base_m: np.ndarray) -> np.ndarray:
+        """(m,) bool: which points (m, 3), base frame, m, lie in the region's box."""
+        return self.box.contains(points_base_m)
+
+
 @dataclass(frozen=True)
 class Calibration:
     """Everything needed to predict where the real robot goes.
@@ -54,7 +127,9 @@ class Calibration:
     ``values`` and ``std`` are (P,) in SI (std is NaN for frozen parameters, whose reasons
     are in ``frozen``); ``device_T_base`` places the robot base in the measuring device's
     frame (4, 4), m; ``tools`` maps point names to :class:`ToolPoint`; ``effects`` are the
-    fitted non-geometric terms (:mod:`olp_compensate.calibration.effects`).
+    fitted non-geometric terms (:mod:`olp_compensate.calibration.effects`); ``regions``
+    local models (:class:`RegionCalibration`) of the same robot, chosen by
+    :meth:`region_for` for points inside their boxes (the global model elsewhere).
     """
 
     robot: Robot
@@ -66,6 +141,46 @@ class Calibration:
     tools: dict[str, ToolPoint] = field(default_factory=dict)
     effects: tuple[Effect, ...] = ()
     validation: Validation | None = None
+    regions: tuple[RegionCalibration, ...] = ()
+
+    def __post_init__(self):
+        if not self.regions:
+            return
+        object.__setattr__(self, "regions", tuple(self.regions))
+        names = [r.name for r in self.regions]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise DataError(f"regions: the name {', '.join(twice)} is used more than once")
+        other = [r.name for r in self.regions
+                 if r.calibration.robot.fingerprint != self.robot.fingerprint]
+        if other:
+            raise DataError(f"region {other[0]}: its calibration is of another robot model "
+                            f"than {self.robot.name}")
+
+    def region(self, name: str) -> RegionCalibration:
+        """The region called ``name``; :class:`DataError` listing the known ones."""
+        for r in self.regions:
+            if r.name == name:
+                return r
+        known = ", ".join(r.name for r in self.regions) or "none"
+        raise DataError(f"no region named {name!r} in this calibration (known: {known})")
+
+    def region_for(self, points_base_m: np.ndarray) -> np.ndarray:
+        """(m,) object array: for each point (m, 3), base frame, m, the name of the region
+        whose box contains it, or None (the global model). Where boxes overlap the one
+        whose centre is nearest wins (the first listed on a tie)."""
+        points = np.asarray(points_base_m, dtype=float).reshape(-1, 3)
+        out = np.full(len(points), None, dtype=object)
+        if not self.regions:
+            return out
+        distance = np.stack([np.where(r.box.contains(points),
+                                      np.linalg.norm(points - r.box.centre_m, axis=1), np.inf)
+                             for r in self.regions], axis=1)
+        inside = np.isfinite(distance).any(axis=1)
+        nearest = np.argmin(distance, axis=1)
+        names = np.array([r.name for r in self.regions], dtype=object)
+        out[inside] = names[nearest[inside]]
+        return out
 
     def actual_joints(self, q_urdf: np.ndarray, jacobian: bool = False,
                       conditions: Conditions | None = None):

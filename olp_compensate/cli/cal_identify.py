@@ -8,6 +8,8 @@ import numpy as np
 
 from ..calibration.identify import IdentificationOptions, identify
 from ..calibration.measurements import check_spread
+from ..calibration.regions import (DEFAULT_MARGIN_M, check_margin, identify_regions,
+                                   least_unknowns, region_column)
 from ..errors import DataError
 from ..io.calibration_file import write_calibration
 from ..io.session import read_measurements_any
@@ -37,9 +39,30 @@ def add_measurement_source_arguments(p) -> None:
 
 def read_measurement_source(args, joint_units: list[str]):
     """The measurements named by :func:`add_measurement_source_arguments` options."""
+    from ..io.session import is_mcap
+
+    if args.points is not None and not is_mcap(args.measurements):
+        raise DataError(f"{args.measurements}: device points (--points) go with an MCAP "
+                        f"session, and this is not one; a measurement CSV already holds its "
+                        f"points")
+    if args.points is None and is_mcap(args.measurements):
+        raise DataError(f"{args.measurements}: an MCAP session holds the joints only; give the "
+                        f"measuring device's points with --points points.csv (or merge them "
+                        f"first with olp-cal merge)")
     return read_measurements_any(args.measurements, joint_units, points=args.points,
                                  by=args.by, tolerance_s=args.tolerance_s,
                                  time_offset_s=args.time_offset_s)
+
+
+def check_freeze_names(robot, convention: str, names) -> None:
+    """``--freeze`` names that are no parameter of the model, in the command's words."""
+    from ..kinematics.model import build_model
+
+    known = build_model(robot, convention).names
+    for name in names:
+        if name not in known:
+            raise DataError(f"--freeze: no parameter named '{name}' (known: "
+                            f"{', '.join(known)})")
 
 
 def add_arguments(p) -> None:
@@ -60,6 +83,13 @@ def add_arguments(p) -> None:
     p.add_argument("--orientation-sigma-deg", type=float, default=0.01,
                    help="with orientation columns: the device's orientation noise per axis, "
                         "deg (orientation residuals are weighted by the ratio of the sigmas)")
+    p.add_argument("--per-region", action="store_true",
+                   help="also fit one model per region named in the measurements' 'region' "
+                        "column, on its rows alone; olp-fix uses a region's model for "
+                        "targets inside its volume (the global model elsewhere)")
+    p.add_argument("--region-margin-mm", type=float, default=DEFAULT_MARGIN_M * 1e3,
+                   help="with --per-region: a region's volume is the bounding box of its "
+                        "measured points (base frame) grown by this much on every side, mm")
 
 
 def report(result) -> str:
@@ -122,10 +152,35 @@ def report(result) -> str:
     return "\n".join(lines)
 
 
-def least_unknowns(robot, meas) -> int:
-    """A floor on the fit's unknowns: the device registration (6), one geometric parameter
-    per joint, the tool points (3 each). identify() knows the exact count."""
-    return 6 + robot.n_joints + 3 * len(np.unique(meas.point_names))
+def _optional_mm(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.3f} mm"
+
+
+def regions_report(regional) -> str:
+    """The per-region lines, as printed: each region's volume, poses, residual and held-out
+    errors beside the global model's held-out errors on the same rows."""
+    cal = regional.result.calibration
+    lines = [f"local models: {len(cal.regions)} region{'s' if len(cal.regions) != 1 else ''} "
+             f"(volumes: measured points' bounding box in the base frame, grown by "
+             f"{cal.regions[0].box.margin_m * 1e3:.1f} mm)" if cal.regions else
+             "local models: none"]
+    for region, (_, result) in zip(cal.regions, regional.regions):
+        low = ", ".join(f"{v * 1e3:.1f}" for v in region.box.min_m)
+        high = ", ".join(f"{v * 1e3:.1f}" for v in region.box.max_m)
+        lines.append(f"region {region.name}: {result.n_poses} poses, volume ({low})..({high}) "
+                     f"mm, condition number {result.identifiability.condition_number:.1f}")
+        lines.append(f"  residual: RMS {mm(result.residual_rms)}, max {mm(result.residual_max)}")
+        if result.heldout_rms is not None:
+            lines.append(f"  held-out: local model RMS {mm(result.heldout_rms)}, max "
+                         f"{mm(result.heldout_max)}; global model RMS "
+                         f"{_optional_mm(region.global_heldout_rms_mm)}, max "
+                         f"{_optional_mm(region.global_heldout_max_mm)}")
+        else:
+            lines.append("  held-out: not computed (too few poses or --folds 0)")
+        if result.identifiability.weak:
+            lines.append(f"  WARNING: barely observable in this region: "
+                         f"{'; '.join(result.identifiability.weak)}")
+    return "\n".join(lines)
 
 
 def check_fit(result) -> None:
@@ -140,8 +195,12 @@ def run(args) -> int:
     refuse_clashes([("measurements", args.measurements), ("--points", args.points),
                     ("--robot", args.robot)], [("-o", args.output)])
     robot = load_robot(args.robot)
+    check_freeze_names(robot, args.convention, args.freeze)
     meas = read_measurement_source(args, [j.unit for j in robot.joints])
     check_spread(meas, least_unknowns(robot, meas))
+    if args.per_region:            # refuse bad region input before the global fit
+        region_column(meas)
+        check_margin(args.region_margin_mm * 1e-3)
     options = IdentificationOptions(convention=args.convention, solver=args.solver,
                                     robust=args.robust, folds=args.folds,
                                     freeze=tuple(args.freeze),
@@ -150,6 +209,12 @@ def run(args) -> int:
     result = identify(robot, meas, options)
     check_fit(result)
     print(report(result))
+    if args.per_region:
+        regional = identify_regions(robot, meas, options, args.region_margin_mm * 1e-3,
+                                    global_result=result)
+        result = regional.result
+        print("")
+        print(regions_report(regional))
     if args.output:
         write_calibration(args.output, result.calibration)
         print(f"wrote {args.output}")

@@ -65,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "tool went); both of the same robot model")
     p.add_argument("--config", metavar="$config.dat",
                    help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]")
+    p.add_argument("--region", metavar="NAME",
+                   help="use this region's local model for every target ('global': the global "
+                        "model); default: each target's region by its position, when the "
+                        "calibration has regions (olp-cal identify --per-region)")
     p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
                    help="programs compensated in N processes (default: the number of cores; "
                         "one program runs in this process)")
@@ -144,6 +148,18 @@ def load_calibrations(args):
     return calibration, taught_on
 
 
+def make_compensator(calibration, region: str | None):
+    """The compensator of a run: the regional one when the calibration has regions (or
+    ``--region`` forces one), else the plain one."""
+    if calibration.regions or region is not None:
+        from ..compensation.regions import RegionalCompensator
+
+        return RegionalCompensator(calibration, force=region)
+    from ..compensation.pose import Compensator
+
+    return Compensator(calibration)
+
+
 def _run_one(args, unit, retain: list | None) -> int:
     started = time.perf_counter()
     from ..compensation.files import ProgramFiles, compensate_files
@@ -155,7 +171,7 @@ def _run_one(args, unit, retain: list | None) -> int:
     try:
         result = compensate_files(
             ProgramFiles(dialect=unit.dialect, paths=unit.paths, names=unit.names),
-            calibration, emit=args.emit, unused=args.unused, taught_on=taught_on,
+            make_compensator(calibration, args.region), emit=args.emit, unused=args.unused, taught_on=taught_on,
             frames_path=args.config)
     except OlpError as exc:
         if getattr(exc, "context", None):

@@ -30,14 +30,14 @@ class UnitOutcome:
 
 
 def _start_worker(model: str, robot: str | None, taught_on: str | None, options: dict) -> None:
+    from .fix import make_compensator
     from ..io.calibration_file import read_calibration
     from ..kinematics.robot import load_robot
 
     calibration = read_calibration(model, load_robot(robot) if robot else None)
     teacher = None if taught_on is None else read_calibration(taught_on, calibration.robot)
-    from ..compensation.pose import Compensator
-
-    _STATE.update(compensator=Compensator(calibration), teacher=teacher, options=options,
+    _STATE.update(compensator=make_compensator(calibration, options["region"]),
+                  teacher=teacher, options=options,
                   calibration=calibration, model=model)
 
 
@@ -69,7 +69,8 @@ def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
 
 def _outcomes(args, units):
     """Yield the :class:`UnitOutcome` of every unit as it completes."""
-    options = {"emit": args.emit, "unused": args.unused, "config": args.config}
+    options = {"emit": args.emit, "unused": args.unused, "config": args.config,
+               "region": args.region}
     init = (args.model, args.robot, args.taught_on, options)
     jobs = min(args.jobs or os.cpu_count() or 1, len(units))
     if jobs == 1:

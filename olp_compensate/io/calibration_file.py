@@ -11,10 +11,18 @@ A tool identified from full-pose rows also has ``"quat_wxyz"`` (its frame in the
 and ``"rot_std_deg"`` (standard deviation of a small rotation about the tool's own axes); the
 validation then has ``orientation_rms_deg``, ``orientation_max_deg`` and their held-out
 counterparts. These keys are optional: files without them read as before.
+
+A calibration with local models per region (``olp-cal identify --per-region``) also has
+``"regions"``: a list of ``{"name", "volume": {"min_mm", "max_mm", "margin_mm"} (an
+axis-aligned box in the base frame of the global calibration), "model", "device_T_base",
+"tools", "effects", "validation"}`` (each as the global calibration stores it, of the same
+robot) plus ``"global_heldout_rms_mm"`` and ``"global_heldout_max_mm"`` (the global model's
+held-out errors on the region's rows). Files without the key have no regions.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from functools import lru_cache
 from importlib import resources
@@ -22,10 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration.calibration import Calibration, ToolPoint, Validation
+from ..calibration.calibration import (Calibration, RegionBox, RegionCalibration, ToolPoint,
+                                       Validation)
 from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from ..calibration.effects import effect_from_dict
-from ..errors import ModelError
+from ..errors import DataError, ModelError
 from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
                      robot_from_urdf_text)
@@ -33,8 +42,11 @@ from .atomic import check_finite_json, write_text_atomic
 
 LENGTH_OR_ANGLE_LIMIT = 1e6
 """Largest plausible size of a length (mm) or angle (deg) in calib.json (1 km)."""
-PLAUSIBLE_PATHS = ("model/parameters/*/value", "model/parameters/*/nominal",
-                   "device_T_base/xyz_mm/*", "tools/*/xyz_mm/*", "robot/axis_ranges_deg/*/*")
+_MODEL_PATHS = ("model/parameters/*/value", "model/parameters/*/nominal",
+                "device_T_base/xyz_mm/*", "tools/*/xyz_mm/*")
+PLAUSIBLE_PATHS = (_MODEL_PATHS + ("robot/axis_ranges_deg/*/*", "regions/*/volume/min_mm/*",
+                                   "regions/*/volume/max_mm/*")
+                   + tuple("regions/*/" + path for path in _MODEL_PATHS))
 """JSON paths (``*``: any key or index) whose numbers are lengths or angles."""
 
 FORMAT = "olp-compensate calibration"
@@ -62,8 +74,9 @@ def _num(value) -> float | None:
     return None if value is None or not np.isfinite(value) else float(value)
 
 
-def calibration_to_dict(cal: Calibration) -> dict:
-    """The JSON document of a calibration (mm and degrees)."""
+def _model_to_dict(cal: Calibration) -> dict:
+    """The parts of calib.json that a region repeats: model, device frame, tools, effects,
+    validation (mm and degrees)."""
     params = []
     for k, p in enumerate(cal.model.parameters):
         entry = {"name": p.name, "unit": p.display_unit, "nominal": p.nominal * p.display_scale,
@@ -92,14 +105,6 @@ def calibration_to_dict(cal: Calibration) -> dict:
                               heldout_orientation_rms_deg=v.heldout_orientation_rms_deg,
                               heldout_orientation_max_deg=v.heldout_orientation_max_deg)
     return {
-        "format": FORMAT, "version": VERSION,
-        "robot": {"name": cal.robot.name, "fingerprint": cal.robot.fingerprint,
-                  "joints": cal.robot.n_joints, "urdf": cal.robot.urdf_text,
-                  "urdf_from_controller": None if cal.robot.urdf_from_controller is None
-                  else cal.robot.urdf_from_controller.tolist(),
-                  **({} if cal.robot.axis_ranges is None else {
-                      "axis_ranges_deg": cal.robot.to_degrees_or_mm(
-                          cal.robot.axis_ranges.T).T.tolist()})},
         "model": {"convention": cal.model.convention,
                   "links": list(cal.model.conventions), "parameters": params},
         "device_T_base": {"xyz_mm": (cal.device_T_base[:3, 3] * 1e3).tolist(),
@@ -108,6 +113,36 @@ def calibration_to_dict(cal: Calibration) -> dict:
         "effects": [effect.to_dict() for effect in cal.effects],
         "validation": validation,
     }
+
+
+def _region_to_dict(region: RegionCalibration) -> dict:
+    """One entry of ``regions`` (mm)."""
+    box = region.box
+    return {"name": region.name,
+            "volume": {"min_mm": (box.min_m * 1e3).tolist(), "max_mm": (box.max_m * 1e3).tolist(),
+                       "margin_mm": box.margin_m * 1e3},
+            **_model_to_dict(region.calibration),
+            "global_heldout_rms_mm": region.global_heldout_rms_mm,
+            "global_heldout_max_mm": region.global_heldout_max_mm}
+
+
+def calibration_to_dict(cal: Calibration) -> dict:
+    """The JSON document of a calibration (mm and degrees); ``regions`` only when it has
+    some (so a calibration without regions writes what it always wrote)."""
+    doc = {
+        "format": FORMAT, "version": VERSION,
+        "robot": {"name": cal.robot.name, "fingerprint": cal.robot.fingerprint,
+                  "joints": cal.robot.n_joints, "urdf": cal.robot.urdf_text,
+                  "urdf_from_controller": None if cal.robot.urdf_from_controller is None
+                  else cal.robot.urdf_from_controller.tolist(),
+                  **({} if cal.robot.axis_ranges is None else {
+                      "axis_ranges_deg": cal.robot.to_degrees_or_mm(
+                          cal.robot.axis_ranges.T).T.tolist()})},
+        **_model_to_dict(cal),
+    }
+    if cal.regions:
+        doc["regions"] = [_region_to_dict(r) for r in cal.regions]
+    return doc
 
 
 def dumps_calibration(cal: Calibration, source: str = "calibration") -> str:
@@ -149,6 +184,34 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
                          f"({embedded.fingerprint[:19]}...), not for '{robot.name}' "
                          f"({robot.fingerprint[:19]}...)")
     embedded = _with_axis_ranges(embedded, doc["robot"].get("axis_ranges_deg"), robot, source)
+    calibration = _model_from_dict(doc, embedded, source)
+    regions = tuple(_region_from_dict(entry, embedded, f"{source}: regions/{k}")
+                    for k, entry in enumerate(doc.get("regions", ())))
+    if not regions:
+        return calibration
+    try:
+        return dataclasses.replace(calibration, regions=regions)
+    except DataError as exc:
+        raise ModelError(f"{source}: {exc}") from None
+
+
+def _region_from_dict(entry: dict, robot: Robot, source: str) -> RegionCalibration:
+    """One entry of ``regions``; :class:`ModelError` for a box that is not one."""
+    try:
+        box = RegionBox(min_m=np.array(entry["volume"]["min_mm"]) * 1e-3,
+                        max_m=np.array(entry["volume"]["max_mm"]) * 1e-3,
+                        margin_m=entry["volume"].get("margin_mm", 0.0) * 1e-3)
+        return RegionCalibration(name=entry["name"], box=box,
+                                 calibration=_model_from_dict(entry, robot, source),
+                                 global_heldout_rms_mm=entry.get("global_heldout_rms_mm"),
+                                 global_heldout_max_mm=entry.get("global_heldout_max_mm"))
+    except DataError as exc:
+        raise ModelError(f"{source} ({entry['name']}): {exc}") from None
+
+
+def _model_from_dict(doc: dict, embedded: Robot, source: str) -> Calibration:
+    """The calibration of ``embedded`` held by the model parts of ``doc`` (the top level,
+    or one region)."""
     model = build_model(embedded, doc["model"]["convention"])
     by_name = {p["name"]: p for p in doc["model"]["parameters"]}
     values = model.nominal.copy()

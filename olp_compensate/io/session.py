@@ -321,13 +321,13 @@ def read_measurements_any(path: str | Path, joint_units: list[str], points=None,
     """
     if not is_mcap(path):
         if points is not None:
-            raise DataError(f"{path}: device points (--points) go with an MCAP session, and "
-                            f"this is not one; a measurement CSV already holds its points")
+            raise DataError(f"{path}: device points go with an MCAP session, and this is not "
+                            f"one; a measurement CSV already holds its points")
         return read_measurements(path, joint_units)
     if points is None:
         raise DataError(f"{path}: an MCAP session holds the joints only; give the measuring "
-                        f"device's points with --points points.csv (or merge them first with "
-                        f"olp-cal merge)")
+                        f"device's points too (points=..., or merge them first with "
+                        f"io.session.merge_session)")
     if any(u != "deg" for u in joint_units):
         raise DataError(f"{path}: sessions hold joints in degrees; this robot has joints in "
                         f"{', '.join(joint_units)}: merge to a CSV and fix the units there")
