@@ -14,7 +14,12 @@ with the nominal calibration nothing changes at all. What is done with each targ
 - targets never moved to in the file are left as written ('unused'), unless the caller
   assumes tool0/wobj0 for them;
 - motions whose target is computed at run time (Offs(), RelTool(), CRobT(), parameters)
-  are listed 'runtime' / 'unresolved' with their reason.
+  are listed 'runtime' / 'unresolved' with their reason;
+- with ``taught_on`` (robot-to-robot transfer) the pose to reach is where the teaching
+  robot's real tool went at its nominal joints for the target (:func:`_taught_flanges`).
+
+:func:`compensate_module` does this for one module resolved alone or within its task;
+:func:`compensate_program` is :func:`~.task.compensate_task` of one module.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from ..errors import DataError
 from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, quat_wxyz_from_matrix,
                                       rotation_angle_between)
-from ..programs import Program, loads, resolve
+from ..programs import Program, loads
 from ..programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg,
                              splice, target_edits)
 from ..programs.targets import JointTarget
@@ -41,7 +46,8 @@ from .report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetRep
                      config_texts, failure_row, joint_target_row, motion_row, row_name,
                      solved_note, written_row)
 
-__all__ = ["TargetReport", "CompensationReport", "compensate_program", "KEPT", "EMIT_MODES"]
+__all__ = ["TargetReport", "CompensationReport", "compensate_program", "compensate_module",
+           "ModuleResult", "check_options", "KEPT", "EMIT_MODES"]
 
 EMIT_MODES = ("pose", "joints")
 CONFIG_SLACK_RAD = math.radians(1.0)
@@ -92,9 +98,18 @@ def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
     return kept
 
 
+def check_options(emit: str, unused: str) -> None:
+    """Raise DataError for an ``emit`` or ``unused`` value that is not known."""
+    if emit not in EMIT_MODES:
+        raise DataError(f"emit: expected one of {', '.join(EMIT_MODES)}, got {emit!r}")
+    if unused not in ("skip", "tool0"):
+        raise DataError(f"unused: expected 'skip' or 'tool0', got {unused!r}")
+
+
 def compensate_program(program: Program | str | bytes, dialect: str | None,
                        calibration: Calibration | Compensator, *, emit: str = "pose",
-                       file: str = "<string>", unused: str = "skip"):
+                       file: str = "<string>", unused: str = "skip",
+                       taught_on: Calibration | Compensator | None = None):
     """Compensate every target of a program on a calibration.
 
     program : a parsed :class:`Program`, or its text (str or latin-1 bytes) of ``dialect``
@@ -103,23 +118,48 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
         (RAPID jointtarget + MoveAbsJ, V+ precision points) where every use allows it.
     unused : 'skip' leaves targets never moved to as written; 'tool0' compensates them with
         tool0 and wobj0 (for data modules whose motions live elsewhere).
+    taught_on : the calibration of the robot the targets were taught on (robot-to-robot
+        transfer; see :func:`~olp_compensate.compensation.task.compensate_task`).
     Returns ``(text, report)``: the compensated program text and a
     :class:`CompensationReport`. Raises :class:`~olp_compensate.errors.ParseError` for a
-    malformed program and DataError for bad arguments.
+    malformed program and DataError for bad arguments. The same as
+    :func:`~olp_compensate.compensation.task.compensate_task` of one module.
     """
-    if emit not in EMIT_MODES:
-        raise DataError(f"emit: expected one of {', '.join(EMIT_MODES)}, got {emit!r}")
-    if unused not in ("skip", "tool0"):
-        raise DataError(f"unused: expected 'skip' or 'tool0', got {unused!r}")
+    check_options(emit, unused)
     if not isinstance(program, Program):
         if dialect is None:
             raise DataError("dialect: needed when the program is given as text")
         program = loads(program, dialect, file)
-    comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
-    res = resolve(program)
+    from .task import compensate_task   # task.py builds on this module
+
+    (text,), report = compensate_task([program], calibration, emit=emit, unused=unused,
+                                      taught_on=taught_on)
+    return text, report
+
+
+@dataclass(frozen=True, eq=False)
+class ModuleResult:
+    """What compensating one module of a task gave: its new text, its report rows (text
+    order), its warnings (one line each) and the number of edits made."""
+
+    text: str
+    rows: list
+    warnings: list
+    edits: int
+
+
+def compensate_module(program: Program, res, comp: Compensator, *, emit: str, unused: str,
+                      teacher: Compensator | None = None,
+                      not_moved: str = NOT_MOVED) -> ModuleResult:
+    """Compensate the targets of one module, resolved (``res``, a
+    :class:`~olp_compensate.programs.semantics.Resolution`, alone or within its task).
+
+    teacher : the compensator of the robot the targets were taught on, or None.
+    not_moved : the note of a target never moved to (left as written with unused='skip').
+    """
     vplus = program.dialect == "vplus"
-    rows, job = _rows_not_solved(res, unused)
-    solved = _solve(comp, res, job, vplus) if job else None
+    rows, job = _rows_not_solved(res, unused, not_moved)
+    solved = _solve(comp, res, job, vplus, teacher) if job else None
     write = _rows_solved(res, job, solved, comp.robot, vplus, rows) if job else {}
     rows.extend(motion_row(use, "runtime" if use.runtime is not None else "unresolved", why)
                 for use, why in res.unresolved)
@@ -128,12 +168,10 @@ def compensate_program(program: Program | str | bytes, dialect: str | None,
     warnings = list(res.warnings)
     edits = _edits(program, comp, res, job, write, solved, emit, vplus, warnings)
     text = splice(program.text, edits) if edits else program.text
-    report = CompensationReport(file=program.file, rows=tuple(rows), warnings=tuple(warnings),
-                                n_joints=comp.robot.n_joints, emit=emit, edits=len(edits))
-    return text, report
+    return ModuleResult(text=text, rows=rows, warnings=warnings, edits=len(edits))
 
 
-def _rows_not_solved(res, unused: str) -> tuple[list, list[int]]:
+def _rows_not_solved(res, unused: str, not_moved: str) -> tuple[list, list[int]]:
     """(rows, job): a row for each entry decided without solving (joint targets, unused,
     unresolved), None for the others, whose entry indices are the ``job`` to solve."""
     targets, pairs = res.entry_targets, res.pairs
@@ -149,7 +187,7 @@ def _rows_not_solved(res, unused: str) -> tuple[list, list[int]]:
         elif bad[k]:
             rows[k] = written_row(t, pairs[pair_of[k]], "bad_target", res.entry_notes[k][0])
         elif skip_unused and not res.entry_uses[k] and "unused" in res.entry_notes[k]:
-            rows[k] = written_row(t, pairs[pair_of[k]], "unused", NOT_MOVED)
+            rows[k] = written_row(t, pairs[pair_of[k]], "unused", not_moved)
         elif known[k]:
             job.append(k)
         else:
@@ -236,9 +274,10 @@ class _Solved:
     failures: list
 
 
-def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
+def _solve(comp: Compensator, res, job: list[int], vplus: bool,
+           teacher: Compensator | None = None) -> _Solved:
     """Solve the real arm for the job entries and derive what the report and the emitter
-    need."""
+    need (``teacher``: the robot the targets were taught on, see :func:`_taught_flanges`)."""
     robot, cal = comp.robot, comp.calibration
     n = len(job)
     pair_index = res.entry_pairs[job]
@@ -249,6 +288,7 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
     desired = requested.copy()
     # the real TCP: a calibrated tool of the tooldata's name
     tool_note = [""] * n
+    tool_change = None if teacher is None else np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     for p in np.unique(pair_index).tolist():
         pair = res.pairs[p]
         members = np.flatnonzero(pair_index == p)
@@ -258,6 +298,10 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
             tool, note = _real_tool(cal, pair.tool_name, pair.flange_T_tool)
             if note:  # a calibrated tool differs from the program's: re-aim the flange
                 desired[members] = requested[members] @ pair.flange_T_tool @ invert_pose(tool)
+            if tool_change is not None:
+                taught_tool, _ = _real_tool(teacher.calibration, pair.tool_name,
+                                            pair.flange_T_tool)
+                tool_change[members] = taught_tool @ invert_pose(tool)
         for i in members.tolist():
             tool_note[i] = note
     q = np.full((n, robot.n_joints), np.nan)
@@ -281,6 +325,9 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
     for idx, conf in ((with_conf, conf_all), (without, None)):
         if not idx:
             continue
+        if teacher is not None:
+            desired[idx] = _taught_flanges(teacher, requested[idx], conf, desired[idx],
+                                           tool_change[idx])
         qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
         q[idx], flange[idx], nominal[idx] = qi, fi, nomi
         reason[idx] = sol.reason
@@ -327,6 +374,26 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool) -> _Solved:
                                                    original[:, :3, :3])),
         change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
         vplus_text=vplus_text, failures=failures)
+
+
+def _taught_flanges(teacher: Compensator, requested: np.ndarray, confdata, fallback,
+                    tool_change: np.ndarray) -> np.ndarray:
+    """Robot-to-robot transfer: the flange poses (k, 4, 4), base frame, m, that put this
+    robot's real tool where the teaching robot's real tool went for the written targets.
+
+    The teaching robot's nominal controller took the joints q_A of the nominal closed form
+    for ``requested`` (its flange poses, on ``confdata``; None: the branch nearest zero);
+    its real tool went to teacher.real_flange(q_A) @ real_tool_A; this robot's flange
+    must go there @ inv(real_tool_B). ``tool_change`` (k, 4, 4) is real_tool_A @
+    inv(real_tool_B) (identity for a stationary tool: the flange carries the work
+    object). Rows the teacher's controller cannot reach keep ``fallback``."""
+    q_taught = teacher.solve_nominal(requested, confdata)
+    reached = np.all(np.isfinite(q_taught), axis=1)
+    out = np.array(fallback, dtype=float, copy=True)
+    if np.any(reached):
+        flange, _ = teacher.real_flange_and_jacobian(q_taught[reached])
+        out[reached] = flange @ tool_change[reached]
+    return out
 
 
 def _pose_or_nan(pose) -> np.ndarray:

@@ -29,6 +29,7 @@ from ..kinematics.conventions import invert_pose
 from .target_values import (WRITTEN_COLUMNS, bad_values, target_poses,  # noqa: F401
                             value_problem, written_values)
 from .targets import CartesianTarget, JointTarget, MotionUse, Program, ToolData, WorkObject
+from .task import TaskScope, local_data_names
 
 IDENTITY = np.eye(4)
 IDENTITY.flags.writeable = False
@@ -147,41 +148,33 @@ class Resolution:
         return tuple(out)
 
 
-class _Scope:
-    """Name lookup with RAPID rules: routine-local first, then module level; no case.
-    ``get`` gives every item of a name (all elements of an array); ``elements`` holds each
-    one under (lower name, routine, array index)."""
-
-    def __init__(self, items):
-        self.table: dict = {}      # (lower name, routine) -> items
-        self.elements: dict = {}   # (lower name, routine, array index) -> item
-        table, elements = self.table, self.elements
-        for it in items:
-            name = it.name
-            if name is not None:
-                key = (name.lower(), it.routine)
-                found = table.get(key)
-                if found is None:
-                    table[key] = [it]
-                else:
-                    found.append(it)
-                elements[(*key, getattr(it, "array_index", None))] = it
-
-    def get(self, name: str, routine):
-        key = name.lower()
-        return self.table.get((key, routine)) or self.table.get((key, None))
-
-
 def resolve(program: Program) -> Resolution:
     """Resolve every target of ``program`` with its tool and work object (see module doc)."""
-    resolver = _Resolver(program)
-    for use in program.motions:
-        resolver.assign_use(use)
-    entries = [e for t in sorted(program.targets + program.joint_targets, key=_SPAN)
-               for e in resolver.entries_of(t)]
-    return _columns(entries, resolver.pair_info, tuple(resolver.shared),
-                    tuple(resolver.unresolved), tuple(sorted(resolver.frame_names)),
-                    tuple(resolver.warnings))
+    return resolve_task([program])[0]
+
+
+def resolve_task(programs) -> tuple[Resolution, ...]:
+    """Resolve the targets of the modules of one task (RAPID scope rules across modules,
+    see :mod:`.task`): one :class:`Resolution` per program, in order, each holding that
+    module's targets, the motions of that module whose target is unknown, and the
+    warnings about that module."""
+    programs = list(programs)
+    resolver = _Resolver(programs)
+    for m, program in enumerate(programs):
+        for use in program.motions:
+            resolver.assign_use(use, m)
+    per_module = []
+    for m, program in enumerate(programs):
+        resolver.entry_count, resolver.shared = 0, []
+        entries = [e for t in sorted(program.targets + program.joint_targets, key=_SPAN)
+                   for e in resolver.entries_of(t, m)]
+        per_module.append((entries, tuple(resolver.shared)))
+    frames = tuple(sorted(resolver.frame_names))
+    return tuple(
+        _columns(entries, resolver.pair_info, shared,
+                 tuple((u, why) for k, u, why in resolver.unresolved if k == m), frames,
+                 tuple(w for k, w in resolver.warnings if k == m))
+        for m, (entries, shared) in enumerate(per_module))
 
 
 class _Resolver:
@@ -189,27 +182,32 @@ class _Resolver:
     literal target it moves to with its (tool, work object) pair (:meth:`assign_use`),
     then each target becomes one entry per pair (:meth:`entries_of`).
 
-    Lookups go through :class:`_Scope` tables built from the program's declarations; a
-    task of several modules will build them from every module's declarations.
+    Lookups go through :class:`~.task.TaskScope` tables built from the declarations of
+    every module of the task; ``m`` arguments are module indices into the programs given.
     """
 
-    def __init__(self, program: Program):
-        self.vplus = program.dialect == "vplus"
-        declared = [t for t in program.targets if t.storage != "assigned"]
-        self.targets = _Scope(declared + list(program.joint_targets))
-        self.assigned: dict = {}   # (lower name, routine) -> [(offset, literal or copy)]
-        for t in program.targets:
-            if t.storage == "assigned":
-                self.assigned.setdefault((t.name.lower(), t.routine), []).append(
-                    (t.span[0], t))
-        for c in program.copies:
-            self.assigned.setdefault((c.name.lower(), c.routine), []).append((c.offset, c))
-        self.tools = _Scope(program.tools)
-        self.wobjs = _Scope(program.wobjs)
-        self.params = {r.name: {p.lower() for p in r.parameters} for r in program.routines}
-        self.runtime_names = {r.base_name.lower() for r in program.runtime if r.base_name}
-        self.warnings: list[str] = []
-        self.unresolved: list[tuple[MotionUse, str]] = []
+    def __init__(self, programs: list[Program]):
+        self.vplus = bool(programs) and programs[0].dialect == "vplus"
+        local_names = [local_data_names(p) for p in programs]
+        self.targets = TaskScope([[t for t in p.targets if t.storage != "assigned"]
+                               + list(p.joint_targets) for p in programs], local_names)
+        self.assigned: dict = {}   # (lower name, module, routine) -> [(offset, literal/copy)]
+        for m, program in enumerate(programs):
+            for t in program.targets:
+                if t.storage == "assigned":
+                    self.assigned.setdefault((t.name.lower(), m, t.routine), []).append(
+                        (t.span[0], t))
+            for c in program.copies:
+                self.assigned.setdefault((c.name.lower(), m, c.routine), []).append(
+                    (c.offset, c))
+        self.tools = TaskScope([p.tools for p in programs], local_names)
+        self.wobjs = TaskScope([p.wobjs for p in programs], local_names)
+        self.params = {(m, r.name): {p.lower() for p in r.parameters}
+                       for m, program in enumerate(programs) for r in program.routines}
+        self.runtime_names = {r.base_name.lower() for p in programs for r in p.runtime
+                              if r.base_name}
+        self.warnings: list[tuple[int, str]] = []             # (module, line)
+        self.unresolved: list[tuple[int, MotionUse, str]] = []  # (module, use, why)
         self.frame_names: set[str] = set()
         self.groups: dict = {}     # id(target) -> [(pair key, use), ...] in text order
         self.pair_info: dict = {}  # pair key -> ((tool name, tool), (wobj name, wobj))
@@ -217,93 +215,95 @@ class _Resolver:
         self.shared: list = []     # entry index groups of one target with several pairs
         self.entry_count = 0
         self._frames_memo: dict = {}
-        self.references = self._references(program)
-        self.changed = self._changed(program)
+        self.references = self._references(programs)
+        self.changed = self._changed(programs)
 
     # -- tools and work objects (memoized: a program has few of them)
-    def frames_of(self, use: MotionUse):
-        """((tool key, wobj key), (tool info, wobj info)) of a use."""
-        k = (use.tool, use.wobj, use.routine, id(use.tool_inline), id(use.wobj_inline))
+    def frames_of(self, use: MotionUse, m: int):
+        """((tool key, wobj key), (tool info, wobj info)) of a use in module ``m``."""
+        k = (use.tool, use.wobj, m, use.routine, id(use.tool_inline), id(use.wobj_inline))
         got = self._frames_memo.get(k)
         if got is None:
-            (tk, tinfo), (wk, winfo) = self.tool_of(use), self.wobj_of(use)
+            (tk, tinfo), (wk, winfo) = self.tool_of(use, m), self.wobj_of(use, m)
             got = self._frames_memo[k] = ((tk, wk), (tinfo, winfo))
         return got
 
-    def tool_of(self, use: MotionUse):
+    def tool_of(self, use: MotionUse, m: int):
         """(pair key part, (name, ToolData / V+ target / 'unknown' / None)) of a use."""
         if use.tool_inline is not None:
-            return ("inline", use.tool_inline.span), ("<inline>", use.tool_inline)
-        return self._frame(use.tool, use.routine, self.tools, "tool0", "NULL", "t")
+            return ("inline", m, use.tool_inline.span), ("<inline>", use.tool_inline)
+        return self._frame(use.tool, m, use.routine, self.tools, "tool0", "NULL", "t")
 
-    def wobj_of(self, use: MotionUse):
+    def wobj_of(self, use: MotionUse, m: int):
         """As :meth:`tool_of`, for the work object (V+: the compound frame)."""
         if use.wobj_inline is not None:
-            return ("inline", use.wobj_inline.span), ("<inline>", use.wobj_inline)
-        return self._frame(use.wobj, use.routine, self.wobjs, "wobj0", "base", "w")
+            return ("inline", m, use.wobj_inline.span), ("<inline>", use.wobj_inline)
+        return self._frame(use.wobj, m, use.routine, self.wobjs, "wobj0", "base", "w")
 
-    def _frame(self, name, routine, scope, default: str, vplus_default: str, tag: str):
+    def _frame(self, name, m: int, routine, scope, default: str, vplus_default: str,
+               tag: str):
         if name is None or (not self.vplus and name.lower() == default
-                            and not scope.get(name, routine)):
+                            and not scope.get(name, m, routine)):
             return (default,), (vplus_default if self.vplus else default, None)
+        low = name.lower()
         if self.vplus:   # V+: tools and frames are transformations of the file
-            found = self.targets.get(name, routine)
-            self.frame_names.add(name.lower())
-            return ("v", name.lower()), (name, found[0] if found else "unknown")
-        found = scope.get(name, routine)
-        return (tag, name.lower()), (name, found[0] if found else "unknown")
+            found = self.targets.get(name, m, routine)
+            self.frame_names.add(low)
+            return (("v", low, self.targets.owner(low, m, routine)),
+                    (name, found[0] if found else "unknown"))
+        found = scope.get(name, m, routine)
+        return (tag, low, scope.owner(low, m, routine)), (name, found[0] if found else "unknown")
 
     # -- motion uses
-    def assign_use(self, use: MotionUse) -> None:
-        """Record which literal target ``use`` moves to, with its pair; or why none."""
-        key, info = self.frames_of(use)
+    def assign_use(self, use: MotionUse, m: int = 0) -> None:
+        """Record which literal target ``use`` (of module ``m``) moves to, with its pair;
+        or why none."""
+        key, info = self.frames_of(use, m)
         if use.inline is not None:
             self._add(use.inline, use, key, info)
             return
         if use.runtime is not None:
             base = use.runtime.base_name
-            for t in (self.targets.get(base, use.routine) if base else None) or ():
+            for t in (self.targets.get(base, m, use.routine) if base else None) or ():
                 self.indirect.setdefault(id(t), []).append((use, key, info))
-            self.unresolved.append((use, use.runtime.reason))
+            self.unresolved.append((m, use, use.runtime.reason))
             return
         name, index, routine = use.target_name, use.target_index, use.routine
         if self.assigned and name is not None and not isinstance(index, str):
-            name, index, literal = self._follow(name, index, routine, use.target_span[0])
+            name, index, literal = self._follow(name, index, m, routine, use.target_span[0])
             if literal is not None:
                 self._add(literal, use, key, info)
                 return
         if name is not None and not isinstance(index, str):
-            low = name.lower()   # one element: routine-local first, then module level
-            table = self.targets.table
-            one = self.targets.elements.get(
-                (low, routine if (low, routine) in table else None, index))
+            low = name.lower()   # one element: routine data, LOCAL data, global data
+            one = self.targets.elements.get((low, self.targets.owner(low, m, routine), index))
             if one is not None:
                 self._add(one, use, key, info)
                 return
-        found = self.targets.get(name, routine) if name else None
+        found = self.targets.get(name, m, routine) if name else None
         if not found:
-            self.unresolved.append((use, self._why_unknown(name, routine)))
+            self.unresolved.append((m, use, self._why_unknown(name, m, routine)))
             return
         if isinstance(index, str):
             chosen = [t for t in found if t.array_index is not None]
             shown = f"{name}[{index}]" if self.vplus else f"{name}{{{index}}}"
-            self.warnings.append(
+            self.warnings.append((m,
                 f"{use.location}: {shown} has a run-time index: every element of {name} is "
-                f"taken as used with this tool and work object")
+                f"taken as used with this tool and work object"))
         else:
             chosen = [t for t in found if t.array_index == index]
         if not chosen:
-            self.unresolved.append((use, f"no element {index} in {name}"))
+            self.unresolved.append((m, use, f"no element {index} in {name}"))
         for t in chosen:
             self._add(t, use, key, info)
 
-    def _follow(self, name: str, index, routine, offset: int):
+    def _follow(self, name: str, index, m: int, routine, offset: int):
         """(name, index, literal): what a motion at ``offset`` moves to after the
         assignments before it in its routine, in text order: the robtarget literal last
         assigned (``p := [...]``), or the variable last copied (``p := q``), followed."""
         for _ in range(8):   # copies of copies, not for ever
             last = None
-            for at, what in self.assigned.get((name.lower(), routine), ()):
+            for at, what in self.assigned.get((name.lower(), m, routine), ()):
                 held = what.array_index if type(what) is CartesianTarget else what.index
                 if at < offset and held == index and (last is None or at > last[0]):
                     last = (at, what)
@@ -323,50 +323,65 @@ class _Resolver:
             found.append((key, use))
         self.pair_info[key] = info
 
-    def _why_unknown(self, name: str, routine) -> str:
-        if routine in self.params and name.lower() in self.params[routine]:
+    def _why_unknown(self, name: str, m: int, routine) -> str:
+        params = self.params.get((m, routine))
+        if params is not None and name.lower() in params:
             return f"{name} is a parameter of {routine}: its value comes from the caller"
         if name.lower() in self.runtime_names:
             return f"{name} has no literal value (set at run time or in another module)"
         return f"unknown target {name}"
 
-    def _references(self, program: Program) -> dict:
-        """id(target) -> the references passing it to a routine (not a motion)."""
+    def _references(self, programs: list[Program]) -> dict:
+        """id(target) -> (module, reference) of the references passing it to a routine
+        (not a motion)."""
         refs: dict = {}
-        for r in program.references:
-            for t in self.targets.get(r.name, r.routine) or ():
-                refs.setdefault(id(t), []).append(r)
+        for m, program in enumerate(programs):
+            for r in program.references:
+                for t in self.targets.get(r.name, m, r.routine) or ():
+                    refs.setdefault(id(t), []).append((m, r))
         return refs
 
-    def _changed(self, program: Program) -> dict:
+    def _changed(self, programs: list[Program]) -> dict:
         """id(target) -> its run-time changes (assignments, SearchL results)."""
         changed: dict = {}
-        for r in program.runtime:
-            if r.base_name and ("assigned" in r.reason or "written" in r.reason):
-                for t in self.targets.get(r.base_name, r.routine) or ():
-                    changed.setdefault(id(t), []).append(r)
+        for m, program in enumerate(programs):
+            for r in program.runtime:
+                if r.base_name and ("assigned" in r.reason or "written" in r.reason):
+                    for t in self.targets.get(r.base_name, m, r.routine) or ():
+                        changed.setdefault(id(t), []).append(r)
         return changed
 
     # -- entries
-    def entries_of(self, t) -> list:
-        """The entries (target, uses, pair key, notes) of target ``t``: one per pair."""
+    def entries_of(self, t, m: int = 0) -> list:
+        """The entries (target, uses, pair key, notes) of target ``t`` of module ``m``:
+        one per pair."""
         tid = id(t)
+        notes = []
+        same = self.targets.aliases.get(tid)
+        if same is not None:   # a global declared again in another module: one variable
+            tid = id(same)
+            notes.append(f"the same variable as {same.display_name} at {same.location} "
+                         f"(declared in several modules)")
+            if same.texts != t.texts:
+                self.warnings.append((m,
+                    f"{t.location}: {t.display_name} is declared again with another value "
+                    f"than at {same.location}: the controller keeps the first value"))
         used = self.groups.get(tid)
         if self.vplus and t.name and t.name.lower() in self.frame_names:
             if used is None:
                 return []  # a tool or frame, not a target
-            self.warnings.append(f"{t.location}: {t.display_name} is used both as a target "
-                                 f"and as a tool or frame")
-        if used is not None and len(used) == 1 and tid not in self.changed:  # common case
-            key, use = used[0]
+            self.warnings.append((m, f"{t.location}: {t.display_name} is used both as a "
+                                     f"target and as a tool or frame"))
+        if used is not None and len(used) == 1 and tid not in self.changed and not notes:
+            key, use = used[0]   # the common case
             return self._counted([(t, (use,), key, ())])
-        notes = [f"changed at run time by {r.expression!r} (line {r.location.line}): the "
-                 f"literal is only its first value" for r in self.changed.get(tid, ())]
+        notes += [f"changed at run time by {r.expression!r} (line {r.location.line}): the "
+                  f"literal is only its first value" for r in self.changed.get(tid, ())]
         pairs: dict = {}   # pair key -> uses, in order of first use
         for key, use in used or ():
             pairs.setdefault(key, []).append(use)
         if not pairs:
-            pairs = self._pairs_if_not_moved_to(t, notes)
+            pairs = self._pairs_if_not_moved_to(t, tid, notes)
         if len(pairs) == 1:
             ((key, uses),) = pairs.items()
             return self._counted([(t, tuple(uses), key, tuple(notes))])
@@ -376,8 +391,8 @@ class _Resolver:
                                    next(iter(pairs)), tuple(notes))])
         listed = "; ".join(f"{self.pair_info[k][0][0]}/{self.pair_info[k][1][0]} (line "
                            f"{us[0].location.line})" for k, us in pairs.items())
-        self.warnings.append(f"{t.location}: {t.display_name} is used with {len(pairs)} "
-                             f"tool/work-object pairs: {listed}")
+        self.warnings.append((m, f"{t.location}: {t.display_name} is used with {len(pairs)} "
+                                 f"tool/work-object pairs: {listed}"))
         self.shared.append(tuple(range(self.entry_count, self.entry_count + len(pairs))))
         return self._counted([(t, tuple(uses), key, tuple(notes))
                               for key, uses in pairs.items()])
@@ -386,10 +401,10 @@ class _Resolver:
         self.entry_count += len(entries)
         return entries
 
-    def _pairs_if_not_moved_to(self, t, notes: list) -> dict:
+    def _pairs_if_not_moved_to(self, t, tid: int, notes: list) -> dict:
         """The pairs of a target no motion moves to: those of the Offs()/RelTool() motions
         built on it, else tool0/wobj0 with the note 'unused' (``notes`` is extended)."""
-        via = self.indirect.get(id(t))
+        via = self.indirect.get(tid)
         if via:
             pairs: dict = {}
             for use, key, info in via:
@@ -402,10 +417,10 @@ class _Resolver:
         self.pair_info.setdefault(default_key, (
             ("NULL" if self.vplus else "tool0", None), ("base" if self.vplus else "wobj0", None)))
         notes.append("unused")
-        for r in self.references.get(id(t), ()):
-            self.warnings.append(
+        for m, r in self.references.get(tid, ()):
+            self.warnings.append((m,
                 f"{r.location}: {r.name} is passed to {r.context}: its tool and work object "
-                f"are unknown, {'tool0/wobj0' if not self.vplus else 'identity'} assumed")
+                f"are unknown, {'tool0/wobj0' if not self.vplus else 'identity'} assumed"))
         return {default_key: []}
 
 
@@ -494,4 +509,5 @@ def _pair(info) -> FramePair:
                      tuple(notes), problem)
 
 
-__all__ = ["resolve", "target_poses", "written_values", "Resolution", "ResolvedTarget", "FramePair"]
+__all__ = ["resolve", "resolve_task", "target_poses", "written_values", "Resolution",
+           "ResolvedTarget", "FramePair"]
