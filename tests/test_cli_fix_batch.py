@@ -137,3 +137,31 @@ def test_a_calibration_with_regions_and_region_forcing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "nowhere" in err and "fixture" in err
     assert not (tmp_path / "b.mod").exists()
+
+
+def test_a_krl_pair_named_by_its_dat_writes_the_dat_to_o(backup, tmp_path):
+    tree, _ = backup
+    model = tmp_path / "kr16.json"
+    write_calibration(model, nominal_calibration(load_robot("kuka_kr16_2")))
+    dat = tree / "KRL" / "R1" / "Program" / "Cell.dat"
+    out = tmp_path / "Fixed.dat"
+    main([str(dat), "--model", str(model), "-o", str(out), "-q"])
+    assert out.read_bytes() == dat.read_bytes()
+    assert (tmp_path / "Fixed.src").read_bytes() == dat.with_suffix(".src").read_bytes()
+
+
+def test_a_task_folder_resolves_across_its_modules(tmp_path):
+    """The golden task's modules, given as a folder: the tools of CalibData.mod and the work
+    objects of WObjData.mod reach the motions of the others (no 'unresolved' but the one
+    whose tool is declared nowhere), and every module comes back byte for byte."""
+    task = Path(__file__).resolve().parent / "tasks" / "cell_task"
+    model = tmp_path / "n.json"
+    write_calibration(model, nominal_calibration(load_robot("abb_irb2400")))
+    out = tmp_path / "out"
+    main([str(task), "--model", str(model), "-o", str(out), "--report",
+          str(tmp_path / "r.csv"), "-q"])
+    for module in task.iterdir():
+        if module.suffix.lower() in (".mod", ".sys"):
+            assert (out / module.name).read_bytes() == module.read_bytes()
+    unresolved = [r for r in _rows(tmp_path / "r.csv") if r["status"] == "unresolved"]
+    assert unresolved and all("tMissing" in r["note"] for r in unresolved)

@@ -10,6 +10,7 @@ files, a file that fails is reported and the others go on (exit 1 at the end).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
 import re
 import sys
@@ -148,6 +149,12 @@ def load_calibrations(args):
     return calibration, taught_on
 
 
+def output_is_folder(args) -> bool:
+    """Whether ``-o`` names a folder mirroring the inputs (several paths, or a folder) rather
+    than one program's output file."""
+    return bool(args.output) and not (len(args.program) == 1 and Path(args.program[0]).is_file())
+
+
 def make_compensator(calibration, region: str | None):
     """The compensator of a run: the regional one when the calibration has regions (or
     ``--region`` forces one), else the plain one."""
@@ -183,13 +190,20 @@ def _run_one(args, unit, retain: list | None) -> int:
     if not report.rows:
         raise DataError(f"{unit.names[0]}: no robot target in the program (empty or cut "
                         f"short?); nothing written")
+    if output_is_folder(args):           # -o OUTDIR mirrors the input tree
+        for out in unit.outputs:
+            out.parent.mkdir(parents=True, exist_ok=True)
     files = list(zip(unit.outputs, result.data))
     if args.report:
         files.append((Path(args.report), report.to_csv().encode("utf-8")))
     write_files_atomic(files)   # all or, on a failure, none of a run's files renamed
     if not args.quiet:
         try:
-            _summary(report, unit.outputs, args.report, time.perf_counter() - started,
+            label = (report.file if len(unit.paths) == 1 else
+                     f"{' '.join(args.program)} ({len(unit.paths)} files: "
+                     f"{', '.join(unit.names)})")
+            _summary(dataclasses.replace(report, file=label), unit.outputs, args.report,
+                     time.perf_counter() - started,
                      f"  robot {calibration.robot.name} (calibration {args.model})")
         except BrokenPipeError:   # `olp-fix ... | head`: the files are written all the same
             silence_stdout()
@@ -230,8 +244,9 @@ def _summary(report, outputs, report_path: str | None, seconds: float,
         print(f"  ... and {len(problems) - SHOWN_PROBLEMS} more (see --report)")
     for w in report.warnings[:SHOWN_PROBLEMS]:
         print(f"  warning: {w}")
-    print(f"  wrote {' and '.join(str(o) for o in outputs)}"
-          + (f" and {report_path}" if report_path else ""))
+    written = (" and ".join(str(o) for o in outputs) if len(outputs) <= 2 else
+               f"{len(outputs)} files ({outputs[0]}, ...)")
+    print(f"  wrote {written}" + (f" and {report_path}" if report_path else ""))
 
 
 def main(argv: list[str] | None = None) -> int:

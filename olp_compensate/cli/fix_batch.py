@@ -91,7 +91,7 @@ def run_batch(args, units) -> int:
     unit's outputs as it completes and the one report at the end; print the table."""
     from ..compensation.report import CompensationReport
     from ..io.atomic import write_files_atomic, write_text_atomic
-    from .fix import load_calibrations
+    from .fix import load_calibrations, output_is_folder
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
@@ -100,8 +100,9 @@ def run_batch(args, units) -> int:
         outcomes[outcome.index] = outcome
         if outcome.error is None:
             outputs = units[outcome.index].outputs
-            for out in outputs:                 # -o OUTDIR mirrors the input tree
-                out.parent.mkdir(parents=True, exist_ok=True)
+            if output_is_folder(args):          # -o OUTDIR mirrors the input tree
+                for out in outputs:
+                    out.parent.mkdir(parents=True, exist_ok=True)
             write_files_atomic(list(zip(outputs, outcome.data)))
     rows = [r for o in outcomes if o.report is not None for r in o.report.rows]
     n_joints = calibration.robot.n_joints

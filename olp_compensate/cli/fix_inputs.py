@@ -1,7 +1,11 @@
 """What ``olp-fix PATH...`` works on: the program files under each path, grouped into the
 units compensated together, and where each output goes.
 
-- A file is one unit (a KRL ``.src`` or ``.dat`` brings its partner of the same stem).
+- A file is one unit (a KRL ``.src`` or ``.dat`` brings its partner of the same stem); the
+  RAPID modules named on the command line together form one task, and so do those of a
+  folder's task: the modules under a ``TASKn`` folder of a backup (``PROGMOD``, ``SYSMOD``),
+  or the modules side by side in one folder. A task's modules resolve each other's
+  declarations (system modules first).
 - A folder (a task folder, a controller backup) is searched recursively for program files
   of every dialect (:data:`~olp_compensate.compensation.files.EXTENSIONS`, any case);
   outputs of an earlier run (``*_compensated.*``), hidden files and KRL ``$config.dat``
@@ -15,6 +19,7 @@ units compensated together, and where each output goes.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,19 +52,39 @@ def _files_under(folder: Path, extensions: dict[str, str]) -> list[Path]:
     return found
 
 
-def _group(files: list[tuple[Path, str]], dialect: str | None, extensions) -> list[tuple]:
-    """(dialect, [(path, name), ...]) units: KRL .src/.dat of one stem together."""
+def _task_root(path: Path, given_alone: bool) -> Path | None:
+    """The folder whose RAPID modules form one task with ``path``: the ``TASKn`` folder of
+    a backup, else the module's folder; None for modules named on the command line (they
+    form one task together)."""
+    if given_alone:
+        return None
+    for parent in path.parents:
+        if re.fullmatch(r"TASK\d+", parent.name, re.IGNORECASE):
+            return parent
+    return path.parent
+
+
+def _group(files: list[tuple[Path, str]], dialect: str | None, extensions,
+           alone: set[Path]) -> list[tuple]:
+    """(dialect, [(path, name), ...]) units: KRL .src/.dat of one stem together, a RAPID
+    task's modules together (system modules first)."""
     units = []
     krl: dict[tuple[Path, str], list[tuple[Path, str]]] = {}
+    tasks: dict[Path | None, list[tuple[Path, str]]] = {}
     for path, name in files:
         d = dialect or extensions[path.suffix.lower()]
         if d == "krl":
             krl.setdefault((path.parent, path.stem.lower()), []).append((path, name))
+        elif d == "rapid":
+            tasks.setdefault(_task_root(path, path in alone), []).append((path, name))
         else:
             units.append((d, [(path, name)]))
     for members in krl.values():
         members.sort(key=lambda m: m[0].suffix.lower() != ".src")     # .src first
         units.append(("krl", members))
+    for members in tasks.values():
+        members.sort(key=lambda m: (m[0].suffix.lower() != ".sys", m[1].lower()))
+        units.append(("rapid", members))
     units.sort(key=lambda u: str(u[1][0][0]))
     return units
 
@@ -94,9 +119,10 @@ def plan_units(paths: list[str], dialect: str | None, output: str | None,
     loose = [p for p, _, root in entries if root is None]
     common = Path(os.path.commonpath([p.resolve().parent for p in loose])) if loose else None
     units = []
-    for d, members in _group(files, dialect, extensions):
-        outs = tuple(_output(p, root_of[p], common, output, single_file, k, members)
-                     for k, (p, _) in enumerate(members))
+    alone = {p for p, _, root in entries if root is None}
+    for d, members in _group(files, dialect, extensions, alone):
+        outs = tuple(_output(p, root_of[p], common, output, single_file, Path(paths[0]))
+                     for p, _ in members)
         units.append(Unit(dialect=d, paths=tuple(p for p, _ in members),
                           names=tuple(n for _, n in members), outputs=outs))
     return units
@@ -112,15 +138,12 @@ def _krl_partner(path: Path) -> Path | None:
 
 
 def _output(path: Path, root: Path | None, common: Path | None, output: str | None,
-            single_file: bool, k: int, members) -> Path:
+            single_file: bool, given: Path) -> Path:
     if output is None:
         return path.with_name(f"{path.stem}{SUFFIX}{path.suffix}")
     out = Path(output)
-    if single_file:
-        if k == 0:
-            return out
-        first = members[0][0]            # a KRL partner: beside the named output
-        return out.with_name(out.stem + path.suffix) if path != first else out
+    if single_file:                      # -o names the given file's output; a KRL
+        return out if path == given else out.with_name(out.stem + path.suffix)   # partner beside it
     relative = (path.relative_to(root) if root is not None
                 else path.resolve().relative_to(common))
     return out / relative

@@ -33,7 +33,8 @@ class ProgramFiles:
     """Files read and compensated together.
 
     dialect : one of :data:`DIALECTS`.
-    paths : the files, in the order their outputs are returned (KRL: ``.src`` then ``.dat``).
+    paths : the files, in the order their outputs are returned (KRL: ``.src`` then ``.dat``;
+        a RAPID task: its modules, system modules first, the order PERS values are taken in).
     names : how the report names each file (as given, or relative to the folder given).
     """
 
@@ -81,13 +82,12 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     texts = [_read(p) for p in files.paths]
     if files.dialect in TEXT_DIALECTS:
         from ..programs import loads
-        from .program import compensate_program
+        from .task import compensate_task
 
-        program = loads(texts[0], files.dialect, files.names[0])
-        options = {} if taught_on is None else {"taught_on": taught_on}
-        text, report = compensate_program(program, None, comp, emit=emit, unused=unused,
-                                          **options)
-        return FilesResult(data=(text.encode(ENCODING),), report=report)
+        programs = [loads(t, files.dialect, n) for t, n in zip(texts, files.names)]
+        new, report = compensate_task(programs, comp, emit=emit, unused=unused,
+                                      taught_on=taught_on)
+        return FilesResult(data=tuple(t.encode(ENCODING) for t in new), report=report)
     if emit != "pose":
         raise DataError(f"{files.names[0]}: --emit {emit}: joint targets are written for "
                         f"RAPID and V+ programs only")
