@@ -45,6 +45,12 @@ Compensation
         The same for m poses at once.
     compensate_program(text_or_program, dialect, calibration) -> (text, CompensationReport)
         A whole program rewritten losslessly; the report has one row per target.
+    compensate_task(programs, calibration) -> (texts, CompensationReport)
+        The modules of one RAPID task together (declarations resolved across modules);
+        ``taught_on=`` transfers targets taught on another robot of the same model.
+    RegionalCompensator(calibration, force=None)
+        Each target solved on the local model of the region containing it
+        (``olp-cal identify --per-region``).
 
 Tool recalibration
     calibrate_tool(ToolRequest, flange_pose) -> ToolCalibration
@@ -85,6 +91,8 @@ _WHERE = {
     "PoseCompensation": "compensation.pose",
     "BatchCompensation": "compensation.pose",
     "compensate_program": "compensation.program",
+    "compensate_task": "compensation.task",
+    "RegionalCompensator": "compensation.regions",
     "calibrate_tool": "calibration.tool",
     "ToolRequest": "calibration.tool",
     "ToolCalibration": "calibration.tool",
