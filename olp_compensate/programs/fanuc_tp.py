@@ -29,7 +29,8 @@ from __future__ import annotations
 import re
 
 from ..errors import ParseError
-from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
+from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget,
+                            is_finite_number, line_column,
                             line_starts_of)
 from .targets import Number
 
@@ -105,7 +106,7 @@ def _positions(text: str, file: str, starts: list[int], lo: int, hi: int,
         numbers = {}
         for f in _FIELD.finditer(text, g_lo, g_hi):
             value = f.group(2)
-            if not _finite(value):
+            if not is_finite_number(value):
                 line, column = line_column(text, f.start(2), starts)
                 raise ParseError(f"{value} is not a finite number", file, line, column)
             numbers[f.group(1).upper()] = Number(f.start(2), f.end(2), value)
@@ -257,11 +258,3 @@ def parse_fanuc_tp(text: str, file: str = "<ls>",
     if "MN" in sections:
         _motions(text, file, starts, *sections["MN"], program, frames_of)
     return program
-
-
-def _finite(text: str) -> bool:
-    try:
-        value = float(text)
-    except ValueError:
-        return False
-    return value == value and abs(value) != float("inf")

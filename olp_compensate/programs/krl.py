@@ -27,8 +27,8 @@ from __future__ import annotations
 import re
 
 from ..errors import ParseError
-from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
-                            line_starts_of)
+from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
+                            is_finite_number, line_column, line_starts_of)
 from .targets import Number
 
 POSE_TYPES = {"E6POS", "POS", "FRAME"}
@@ -54,25 +54,8 @@ AXIS_FIELDS = ("A1", "A2", "A3", "A4", "A5", "A6")
 
 
 def strip_comments(text: str) -> str:
-    """``text`` with every comment (``;`` to the end of the line, outside strings) replaced
-    by spaces, so offsets stay those of the original."""
-    out = list(text)
-    in_string = False
-    k = 0
-    n = len(text)
-    while k < n:
-        c = text[k]
-        if c == '"':
-            in_string = not in_string
-        elif c in "\r\n":
-            in_string = False
-        elif c == ";" and not in_string:
-            while k < n and text[k] not in "\r\n":
-                out[k] = " "
-                k += 1
-            continue
-        k += 1
-    return "".join(out)
+    """``text`` with every KRL comment (``;`` to the end of the line) blanked, offsets kept."""
+    return blank_comments(text, ";")
 
 
 def _aggregate_end(text: str, start: int, file: str, starts: list[int]) -> int:
@@ -119,7 +102,7 @@ def _target(text: str, file: str, starts: list[int], name: str | None, typ: str,
             raise ParseError(f"status/turn {number.text} is not an integer from 0 to 65535",
                              file, line, column) from None
     for number in fields.values():
-        if number.text[:1] not in "'#\"" and not _finite(number.text):
+        if number.text[:1] not in "'#\"" and not is_finite_number(number.text):
             line, column = line_column(text, number.start, starts)
             raise ParseError(f"{number.text} is not a finite number", file, line, column)
     return PoseTarget(name=name, source=where, kind=POSE,
@@ -300,14 +283,6 @@ def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>
         _declarations(src_text, src_file, program, types, fdat, program.frames)
         _motions(src_text, src_file, program, _Frames(fdat))
     return program
-
-
-def _finite(text: str) -> bool:
-    try:
-        value = float(text)
-    except ValueError:
-        return False
-    return value == value and abs(value) != float("inf")
 
 
 def status_text(original: Number, value: int) -> str:

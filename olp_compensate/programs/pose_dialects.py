@@ -144,3 +144,33 @@ def line_starts_of(text: str) -> list[int]:
             starts.append(k + 1)
         k += 1
     return starts
+
+
+def blank_comments(text: str, marker: str) -> str:
+    """``text`` with every comment (``marker`` to the end of the line, outside ``"``
+    strings) replaced by spaces, so offsets stay those of the original."""
+    out = list(text)
+    in_string = False
+    k, n = 0, len(text)
+    while k < n:
+        c = text[k]
+        if c == '"':
+            in_string = not in_string
+        elif c in "\r\n":
+            in_string = False
+        elif c == marker and not in_string:
+            while k < n and text[k] not in "\r\n":
+                out[k] = " "
+                k += 1
+            continue
+        k += 1
+    return "".join(out)
+
+
+def is_finite_number(text: str) -> bool:
+    """Whether ``text`` reads as a finite float."""
+    try:
+        value = float(text)
+    except ValueError:
+        return False
+    return value == value and abs(value) != float("inf")

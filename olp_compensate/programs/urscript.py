@@ -32,7 +32,8 @@ from __future__ import annotations
 import re
 
 from ..errors import ParseError
-from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
+from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
+                            line_column,
                             line_starts_of)
 from .targets import Number
 
@@ -50,22 +51,7 @@ _NAME = re.compile(r"[A-Za-z_]\w*\Z")
 
 def strip_comments(text: str) -> str:
     """``text`` with ``#`` comments (outside strings) blanked, offsets kept."""
-    out = list(text)
-    in_string = False
-    k, n = 0, len(text)
-    while k < n:
-        c = text[k]
-        if c == '"':
-            in_string = not in_string
-        elif c in "\r\n":
-            in_string = False
-        elif c == "#" and not in_string:
-            while k < n and text[k] not in "\r\n":
-                out[k] = " "
-                k += 1
-            continue
-        k += 1
-    return "".join(out)
+    return blank_comments(text, "#")
 
 
 def _args(clean: str, open_at: int) -> tuple[list[tuple[int, int]], int]:
