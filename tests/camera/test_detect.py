@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 from olp_compensate.camera.board import Board
-from olp_compensate.camera.detect import (Detection, DetectionFailure, circle_centre_bias,
-                                          detect_dots, detect_many)
+from olp_compensate.camera.detect import (BORDER_MARGIN_PX, CONTRAST_THRESHOLDS, Detection,
+                                          DetectionFailure, circle_centre_bias, dark_mask,
+                                          darkness, detect_dots, detect_many, find_blobs,
+                                          match_grid, paper_level, refine_centres)
 from olp_compensate.camera.model import CameraIntrinsics, project_points
 from olp_compensate.camera.render import RenderOptions, random_views, render_board
 from olp_compensate.kinematics.conventions import pose_from_rotation_translation, rot_x
@@ -216,3 +218,86 @@ def test_detect_many_reads_a_folder_in_name_order(tmp_path, views):
     assert _rms(results[0].pixels, _truth(views[1])) < 0.1  # JPEG artefacts
     listed = list(detect_many([tmp_path / "b.png"], BOARD))
     assert len(listed) == 1 and listed[0].ok
+
+
+# -- the fast paths against the plain definitions --------------------------------------------
+
+def test_dark_mask_is_the_thresholded_darkness(views):
+    image = render_board(BOARD, CAMERA, views[0], ROUGH)
+    paper = paper_level(image, BOARD)
+    dark = darkness(image, BOARD, paper)
+    for threshold in CONTRAST_THRESHOLDS + (0.05, 0.95):
+        np.testing.assert_array_equal(dark_mask(image, paper, threshold) > 0, dark > threshold)
+    with pytest.raises(Exception, match="threshold must be between 0 and 1"):
+        dark_mask(image, paper, 1.0)
+
+
+def _refine_one_by_one(grey, blobs, indices, iterations=2):
+    """refine_centres as first written: each dot in its own window, plane by lstsq."""
+    height, width = grey.shape
+    centres, contrast = np.empty((len(indices), 2)), np.zeros(len(indices))
+    inside = np.ones(len(indices), bool)
+    image = grey.astype(np.float64)
+    for k, b in enumerate(indices):
+        centre = blobs.centres[b].copy()
+        w, v = np.linalg.eigh(blobs.covariances[b])
+        semi = 2 * np.sqrt(np.maximum(w, 0.25))
+        window = semi + max(2.5, 0.35 * semi.min())
+        outer = window + max(2.5, 0.35 * semi.min())
+        half = int(math.ceil(outer.max())) + 2
+        for _ in range(iterations):
+            x0, y0 = int(round(centre[0])) - half, int(round(centre[1])) - half
+            x1, y1 = x0 + 2 * half + 1, y0 + 2 * half + 1
+            m = BORDER_MARGIN_PX
+            if x0 < m or y0 < m or x1 > width - m or y1 > height - m:
+                inside[k] = False
+                break
+            ys, xs = np.mgrid[y0:y1, x0:x1]
+            px, py = xs - centre[0], ys - centre[1]
+            u1, u2 = px * v[0, 0] + py * v[1, 0], px * v[0, 1] + py * v[1, 1]
+            rw = (u1 / window[0]) ** 2 + (u2 / window[1]) ** 2
+            ro = (u1 / outer[0]) ** 2 + (u2 / outer[1]) ** 2
+            patch = image[y0:y1, x0:x1]
+            ring, inner = (rw > 1) & (ro <= 1), rw <= 1
+            A = np.stack([np.ones(ring.sum()), px[ring], py[ring]], -1)
+            coef = np.linalg.lstsq(A, patch[ring], rcond=None)[0]
+            paper = coef[0] + coef[1] * px[inner] + coef[2] * py[inner]
+            weight = (paper - patch[inner]) / np.maximum(paper, 1.0)
+            if weight.sum() <= 0:
+                break
+            centre = np.array([(weight * xs[inner]).sum(), (weight * ys[inner]).sum()]) \
+                / weight.sum()
+            contrast[k] = weight.max()
+        centres[k] = centre
+    return centres, contrast, inside
+
+
+def test_refine_centres_all_at_once_matches_one_by_one(views):
+    image = render_board(BOARD, CAMERA, views[1], ROUGH)
+    blobs = find_blobs(dark_mask(image, paper_level(image, BOARD)))
+    indices = match_grid(BOARD, blobs).blob_of_dot
+    fast, slow = refine_centres(image, blobs, indices), _refine_one_by_one(image, blobs, indices)
+    np.testing.assert_allclose(fast[0], slow[0], atol=1e-9)
+    np.testing.assert_allclose(fast[1], slow[1], atol=1e-12)
+    assert np.all(fast[2]) and np.all(slow[2])
+
+
+def test_refine_centres_near_the_border():
+    """Windows 2 px from the border are measured, one crossing the margin is reported
+    outside, as one by one."""
+    import cv2
+
+    image = np.full((48, 90), 200, np.uint8)
+    # own windows: 2 px from the left and right borders, crossing the top one
+    for centre, radius in (((15, 24), 5), ((70, 24), 8), ((42, 8), 7)):
+        cv2.circle(image, centre, radius, 30, -1, cv2.LINE_AA)
+    image = cv2.GaussianBlur(image, (0, 0), 0.8)
+    blobs = find_blobs(dark_mask(image, np.full_like(image, 200)))
+    assert len(blobs.areas) == 3
+    indices = np.arange(3)
+    fast, slow = refine_centres(image, blobs, indices), _refine_one_by_one(image, blobs, indices)
+    np.testing.assert_array_equal(fast[2], slow[2])
+    assert np.sum(fast[2]) == 2  # the dot near the top crosses the margin
+    ok = fast[2]
+    np.testing.assert_allclose(fast[0][ok], slow[0][ok], atol=1e-9)
+    np.testing.assert_allclose(fast[1][ok], slow[1][ok], atol=1e-12)
