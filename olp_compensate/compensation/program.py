@@ -278,53 +278,19 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool,
            teacher: Compensator | None = None) -> _Solved:
     """Solve the real arm for the job entries and derive what the report and the emitter
     need (``teacher``: the robot the targets were taught on, see :func:`_taught_flanges`)."""
-    robot, cal = comp.robot, comp.calibration
+    robot = comp.robot
     n = len(job)
-    pair_index = res.entry_pairs[job]
     written = res.written[job, 7:11]
     has_conf = np.isfinite(written).all(axis=1)
     written = np.where(has_conf[:, None], np.rint(written), -99).astype(int)
     requested = res.base_T_flange[job]
-    desired = requested.copy()
-    # the real TCP: a calibrated tool of the tooldata's name
-    tool_note = [""] * n
-    tool_change = None if teacher is None else np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for p in np.unique(pair_index).tolist():
-        pair = res.pairs[p]
-        members = np.flatnonzero(pair_index == p)
-        if pair.stationary_tool:
-            note = "stationary tool"
-        else:
-            tool, note = _real_tool(cal, pair.tool_name, pair.flange_T_tool)
-            if note:  # a calibrated tool differs from the program's: re-aim the flange
-                desired[members] = requested[members] @ pair.flange_T_tool @ invert_pose(tool)
-            if tool_change is not None:
-                taught_tool, _ = _real_tool(teacher.calibration, pair.tool_name,
-                                            pair.flange_T_tool)
-                tool_change[members] = taught_tool @ invert_pose(tool)
-        for i in members.tolist():
-            tool_note[i] = note
+    desired, tool_note, tool_change = _aim(comp, res, job, requested, teacher)
     q = np.full((n, robot.n_joints), np.nan)
     flange = np.full((n, 4, 4), np.nan)
     nominal = np.full((n, robot.n_joints), np.nan)
     reason = np.empty(n, dtype=object)
-    with_conf = np.flatnonzero(has_conf).tolist()
-    without = np.flatnonzero(~has_conf).tolist()
-    conf_all = written[has_conf]
-    if without:
-        # no written configuration (V+): the arm stays in the one the nominal
-        # controller takes for the original target (the branch nearest zero)
-        q_nominal = comp.solve_nominal(requested[without], None)
-        reachable = np.all(np.isfinite(q_nominal), axis=1)
-        implied = [i for i, r in zip(without, reachable) if r]
-        if implied:
-            conf_all = np.concatenate([conf_all, comp.confdata(q_nominal[reachable])])
-        without = [i for i, r in zip(without, reachable) if not r]
-        with_conf = with_conf + implied
     failures: list = [None] * n
-    for idx, conf in ((with_conf, conf_all), (without, None)):
-        if not idx:
-            continue
+    for idx, conf in _configuration_groups(comp, written, has_conf, requested):
         if teacher is not None:
             desired[idx] = _taught_flanges(teacher, requested[idx], conf, desired[idx],
                                            tool_change[idx])
@@ -336,15 +302,7 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool,
                 failures[i] = failure
     reason = reason.tolist()
     ok = np.fromiter((r in COMPENSATED for r in reason), bool, n)
-    pair_wobj = np.array([_pose_or_nan(p.base_T_wobj) for p in res.pairs])
-    pair_tool = np.array([_pose_or_nan(p.flange_T_tool) for p in res.pairs])
-    stationary = np.array([p.stationary_tool for p in res.pairs], bool)[pair_index]
-    # robot-held tool: inv(wobj) F tool; stationary tool: inv(flange_T_wobj) inv(F) world_T_tool
-    moved = flange.copy()
-    if np.any(stationary):
-        moved[stationary] = invert_pose(flange[stationary])
-    new_targets = invert_pose(pair_wobj)[pair_index] @ moved @ pair_tool[pair_index]
-    new_targets[~ok] = np.nan
+    new_targets = _written_targets(res, job, flange, ok)
     original = res.wobj_T_target[job]
     q_ctrl = robot.controller_from_joints(q)
     nominal_ctrl = robot.controller_from_joints(nominal)
@@ -359,13 +317,6 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool,
     change = np.abs(robot.to_degrees_or_mm(q_ctrl - nominal_ctrl))
     change = np.where(np.all(np.isnan(change), axis=1), np.nan,
                       np.nanmax(np.where(np.isnan(change), -np.inf, change), axis=1))
-    vplus_text = {}
-    if vplus and isinstance(comp.family, OPWParameters) and np.any(ok):
-        flags = vplus_configuration(comp.family, q[ok])
-        for i, (righty, above, flip) in zip(np.flatnonzero(ok).tolist(), flags):
-            vplus_text[i] = " ".join(("RIGHTY" if righty else "LEFTY",
-                                      "ABOVE" if above else "BELOW",
-                                      "FLIP" if flip else "NOFLIP"))
     return _Solved(
         ok=ok, reason=reason, written=written, has_conf=has_conf,
         config_before=config_texts(written, has_conf), conf=conf, new_targets=new_targets,
@@ -373,7 +324,83 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool,
         turn_deg=np.degrees(rotation_angle_between(new_targets[:, :3, :3],
                                                    original[:, :3, :3])),
         change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
-        vplus_text=vplus_text, failures=failures)
+        vplus_text=_vplus_texts(comp, q, ok) if vplus else {}, failures=failures)
+
+
+def _aim(comp: Compensator, res, job: list[int], requested: np.ndarray,
+         teacher: Compensator | None):
+    """The flange poses (n, 4, 4) the real arm must reach: ``requested`` re-aimed where a
+    calibrated tool of the tooldata's name is the real TCP; each row's tool note; and, for
+    a transfer, the change from the teacher's real tool to this robot's (else None)."""
+    n = len(job)
+    pair_index = res.entry_pairs[job]
+    desired = requested.copy()
+    tool_note = [""] * n
+    tool_change = None if teacher is None else np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    for p in np.unique(pair_index).tolist():
+        pair = res.pairs[p]
+        members = np.flatnonzero(pair_index == p)
+        if pair.stationary_tool:
+            note = "stationary tool"
+        else:
+            tool, note = _real_tool(comp.calibration, pair.tool_name, pair.flange_T_tool)
+            if note:  # a calibrated tool differs from the program's: re-aim the flange
+                desired[members] = requested[members] @ pair.flange_T_tool @ invert_pose(tool)
+            if tool_change is not None:
+                taught_tool, _ = _real_tool(teacher.calibration, pair.tool_name,
+                                            pair.flange_T_tool)
+                tool_change[members] = taught_tool @ invert_pose(tool)
+        for i in members.tolist():
+            tool_note[i] = note
+    return desired, tool_note, tool_change
+
+
+def _configuration_groups(comp: Compensator, written: np.ndarray, has_conf: np.ndarray,
+                          requested: np.ndarray):
+    """(rows, confdata or None) groups to solve: the rows with a written configuration and
+    those of no configuration (V+) whose nominal solution implies one; then the rows the
+    nominal arm cannot reach at all (solved on any configuration)."""
+    with_conf = np.flatnonzero(has_conf).tolist()
+    without = np.flatnonzero(~has_conf).tolist()
+    conf_all = written[has_conf]
+    if without:
+        # no written configuration (V+): the arm stays in the one the nominal
+        # controller takes for the original target (the branch nearest zero)
+        q_nominal = comp.solve_nominal(requested[without], None)
+        reachable = np.all(np.isfinite(q_nominal), axis=1)
+        implied = [i for i, r in zip(without, reachable) if r]
+        if implied:
+            conf_all = np.concatenate([conf_all, comp.confdata(q_nominal[reachable])])
+        without = [i for i, r in zip(without, reachable) if not r]
+        with_conf = with_conf + implied
+    return [(idx, conf) for idx, conf in ((with_conf, conf_all), (without, None)) if idx]
+
+
+def _written_targets(res, job: list[int], flange: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The targets (n, 4, 4) to write in their work objects, m: robot-held tool
+    inv(wobj) F tool; stationary tool inv(flange_T_wobj) inv(F) world_T_tool; NaN where not
+    compensated."""
+    pair_index = res.entry_pairs[job]
+    pair_wobj = np.array([_pose_or_nan(p.base_T_wobj) for p in res.pairs])
+    pair_tool = np.array([_pose_or_nan(p.flange_T_tool) for p in res.pairs])
+    stationary = np.array([p.stationary_tool for p in res.pairs], bool)[pair_index]
+    moved = flange.copy()
+    if np.any(stationary):
+        moved[stationary] = invert_pose(flange[stationary])
+    new_targets = invert_pose(pair_wobj)[pair_index] @ moved @ pair_tool[pair_index]
+    new_targets[~ok] = np.nan
+    return new_targets
+
+
+def _vplus_texts(comp: Compensator, q: np.ndarray, ok: np.ndarray) -> dict[int, str]:
+    """Row -> the V+ configuration words of the solved joints (report only)."""
+    texts = {}
+    if isinstance(comp.family, OPWParameters) and np.any(ok):
+        flags = vplus_configuration(comp.family, q[ok])
+        for i, (righty, above, flip) in zip(np.flatnonzero(ok).tolist(), flags):
+            texts[i] = " ".join(("RIGHTY" if righty else "LEFTY", "ABOVE" if above else "BELOW",
+                                 "FLIP" if flip else "NOFLIP"))
+    return texts
 
 
 def _taught_flanges(teacher: Compensator, requested: np.ndarray, confdata, fallback,
