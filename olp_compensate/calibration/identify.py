@@ -43,7 +43,7 @@ from .effects import (Conditions, Effect, EffectInputs, ThermalExpansion, effect
                       needs_torque)
 from .identifiability import Identifiability, analyse_identifiability, structural_freeze
 from .lm import levenberg_marquardt
-from .measurements import Measurements, check_spread
+from .measurements import Measurements, check_spread, row_sigma_scales
 from .problem import IdentificationProblem, oriented_rows, point_index, tool_rotation_start
 from .registration import register_device
 from .statistics import FitStatistics, fit_statistics, inlier_weight
@@ -267,10 +267,13 @@ def _problem(setup: _Setup, start: _Start, free: np.ndarray, effects: tuple[Effe
     if rows is not None:
         meas = meas.subset(rows)
         inputs = None if inputs is None else inputs.subset(rows)
+    options = setup.options
     return IdentificationProblem(
         setup.model, meas, setup.model.nominal, free, setup.tool_names,
         start.device_T_base if reference is None else reference, effects, inputs,
-        setup.robot.urdf_from_controller, start.rotations, setup.options.orientation_weight)
+        setup.robot.urdf_from_controller, start.rotations, options.orientation_weight,
+        row_sigma_scales(meas, options.position_sigma_mm * 1e-3,
+                         np.radians(options.orientation_sigma_deg)))
 
 
 def _refreeze(setup: _Setup, start: _Start, frozen: dict[str, str]) -> _Refrozen:

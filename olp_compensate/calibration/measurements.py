@@ -120,3 +120,34 @@ def check_spread(meas: Measurements, n_unknowns: int) -> None:
         raise DataError(f"{meas.source}: every measured point is the same ({where}) mm: the "
                         f"device did not see the robot move; check the x_mm, y_mm, z_mm "
                         f"columns")
+
+
+def row_sigma_scales(meas: Measurements, position_sigma_m: float, rotation_sigma_rad: float
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per-row weights from the optional columns ``sigma_mm`` (a row's position uncertainty,
+    mm per axis) and ``sigma_deg`` (its orientation uncertainty, deg per axis), as written
+    by ``olp-cal camera measure``: ``(position_sigma_m / sigma, rotation_sigma_rad /
+    sigma)``, each (m,), the defaults where a cell is empty; None without either column.
+    :class:`DataError` (file, line, column) for a cell that is not a positive number."""
+    columns = [c for c in ("sigma_mm", "sigma_deg") if c in meas.extra]
+    if not columns:
+        return None
+    scales = []
+    for column, default, unit in (("sigma_mm", position_sigma_m, 1e-3),
+                                  ("sigma_deg", rotation_sigma_rad, np.pi / 180)):
+        sigma = np.full(meas.n_rows, default, dtype=float)
+        for k, text in enumerate(meas.extra.get(column, [])):
+            text = str(text).strip()
+            if not text:
+                continue
+            try:
+                value = float(text)
+            except ValueError:
+                value = float("nan")
+            if not (np.isfinite(value) and value > 0):
+                line = meas.rows[k] if meas.rows is not None else k + 1
+                raise DataError(f"{meas.source}:{line}: column '{column}': expected a positive "
+                                f"number, got '{text}'")
+            sigma[k] = value * unit
+        scales.append(default / sigma)
+    return scales[0], scales[1]

@@ -104,7 +104,8 @@ class IdentificationProblem:
                  effects=(), inputs: EffectInputs | None = None,
                  urdf_from_controller: np.ndarray | None = None,
                  tool_rotations0: dict[str, np.ndarray] | None = None,
-                 orientation_weight: float = 1.0):
+                 orientation_weight: float = 1.0,
+                 row_scales: tuple[np.ndarray, np.ndarray] | None = None):
         self.model = model
         self.q = meas.joints
         self.measured = meas.points
@@ -115,6 +116,12 @@ class IdentificationProblem:
         self.r0 = device_T_base0[:3, :3].copy()
         self.t0 = device_T_base0[:3, 3].copy()
         self.row_weight = np.ones(len(self.measured))
+        """(m,) 1, or 0 for a row the robust fit rejected."""
+        ones = np.ones(len(self.measured))
+        self.position_scale, self.rotation_scale = (ones, ones) if row_scales is None else (
+            np.asarray(row_scales[0], dtype=float), np.asarray(row_scales[1], dtype=float))
+        """(m,) each row's weight from its own uncertainty (sigma_mm, sigma_deg columns):
+        the reference sigma over the row's; ones without those columns."""
         self.effects: list[Effect] = list(effects)
         if self.effects and inputs is None:
             raise ValueError("effects need their inputs "
@@ -236,10 +243,16 @@ class IdentificationProblem:
         """Weighted residuals (3m + 3k,), predicted minus measured, device frame, m; then
         the k orientation rows (see the class docstring)."""
         _, pose, _, chain, predicted = self.predict(x, jacobian=False)
-        residual = ((predicted - self.measured) * self.row_weight[:, None]).ravel()
+        residual = ((predicted - self.measured) * self.position_weight[:, None]).ravel()
         if self.n_oriented:
             residual = np.concatenate([residual, self.orientation_rows(x, pose, chain)[0]])
         return residual
+
+    @property
+    def position_weight(self) -> np.ndarray:
+        """(m,) the weight of each row's position residuals: robust acceptance times the
+        row's own uncertainty's."""
+        return self.row_weight * self.position_scale
 
     def orientation_errors(self, x: np.ndarray, pose: np.ndarray | None = None, chain=None,
                            ) -> tuple[np.ndarray, np.ndarray]:
@@ -273,7 +286,8 @@ class IdentificationProblem:
         acts as w = J_r(phi) dphi, the tool rotation directly in the tool frame."""
         rows = self.oriented_rows
         errors, _ = self.orientation_errors(x, pose, chain)
-        weight = (self.orientation_weight * self.row_weight[rows])[:, None]
+        weight = (self.orientation_weight * self.row_weight[rows]
+                  * self.rotation_scale[rows])[:, None]
         residual = (errors * weight).ravel()
         if not jacobian:
             return residual, None
@@ -347,7 +361,7 @@ class IdentificationProblem:
         origin = None if scale is None else chain.flange[:, :3, 3] / scale[:, None]
         for effect, basis, cols in zip(self.effects, self._bases, self.layout.effects):
             jac[:, :, cols] = self.effect_columns(effect, basis, chain, pose, origin)
-        w = self.row_weight[:, None]
+        w = self.position_weight[:, None]
         residual = ((predicted - self.measured) * w).ravel()
         if np.any(w != 1.0):
             jac *= w[:, :, None]

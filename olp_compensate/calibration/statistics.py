@@ -95,7 +95,7 @@ def fit_statistics(problem: IdentificationProblem, x: np.ndarray,
     weak = [f"{describe_combination(vt[k], names)} (relative singular value {s[k] / s[0]:.1e})"
             for k in range(len(s)) if s[k] < WEAK_TOLERANCE * s[0]]
     m_rows = len(problem.measured)
-    if np.all(problem.row_weight[used] == 1.0):  # the position rows of the residual at x
+    if np.all(problem.position_weight[used] == 1.0):  # the position rows of the residual
         errors = np.linalg.norm(residual[:3 * m_rows].reshape(m_rows, 3), axis=1)[used]
     else:
         errors = row_errors(problem, x)[used]
