@@ -165,3 +165,34 @@ def test_a_task_folder_resolves_across_its_modules(tmp_path):
             assert (out / module.name).read_bytes() == module.read_bytes()
     unresolved = [r for r in _rows(tmp_path / "r.csv") if r["status"] == "unresolved"]
     assert unresolved and all("tMissing" in r["note"] for r in unresolved)
+
+
+def test_targets_inside_a_region_are_solved_on_its_model(tmp_path):
+    """A local model (the nominal arm with a 1 mm longer lower arm) whose box holds every
+    target of cell_a.mod gives what that model gives alone, and the notes say which model;
+    a box holding none gives the global (nominal) result."""
+    import dataclasses
+
+    from olp_compensate.calibration.calibration import RegionBox, RegionCalibration
+    from olp_compensate.compensation.program import compensate_program
+
+    robot = load_robot("abb_irb2400")
+    nominal = nominal_calibration(robot)
+    values = nominal.values.copy()
+    values[nominal.model.index("j2.a")] += 1e-3
+    local = dataclasses.replace(nominal, values=values)
+    text = (SAMPLES / "cell_a.mod").read_bytes()
+    alone, alone_report = compensate_program(text, "rapid", local)
+    for box, expected, model_note in (
+            (RegionBox(min_m=np.full(3, -5.0), max_m=np.full(3, 5.0)), alone, "region cell"),
+            (RegionBox(min_m=np.full(3, 9.0), max_m=np.full(3, 10.0)),
+             text.decode("latin-1"), "global model")):
+        regional = dataclasses.replace(nominal, regions=(RegionCalibration(
+            name="cell", box=box, calibration=local),))
+        from olp_compensate.cli.fix import make_compensator
+
+        out, report = compensate_program(text, "rapid", make_compensator(regional, None))
+        assert out == expected
+        solved = [r for r in report.rows if r.status in ("ok", "singular", "joint_limit")]
+        assert solved and all(model_note in r.note for r in solved), [r.note for r in solved]
+    assert alone != text.decode("latin-1")

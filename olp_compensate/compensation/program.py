@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibration.calibration import Calibration
+from ..calibration.calibration import GLOBAL_MODEL, Calibration
 from ..errors import DataError
 from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, rotation_angle_between)
@@ -288,16 +288,27 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool,
     nominal = np.full((n, robot.n_joints), np.nan)
     reason = np.empty(n, dtype=object)
     failures: list = [None] * n
+    regional = _regions(comp, res, job, requested)
     for idx, conf in _configuration_groups(comp, written, has_conf, requested):
         if teacher is not None:
             desired[idx] = _taught_flanges(teacher, requested[idx], conf, desired[idx],
                                            tool_change[idx])
-        qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
+        if regional is None:
+            qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
+            explained = explain_failures(comp, sol, desired[idx], conf) \
+                if not sol.success.all() else ()
+        else:
+            regions, tool_keys = regional
+            qi, fi, sol, nomi, where = comp.solve_regions(
+                desired[idx], requested[idx], conf, regions=regions[idx], tools=tool_keys[idx])
+            explained = comp.explain_failures(sol, where, conf) if not sol.success.all() else ()
+            for i, name in zip(idx, where.regions.tolist()):
+                used = "global model" if name == GLOBAL_MODEL else f"model of region {name}"
+                tool_note[i] = f"{tool_note[i]}; {used}" if tool_note[i] else used
         q[idx], flange[idx], nominal[idx] = qi, fi, nomi
         reason[idx] = sol.reason
-        if not sol.success.all():
-            for i, failure in zip(idx, explain_failures(comp, sol, desired[idx], conf)):
-                failures[i] = failure
+        for i, failure in zip(idx, explained):
+            failures[i] = failure
     reason = reason.tolist()
     ok = np.fromiter((r in COMPENSATED for r in reason), bool, n)
     new_targets = _written_targets(res, job, flange, ok)
@@ -323,6 +334,31 @@ def _solve(comp: Compensator, res, job: list[int], vplus: bool,
                                                    original[:, :3, :3])),
         change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
         vplus_text=_vplus_texts(comp, q, ok) if vplus else {}, failures=failures)
+
+
+def _regions(comp: Compensator, res, job: list[int], requested: np.ndarray):
+    """With a :class:`~.regions.RegionalCompensator`: each row's region (by the program
+    tool's TCP in the base frame; a stationary tool's by the flange) and the name of the
+    calibrated tool that is its real TCP (None where none is); else None."""
+    from .regions import RegionalCompensator
+
+    if not isinstance(comp, RegionalCompensator):
+        return None
+    pair_index = res.entry_pairs[job]
+    tcp = requested.copy()
+    tool_keys = np.full(len(job), None, dtype=object)
+    for p in np.unique(pair_index).tolist():
+        pair = res.pairs[p]
+        members = np.flatnonzero(pair_index == p)
+        if not pair.stationary_tool:
+            tcp[members] = requested[members] @ pair.flange_T_tool
+            tool_keys[members] = _calibrated_tool_key(comp.calibration, pair.tool_name)
+    return comp.regions_for(tcp), tool_keys
+
+
+def _calibrated_tool_key(calibration: Calibration, name: str) -> str | None:
+    """The calibration's name of the tool the program calls ``name`` (case-insensitive)."""
+    return next((key for key in calibration.tools if key.lower() == name.lower()), None)
 
 
 def _aim(comp: Compensator, res, job: list[int], requested: np.ndarray,
