@@ -184,7 +184,7 @@ def _refuse(marks: np.ndarray, cond: float, dof: int) -> None:
             f"(spread {spread[0] / MM:.1f} mm along it, {spread[1] / MM:.1f} mm across; "
             f"condition number {cond:.3g}), so the rotation about that line is free.",
             "Add marks away from that line, spread over a plane (ideally around the region "
-            "where the robot works), or use --keep-tilt if the base is level.", cond)
+            "where the robot works), or keep the tilt (keep_tilt) if the base is level.", cond)
     if spread[0] <= 0:
         raise PoorlyDeterminedBase(
             f"cannot fix the base from these {len(marks)} marks: they are one point.",

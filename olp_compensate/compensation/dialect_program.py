@@ -52,7 +52,7 @@ class FrameLookup:
         tool = self._calibrated(key)
         if tool is not None:
             return tool, ""
-        hint = ("$config.dat (--config)" if self.rules.name == "krl"
+        hint = ("the controller's $config.dat" if self.rules.name == "krl"
                 else "the program nor the frames given")
         return None, f"{kind} {key} unknown: not defined in {hint} nor a calibrated tool " \
                      f"of that name in calib.json"

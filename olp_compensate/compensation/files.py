@@ -89,7 +89,7 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
                                       taught_on=taught_on)
         return FilesResult(data=tuple(t.encode(ENCODING) for t in new), report=report)
     if emit != "pose":
-        raise DataError(f"{files.names[0]}: --emit {emit}: joint targets are written for "
+        raise DataError(f"{files.names[0]}: emit={emit!r}: joint targets are written for "
                         f"RAPID and V+ programs only")
     from .dialect_program import compensate_pose_program
 
