@@ -186,3 +186,15 @@ def test_forward_jacobians_of_two_evaluations_do_not_share_memory():
     b = forward(model, model.nominal, q2, jacobian=True)
     np.testing.assert_array_equal(a.dpoint_dparam, kept)  # b did not write into a's block
     assert not np.shares_memory(a.dpoint_dparam, b.dpoint_dparam)
+
+
+def test_batched_joint_frames_equal_one_by_one():
+    from olp_compensate.kinematics.model import joint_frames_batch
+
+    for name in ("abb_irb2400", "fanuc_r2000ic_165f", "ur5e"):
+        robot = load_robot(name)
+        model = build_model(robot)
+        q = np.random.default_rng(3).uniform(-2.0, 2.0, (20, robot.n_joints))
+        batch = joint_frames_batch(model, model.nominal, q)
+        for row, frames in zip(q, batch):
+            assert np.array_equal(frames, joint_frames(model, model.nominal, row))

@@ -231,6 +231,7 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
     branches = closed_form_inverse(comp.family, requested)                  # (m, 8, n) URDF
     m, k, n = branches.shape
     branches_ctrl = robot.controller_from_joints(branches.reshape(-1, n)).reshape(m, k, n)
+    geometry.prepare(branches_ctrl)          # the configuration words of every branch at once
     chosen, keep = [], []
     previous = None
     for i, job in enumerate(jobs):

@@ -447,6 +447,31 @@ def joint_frames(model: KinematicModel, values: np.ndarray, q: np.ndarray) -> np
     return frames
 
 
+def joint_frames_batch(model: KinematicModel, values: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """:func:`joint_frames` for joint vectors ``q`` (m, n) at once; shape (m, n, 4, 4)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    m = len(q)
+    current = np.broadcast_to(model.base_T_first, (m, 4, 4)).copy()
+    frames = np.empty((m, model.n_joints, 4, 4))
+    seen = set()
+    for step in model.steps:
+        if step.joint is not None and step.joint not in seen:
+            frames[:, step.joint] = current
+            seen.add(step.joint)
+        value = values[step.parameter] + (q[:, step.joint] if step.joint is not None
+                                          else np.zeros(m))
+        elementary = np.broadcast_to(np.eye(4), (m, 4, 4)).copy()
+        if step.rotation:
+            c, s = np.cos(value), np.sin(value)
+            j, k = (step.axis + 1) % 3, (step.axis + 2) % 3
+            elementary[:, j, j], elementary[:, j, k] = c, -s
+            elementary[:, k, j], elementary[:, k, k] = s, c
+        else:
+            elementary[:, step.axis, 3] = value
+        current = current @ elementary
+    return frames
+
+
 def fixed_chain(model: KinematicModel, values: np.ndarray) -> FixedChain | None:
     """The chain of the model with parameter ``values``, or None unless the model is six
     revolute joints each turning its frame about z (checked at a few joint vectors)."""
