@@ -15,6 +15,14 @@ temporary folder, even where PYTHONDONTWRITEBYTECODE is set), then ``--repeat`` 
 the best and the median run are printed (this machine's speed drifts by a third within
 minutes).
 
+In the same run, interleaved with olp-fix's runs, the floor: a plain Python rewrite of the
+same module in a new process (read the file, replace the position of every robtarget
+literal with that of a fixed 0.1 mm shift by one regular expression, write the file);
+printed with the ratio of olp-fix to it (target: at most 3x). And olp-fix's peak memory
+above the interpreter's: ``ru_maxrss`` of ``getrusage(RUSAGE_CHILDREN)`` in a new process
+that ran olp-fix, minus that of one that ran ``python -c "import numpy"``, per target
+(target: at most 1 KB per target).
+
 Run: ``python benchmarks/compensate.py [--targets N] [--repeat K]``. Exit code 0.
 """
 
@@ -45,17 +53,22 @@ TOOL = "[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],[2.5,[0,0,80],[1,0,0,0],0,0
 WOBJ = "[FALSE,TRUE,\"\",[[700,-300,300],[1,0,0,0]],[[0,0,0],[1,0,0,0]]]"
 
 
-def generate_module(n: int, seed: int = 1) -> str:
-    """A RAPID module with n robtargets (half in a work object) and a MoveL to each."""
+def generate_module(n: int, seed: int = 1, joints: np.ndarray | None = None) -> str:
+    """A RAPID module with n robtargets (half in a work object) and a MoveL to each;
+    ``joints``: the IRB 2400's controller joints (n, 6), rad, of the targets (default:
+    random, away from singularities)."""
     robot = load_robot("abb_irb2400")
     comp = Compensator(nominal_calibration(robot))
-    rng = np.random.default_rng(seed)
-    q = robot.joints_from_controller(random_joints(robot, 3 * n, rng, margin=0.3))
-    # a program's targets are away from singularities: wrist (axis 5 near zero) and
-    # elbow (stretched arm); the smallest singular value of the Jacobian above 2 cm/rad
-    q = q[np.abs(np.sin(q[:, 4])) > 0.2]
-    _, jac = comp.real_flange_and_jacobian(q)
-    q = q[np.linalg.svd(jac, compute_uv=False)[:, -1] > 0.02]
+    if joints is not None:
+        q = robot.joints_from_controller(np.asarray(joints, dtype=float))
+    else:
+        rng = np.random.default_rng(seed)
+        q = robot.joints_from_controller(random_joints(robot, 3 * n, rng, margin=0.3))
+        # a program's targets are away from singularities: wrist (axis 5 near zero) and
+        # elbow (stretched arm); the smallest singular value of the Jacobian above 2 cm/rad
+        q = q[np.abs(np.sin(q[:, 4])) > 0.2]
+        _, jac = comp.real_flange_and_jacobian(q)
+        q = q[np.linalg.svd(jac, compute_uv=False)[:, -1] > 0.02]
     while len(q) < n:
         q = np.concatenate([q, q])
     q = q[:n]
@@ -84,6 +97,40 @@ def generate_module(n: int, seed: int = 1) -> str:
     return "\r\n".join(lines)
 
 
+FLOOR = r"""
+import re, sys
+NUMBER = rb"([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)"
+ANY = rb"[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?"
+LITERAL = re.compile(rb"\[\[" + NUMBER + rb"," + NUMBER + rb"," + NUMBER + rb"\],(\[" +
+                     rb",".join([ANY] * 4) + rb"\],\[" + rb",".join([rb"-?[0-9]+"] * 4) +
+                     rb"\],\[)")
+def shifted(match):
+    x, y, z = (float(v) + 0.1 for v in match.groups()[:3])
+    return b"[[%.2f,%.2f,%.2f]," % (x, y, z) + match.group(4)
+with open(sys.argv[1], "rb") as f:
+    text = f.read()
+text, n = LITERAL.subn(shifted, text)
+with open(sys.argv[2], "wb") as f:
+    f.write(text)
+print(n)
+"""
+"""The floor: every robtarget literal's position (``[[x,y,z],[q1..q4],[cf1,cf4,cf6,cfx],[``)
+moved by 0.1 mm along x, y and z (written with two decimals), the rest of the bytes kept;
+prints the number of literals rewritten."""
+
+PEAK_RSS = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=False, "
+            "stdout=subprocess.DEVNULL); "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+"""Runs its arguments as a child and prints the child's peak resident memory, KB (Linux)."""
+
+
+def peak_rss_kb(command: list[str], env: dict | None = None) -> int:
+    """Peak resident memory (KB) of ``command`` run as the only child of a new process."""
+    done = subprocess.run([sys.executable, "-c", PEAK_RSS, *command], capture_output=True,
+                          text=True, env=env, check=True)
+    return int(done.stdout.split()[-1])
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--targets", type=int, default=100_000)
@@ -109,7 +156,8 @@ def main() -> int:
                    str(model), "--report", str(folder / "report.csv")]
         env = dict(os.environ, PYTHONPYCACHEPREFIX=str(folder / "bytecode"))
         env.pop("PYTHONDONTWRITEBYTECODE", None)
-        times = []
+        floor_command = [sys.executable, "-c", FLOOR, str(module), str(folder / "floor.mod")]
+        times, floor_times = [], []
         for run in range(1 + args.repeat):   # the first run is the untimed warm-up
             t0 = time.perf_counter()
             done = subprocess.run(command, capture_output=True, text=True, env=env)
@@ -118,6 +166,14 @@ def main() -> int:
             if done.returncode not in (0, 2):
                 print(done.stderr)
                 return 1
+            t0 = time.perf_counter()
+            floor = subprocess.run(floor_command, capture_output=True, text=True, env=env,
+                                   check=True)
+            if run:
+                floor_times.append(time.perf_counter() - t0)
+            if int(floor.stdout) != args.targets:
+                print(f"the floor rewrote {floor.stdout.strip()} literals, not {args.targets}")
+                return 1
         statuses = [ln.split(",")[4] for ln in (folder / "report.csv").read_text().splitlines()[1:]]
         ok = sum(s in ("ok", "singular") for s in statuses)
         best, median = min(times), statistics.median(times)
@@ -125,6 +181,17 @@ def main() -> int:
               f"{args.targets / best:,.0f} targets/s (target >= 20,000/s); median "
               f"{median:.2f} s, {args.targets / median:,.0f}/s; {ok}/{len(statuses)} "
               f"compensated")
+        floor_best, floor_median = min(floor_times), statistics.median(floor_times)
+        print(f"floor, plain Python re rewrite of the same module (new process, interleaved, "
+              f"best of {len(floor_times)}): {floor_best:.2f} s, median {floor_median:.2f} s; "
+              f"olp-fix / floor: {best / floor_best:.2f}x best, {median / floor_median:.2f}x "
+              f"median (target <= 3x)")
+        fix_kb = min(peak_rss_kb(command, env) for _ in range(2))
+        numpy_kb = min(peak_rss_kb([sys.executable, "-c", "import numpy"], env)
+                       for _ in range(2))
+        print(f"peak memory (ru_maxrss of a new process): olp-fix {fix_kb / 1024:.0f} MB, "
+              f"python -c 'import numpy' {numpy_kb / 1024:.0f} MB; olp-fix above it "
+              f"{(fix_kb - numpy_kb) / args.targets:.2f} KB per target (target <= 1 KB)")
 
         # where the time goes, in-process
         stages = {}
