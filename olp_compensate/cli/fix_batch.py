@@ -78,12 +78,37 @@ def _outcomes(args, units):
         for k, u in enumerate(units):
             yield _work(k, u.dialect, tuple(map(str, u.paths)), u.names)
         return
+    _warm(units, init)       # forked workers inherit the imports, the parsers, the model
+    order = sorted(range(len(units)), key=lambda k: -_size(units[k]))   # largest first
     with ProcessPoolExecutor(max_workers=jobs, initializer=_start_worker,
                              initargs=init) as pool:
-        futures = [pool.submit(_work, k, u.dialect, tuple(map(str, u.paths)), u.names)
-                   for k, u in enumerate(units)]
+        futures = [pool.submit(_work, k, units[k].dialect, tuple(map(str, units[k].paths)),
+                               units[k].names) for k in order]
         for future in as_completed(futures):
             yield future.result()
+
+
+def _size(unit) -> int:
+    """Bytes of a unit's files (its work, roughly)."""
+    return sum(p.stat().st_size for p in unit.paths if p.exists())
+
+
+def _warm(units, init) -> None:
+    """Load in this process what every worker needs before the pool forks: the
+    calibration and closed form, and each dialect's parser (a grammar loads once)."""
+    _start_worker(*init)
+    from ..programs import loads
+
+    samples = {"rapid": "MODULE Warm\nENDMODULE\n", "vplus": ".PROGRAM warm()\n.END\n"}
+    for dialect in {u.dialect for u in units} & set(samples):
+        try:
+            loads(samples[dialect], dialect, "<warm-up>")
+        except OlpError:
+            pass
+    from importlib import import_module
+
+    for module in ("files", "task", "dialect_program"):   # imported to be inherited
+        import_module(f"..compensation.{module}", __package__)
 
 
 def run_batch(args, units) -> int:
