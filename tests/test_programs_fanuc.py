@@ -10,9 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
-from olp_compensate.calibration.identify import IdentificationOptions, identify
-from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.calibration.simulate import VirtualRobot, random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
 from olp_compensate.compensation.ik import closed_form_inverse, fit_family
@@ -22,6 +21,7 @@ from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
+from virtual_world import identified_world
 
 ROBOT = load_robot("fanuc_r2000ic_165f")
 TOOL_MM = (12.0, -5.0, 380.0, 0.0, 0.0, 0.0)
@@ -257,13 +257,7 @@ def test_turn_axes_are_a_setting():
 
 @pytest.fixture(scope="module")
 def fanuc_world():
-    virtual = make_virtual_robot(ROBOT, seed=11, n_points=3)
-    rng = np.random.default_rng(11)
-    meas = virtual.measure(random_joints(ROBOT, 60, rng), 0.01e-3, rng)
-    cal = identify(ROBOT, meas, IdentificationOptions(folds=0)).calibration
-    tools = dict(cal.tools)
-    tools["UT4"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
-    return virtual, cal.__class__(**{**cal.__dict__, "tools": tools})
+    return identified_world(ROBOT, 11, "UT4")
 
 
 def test_compensated_fanuc_reaches_its_targets_on_the_virtual_robot(fanuc_world):

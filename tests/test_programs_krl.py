@@ -9,9 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
-from olp_compensate.calibration.identify import IdentificationOptions, identify
-from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.calibration.simulate import VirtualRobot, random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import KRL, ArmGeometry, krl_status, krl_turn
 from olp_compensate.compensation.ik import closed_form_inverse, fit_family
@@ -20,6 +19,7 @@ from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.krl import parse_krl, status_text, status_value
 from olp_compensate.programs.targets import Number
+from virtual_world import identified_world
 
 ROBOT = load_robot("kuka_kr16_2")
 TOOL_MM = np.array([12.0, -5.0, 180.0, 0.0, 0.0, 0.0])      # TOOL_DATA[1] in $config.dat
@@ -182,14 +182,7 @@ def test_runtime_unknown_and_unresolved_are_reported_never_dropped():
 
 @pytest.fixture(scope="module")
 def kuka_world():
-    virtual = make_virtual_robot(ROBOT, seed=5, n_points=3)
-    rng = np.random.default_rng(5)
-    meas = virtual.measure(random_joints(ROBOT, 60, rng), 0.01e-3, rng)
-    cal = identify(ROBOT, meas, IdentificationOptions(folds=0)).calibration
-    # the real TCP of TOOL_DATA[1] is the measured point 'tcp'
-    tools = dict(cal.tools)
-    tools["TOOL_DATA[1]"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
-    return virtual, cal.__class__(**{**cal.__dict__, "tools": tools})
+    return identified_world(ROBOT, 5, "TOOL_DATA[1]")
 
 
 def test_compensated_krl_reaches_its_targets_on_the_virtual_robot(kuka_world):

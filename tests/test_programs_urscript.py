@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.calibration.identify import IdentificationOptions, identify
-from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.calibration.simulate import VirtualRobot
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.ik import closed_form_inverse, fit_family
 from olp_compensate.compensation.rules_urscript import URSCRIPT
@@ -20,6 +19,7 @@ from olp_compensate.kinematics.conventions import (invert_pose, rotation_from_ro
                                                    rotvec_from_rotation)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.urscript import parse_urscript
+from virtual_world import identified_world
 
 ROBOT = load_robot("ur10e")
 TCP = (0.0, 0.0, 0.15, 0.0, 0.0, 0.0)
@@ -211,11 +211,7 @@ def test_two_solutions_nearly_as_near_are_reported_ambiguous():
 
 @pytest.fixture(scope="module")
 def ur_world():
-    virtual = make_virtual_robot(ROBOT, seed=31, n_points=3)
-    rng = np.random.default_rng(31)
-    meas = virtual.measure(random_joints(ROBOT, 60, rng), 0.01e-3, rng)
-    cal = identify(ROBOT, meas, IdentificationOptions(folds=0)).calibration
-    return virtual, cal                       # the calibration's 'tcp' is the script's TCP
+    return identified_world(ROBOT, 31)      # the calibration's 'tcp' is the script's TCP
 
 
 def test_compensated_urscript_reaches_its_targets_on_the_virtual_robot(ur_world):

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
-from olp_compensate.calibration.identify import IdentificationOptions, identify
-from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.calibration.simulate import VirtualRobot, random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
 from olp_compensate.compensation.ik import closed_form_inverse, fit_family
@@ -21,6 +20,7 @@ from olp_compensate.kinematics.conventions import (euler_xyz_from_matrix, invert
                                                    rot_y, rot_z)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.val3 import parse_val3
+from virtual_world import identified_world
 
 ROBOT = load_robot("staubli_tx2_60")
 TOOL_MM = (0.0, 0.0, 120.0, 0.0, 0.0, 0.0)
@@ -211,13 +211,7 @@ def test_a_value_left_out_is_inserted_as_an_attribute():
 
 @pytest.fixture(scope="module")
 def staubli_world():
-    virtual = make_virtual_robot(ROBOT, seed=21, n_points=3)
-    rng = np.random.default_rng(21)
-    meas = virtual.measure(random_joints(ROBOT, 60, rng), 0.01e-3, rng)
-    cal = identify(ROBOT, meas, IdentificationOptions(folds=0)).calibration
-    tools = dict(cal.tools)
-    tools["tGripper[0]"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
-    return virtual, cal.__class__(**{**cal.__dict__, "tools": tools})
+    return identified_world(ROBOT, 21, "tGripper[0]")
 
 
 def test_compensated_val3_reaches_its_points_on_the_virtual_robot(staubli_world):

@@ -1,0 +1,27 @@
+"""A virtual robot and its calibration identified from 60 measured poses, shared by the
+dialect tests' whole loops (identify, compensate, run on the virtual arm)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from olp_compensate.calibration.calibration import ToolPoint
+from olp_compensate.calibration.identify import IdentificationOptions, identify
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
+
+
+def identified_world(robot, seed: int, tool_alias: str | None = None):
+    """(virtual robot, its calibration from 60 poses at 0.01 mm noise); ``tool_alias``: the
+    program's name for the measured point 'tcp', added to the calibration's tools so the
+    program's tool finds its real TCP."""
+    virtual = make_virtual_robot(robot, seed=seed, n_points=3)
+    rng = np.random.default_rng(seed)
+    meas = virtual.measure(random_joints(robot, 60, rng), 0.01e-3, rng)
+    cal = identify(robot, meas, IdentificationOptions(folds=0)).calibration
+    if tool_alias is not None:
+        tools = dict(cal.tools)
+        tools[tool_alias] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
+        cal = dataclasses.replace(cal, tools=tools)
+    return virtual, cal
