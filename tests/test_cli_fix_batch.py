@@ -196,3 +196,25 @@ def test_targets_inside_a_region_are_solved_on_its_model(tmp_path):
         solved = [r for r in report.rows if r.status in ("ok", "singular", "joint_limit")]
         assert solved and all(model_note in r.note for r in solved), [r.note for r in solved]
     assert alone != text.decode("latin-1")
+
+
+def test_a_dump_without_location_data_is_written_as_it_is_and_system_lists_are_skipped(
+        backup, tmp_path, capsys):
+    """A complete AS dump of auxiliary data only (no targets) is valid input: written back
+    byte for byte, exit 0. A cut-off one (no '.END') stays a one-line refusal. KRL system
+    data lists ($machine.dat) in a backup are not programs."""
+    tree, model = backup
+    dump = tmp_path / "aux.as"
+    dump.write_bytes(b".AUXDATA\r\nN_INT1    \"x\"\r\n.END\r\n.REALS\r\nspeed = 100\r\n.END\r\n")
+    assert main([str(dump), "--model", str(model), "-o", str(tmp_path / "aux_out.as")]) == 0
+    assert (tmp_path / "aux_out.as").read_bytes() == dump.read_bytes()
+    assert "no location data" in capsys.readouterr().out
+    cut = tmp_path / "cut.as"
+    cut.write_bytes(b".REALS\r\nspeed = 1")
+    assert main([str(cut), "--model", str(model), "-o", str(tmp_path / "cut_out.as")]) == 1
+    assert not (tmp_path / "cut_out.as").exists()
+    copy = tmp_path / "in"
+    shutil.copytree(tree, copy)
+    (copy / "KRL" / "R1" / "$machine.dat").write_text("DEFDAT $MACHINE\nENDDAT\n")
+    assert main([str(copy), "--model", str(model), "-o", str(tmp_path / "out"), "-q"]) == 2
+    assert not (tmp_path / "out" / "KRL" / "R1" / "$machine.dat").exists()

@@ -149,6 +149,22 @@ def load_calibrations(args):
     return calibration, taught_on
 
 
+V_PLUS_END = re.compile(rb"^[ \t]*\.END[ \t]*\r?$", re.MULTILINE | re.IGNORECASE)
+
+
+def check_not_cut_short(dialect: str, paths, names) -> None:
+    """:class:`DataError` for a program without any target that looks empty or cut short:
+    every file blank, or a V+/AS file without one complete ``.END``-closed section. A file
+    that is complete but holds no location data (an AS dump of system or auxiliary data, a
+    KRL data list without positions) passes: it is written back as it is."""
+    data = [Path(p).read_bytes() for p in paths]
+    cut = all(not d.strip() for d in data) or (
+        dialect == "vplus" and not any(V_PLUS_END.search(d) for d in data))
+    if cut:
+        raise DataError(f"{names[0]}: no robot target in the program (empty or cut "
+                        f"short?); nothing written")
+
+
 def output_is_folder(args) -> bool:
     """Whether ``-o`` names a folder mirroring the inputs (several paths, or a folder) rather
     than one program's output file."""
@@ -188,8 +204,7 @@ def _run_one(args, unit, retain: list | None) -> int:
     if retain is not None:
         retain += [result, report]
     if not report.rows:
-        raise DataError(f"{unit.names[0]}: no robot target in the program (empty or cut "
-                        f"short?); nothing written")
+        check_not_cut_short(unit.dialect, unit.paths, unit.names)   # data-only: written as is
     if output_is_folder(args):           # -o OUTDIR mirrors the input tree
         for out in unit.outputs:
             out.parent.mkdir(parents=True, exist_ok=True)
@@ -217,7 +232,8 @@ def _summary(report, outputs, report_path: str | None, seconds: float,
 
     rows = report.rows
     counts = report.counts()
-    parts = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
+    parts = (", ".join(f"{v} {k}" for k, v in sorted(counts.items())) if rows
+             else "no location data: written as it is")
     print(f"olp-fix: {report.file}: {len(rows)} target uses ({parts}) in {seconds:.2f} s")
     print(robot_line)
     shift = turn = dq = -1.0

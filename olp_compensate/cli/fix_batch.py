@@ -44,7 +44,7 @@ def _start_worker(model: str, robot: str | None, taught_on: str | None, options:
 def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
     """Compensate one unit in this process (see :func:`_start_worker`)."""
     from ..compensation.files import ProgramFiles, compensate_files
-    from .fix import check_robot
+    from .fix import check_not_cut_short, check_robot
 
     started = time.perf_counter()
     options = _STATE["options"]
@@ -56,12 +56,10 @@ def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
                                   _STATE["compensator"], emit=options["emit"],
                                   unused=options["unused"], taught_on=_STATE["teacher"],
                                   frames_path=options["config"])
+        if not result.report.rows:
+            check_not_cut_short(dialect, paths, names)
     except OlpError as exc:
         return UnitOutcome(index=index, error=str(exc).splitlines()[0],
-                           seconds=time.perf_counter() - started)
-    if not result.report.rows:
-        return UnitOutcome(index=index, error=f"{names[0]}: no robot target in the program "
-                                              f"(empty or cut short?); nothing written",
                            seconds=time.perf_counter() - started)
     return UnitOutcome(index=index, data=result.data, report=result.report,
                        seconds=time.perf_counter() - started)

@@ -8,8 +8,8 @@ units compensated together, and where each output goes.
   declarations (system modules first).
 - A folder (a task folder, a controller backup) is searched recursively for program files
   of every dialect (:data:`~olp_compensate.compensation.files.EXTENSIONS`, any case);
-  outputs of an earlier run (``*_compensated.*``), hidden files and KRL ``$config.dat``
-  (frame data, given with ``--config``) are skipped.
+  outputs of an earlier run (``*_compensated.*``), hidden files and KRL system data lists
+  (``$config.dat``, ``$machine.dat``...: frame data is given with ``--config``) are skipped.
 - Outputs: without ``-o`` each file is written beside its input as ``NAME_compensated.EXT``;
   with one file given, ``-o`` names its output (a KRL pair: ``OUT.src`` and ``OUT.dat``);
   with several files or a folder, ``-o`` names a folder whose tree mirrors the input's
@@ -40,8 +40,8 @@ class Unit:
 
 def _is_program(path: Path, extensions: dict[str, str]) -> bool:
     name = path.name
-    return (path.suffix.lower() in extensions and not name.startswith(".")
-            and not path.stem.endswith(SUFFIX) and name.lower() != "$config.dat")
+    return (path.suffix.lower() in extensions and not name.startswith((".", "$"))
+            and not path.stem.endswith(SUFFIX))
 
 
 def _files_under(folder: Path, extensions: dict[str, str]) -> list[Path]:
