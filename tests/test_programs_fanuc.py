@@ -296,3 +296,41 @@ def test_compensated_fanuc_reaches_its_targets_on_the_virtual_robot(fanuc_world)
     changed = [a for a, b in zip(new_lines, old_lines) if a != b]
     assert changed and all(line.startswith(("\tX =", "\tW =", "\tUF :")) for line in changed)
     assert texts["CELL.ls"].split("/POS")[0] == text.split("/POS")[0]
+
+
+def _record_program(body: str, mn: str = "   1:J P[1] 100% FINE    ;\n") -> str:
+    return f"/PROG  T\n/ATTR\n/MN\n{mn}/POS\nP[1]{{\n   GP1:\n{body}}};\n/END\n"
+
+
+@pytest.mark.parametrize("body, words", [
+    ("\tUF : 0, UT : 0,\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+     "\tX = ********  mm,\tY = ********  mm,\tZ = ********  mm,\n"
+     "\tW = ******** deg,\tP = ******** deg,\tR = ******** deg\n", "never taught"),
+    ("\tUF : 1, UT : 3,\t\tCONFIG : 'F U T, 0, -1, 0',\n"
+     "\tRX =  -397.527  mm,\tRY =    -3.242  mm,\tRZ =  3835.332  mm,\n"
+     "\tRW =    95.813 deg,\tRP =   -45.094 deg,\tRR =  -145.882 deg\n", "RP, RR, RW, RX"),
+])
+def test_records_that_cannot_be_read_are_kept_and_reported(body, words):
+    """A point never taught (``********``) or written in another representation (RX..RR)
+    does not stop the file: the record is reported at its place, its motion as not read."""
+    text = _record_program(body)
+    program = parse_fanuc_tp(text, "t.ls")
+    assert program.targets == []
+    ((where, what),) = program.unknown
+    assert where == ("t.ls", 6, 1) and words in what
+    (motion,) = program.motions
+    assert motion.runtime is not None
+    texts, report = compensate_pose_program(program, fanuc_rules(),
+                                            nominal_calibration(ROBOT))
+    assert texts["t.ls"] == text
+    assert sorted((r.status, r.line) for r in report.rows) == [
+        ("runtime", 4), ("unknown_instruction", 6)]
+
+
+def test_record_of_another_group_only():
+    text = ("/PROG  T\n/ATTR\n/MN\n   1:J P[1] 100% FINE    ;\n/POS\nP[1]{\n   GP4:\n"
+            "\tUF : 1, UT : 2,\t\n\tJ1=    40.000  mm\n};\n/END\n")
+    program = parse_fanuc_tp(text, "t.ls")
+    ((where, what),) = program.unknown
+    assert where == ("t.ls", 6, 1) and "GP4 only" in what
+    assert "group 1" in program.motions[0].runtime

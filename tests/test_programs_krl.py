@@ -251,3 +251,29 @@ def test_taught_on_the_same_robot_gives_the_bytes_back(kuka_world):
     # and transferring to the nominal robot changes them (the real A is not the nominal)
     moved, _ = compensate_pose_program(program, KRL, nominal_calibration(ROBOT), taught_on=cal)
     assert moved["CELL.dat"] != dat
+
+
+def test_inline_axis_aggregate_is_a_joint_target():
+    """``PTP {A1 0, A2 -90, ...}`` (a home move written inline) is an axis target kept as
+    written, not a Cartesian aggregate missing X..C."""
+    src = "DEF m( )\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 90, A6 0}\nEND\n"
+    program = parse_krl(src, None, "m.src")
+    (target,) = program.targets
+    assert target.kind == "joints" and [n.text for n in target.numbers] == \
+        ["0", "-90", "90", "0", "90", "0"]
+    assert target.source == ("m.src", 2, 5)
+    (motion,) = program.motions
+    assert motion.inline == 0 and motion.runtime is None
+    texts, report = compensate_pose_program(program, KRL, nominal_calibration(ROBOT))
+    assert texts["m.src"] == src
+    assert [(r.status, r.line, r.column) for r in report.rows] == [("joint_target", 2, 5)]
+
+
+def test_array_declared_without_value_and_variable_index():
+    dat = ("DEFDAT m\nDECL E6POS XPATH[2]\n"
+           "XPATH[1]={X 985.6,Y 409.0,Z 949.3,A 150.0,B 3.9,C 147.8,S 2,T 43}\nENDDAT\n")
+    src = "DEF m( )\nDECL INT I\nFOR I=1 TO 2\n  LIN XPATH[I]\nENDFOR\nEND\n"
+    program = parse_krl(src, dat, "m.src", "m.dat")
+    assert [t.name for t in program.targets] == ["XPATH[1]"]
+    (motion,) = program.motions
+    assert motion.target == "XPATH[I]" and "indexed at run time" in motion.runtime

@@ -263,3 +263,10 @@ def _run(text, controller, tool):
                                     reference)
         reached.append(current)
     return reached
+
+
+def test_calls_inside_strings_are_not_motions():
+    text = ('def m():\n  textmsg("about to movel(p[0,0,0,0,0,0])")\n'
+            '  popup("movej([0,0,0,0,0,0])", "x")\nend\n')
+    program = parse_urscript(text, "m.script")
+    assert program.targets == [] and program.motions == [] and program.unknown == []

@@ -12,7 +12,10 @@ tabs, ``-.131`` number forms and labels ``P[1:"App"]`` / ``P[1:App]``):
   fixed x, y, z axes, i.e. ``Rz(R) Ry(P) Rx(W)``), with the CONFIG letters and the three
   turn numbers as spans (``config``: letters then turns), or joint records
   (``kind='joints'``, kept as written); only group 1 (``GP1``) is read, other groups'
-  values are kept as written;
+  values are kept as written; a record in another representation (``RX = .. mm`` ...
+  ``RR = .. deg``, as some controller backups write) is kept as written and reported
+  (``unknown``), its motions as not read; so is a point never taught
+  (``X = ********  mm``), and a record of other groups only (a servo gun's ``GP4``);
 - motions ``J``, ``L``, ``C`` (with its second point on the ``:`` continuation line) and
   ``A`` to ``P[i]``; ``PR[i]`` (position registers), indirect ``P[R[i]]`` and motions with
   ``Offset``, ``Tool_Offset``, ``VOFFSET`` or ``INC`` are run-time targets;
@@ -39,6 +42,8 @@ _SECTION = re.compile(r"^/(PROG|ATTR|APPL|MN|POS|END)\b", re.M)
 _RECORD = re.compile(r"^[ \t]*P\[[ \t]*(\d+)[ \t]*(?::[^\]]*)?\][ \t]*\{", re.M)
 _GROUP = re.compile(r"\bGP(\d+)[ \t]*:")
 _FRAME_NO = re.compile(r"\b(UF|UT)[ \t]*:[ \t]*(\d+|F)\b")
+_ANY_FIELD = re.compile(rf"(?<![\w\[])([A-Z]{{1,3}}\d?)[ \t]*=[ \t]*{_NUMBER}")
+_UNTAUGHT = re.compile(r"(?<![\w\[])(?:[XYZWPR]|J\d)[ \t]*=[ \t]*\*+")
 _CONFIG = re.compile(r"\bCONFIG[ \t]*:[ \t]*'([^']*)'")
 _FIELD = re.compile(rf"(?<![\w\[])([XYZWPR]|J\d|E\d)[ \t]*=[ \t]*({_NUMBER})[ \t]*(mm|deg)?")
 _CONFIG_PARTS = re.compile(r"[ \t]*([NF])[ \t]*([UD])[ \t]*([TB])[ \t]*((?:,[ \t]*[-+]?\d+"
@@ -96,13 +101,23 @@ def _gp1(text: str, lo: int, hi: int) -> tuple[int, int]:
 
 
 def _positions(text: str, file: str, starts: list[int], lo: int, hi: int,
-               program: PoseProgram) -> dict[str, tuple[str, str]]:
-    """The ``/POS`` records: targets appended to ``program``; returns name -> (UF, UT)."""
+               program: PoseProgram, unreadable: dict[str, str] | None = None
+               ) -> dict[str, tuple[str, str]]:
+    """The ``/POS`` records: targets appended to ``program``; returns name -> (UF, UT).
+    Records in another representation are added to ``unreadable`` (name -> reason)."""
+    unreadable = {} if unreadable is None else unreadable
     frames_of = {}
     for m in _RECORD.finditer(text, lo, hi):
         name = f"P[{int(m.group(1))}]"
         end = _record_end(text, m.end(), file, starts)
         g_lo, g_hi = _gp1(text, m.end(), end)
+        if g_lo == g_hi == end and _GROUP.search(text, m.end(), end):
+            groups = ", ".join(f"GP{g.group(1)}" for g in _GROUP.finditer(text, m.end(), end))
+            where = (file, *line_column(text, m.start(), starts))
+            program.unknown.append((where, f"{name} has no group 1 data ({groups} only)"))
+            unreadable[name] = f"{name} moves {groups} only, not the robot arm (group 1); " \
+                               f"kept as written"
+            continue
         numbers = {}
         for f in _FIELD.finditer(text, g_lo, g_hi):
             value = f.group(2)
@@ -131,10 +146,22 @@ def _positions(text: str, file: str, starts: list[int], lo: int, hi: int,
             joints = tuple(numbers[k] for k in sorted(numbers) if k.startswith("J"))
             program.targets.append(PoseTarget(name=name, source=where, kind=JOINTS,
                                               numbers=joints, frame=frame))
+        elif _UNTAUGHT.search(text, g_lo, g_hi):
+            # X = ******** mm: a point recorded but never taught; kept as written
+            program.unknown.append((where, f"{name} never taught (values ********)"))
+            unreadable[name] = f"{name} was never taught (its values are ********)"
         else:
-            line, column = where[1:]
-            raise ParseError(f"{name}: group 1 has neither X..R nor J1..J6 values", file, line,
-                             column)
+            others = sorted({f.group(1) for f in _ANY_FIELD.finditer(text, g_lo, g_hi)})
+            if not others:
+                line, column = where[1:]
+                raise ParseError(f"{name}: group 1 has neither X..R nor J1..J6 values", file,
+                                 line, column)
+            # another representation (RX..RR as some backups write): kept as written, the
+            # record reported at its place and its motions as not read
+            program.unknown.append((where, f"{name} written as {', '.join(others)} (not "
+                                           f"X..R nor J1..J6)"))
+            unreadable[name] = (f"{name} is written as {', '.join(others)}, a representation "
+                                f"not read; kept as written")
     return frames_of
 
 
@@ -175,7 +202,7 @@ class _Numbers:
 
 
 def _motions(text: str, file: str, starts: list[int], lo: int, hi: int, program: PoseProgram,
-             frames_of: dict[str, tuple[str, str]]) -> None:
+             frames_of: dict[str, tuple[str, str]], unreadable: dict[str, str]) -> None:
     numbers = _Numbers()
     lines = [(s, e) for s, e in zip(starts, starts[1:] + [len(text)]) if lo <= s < hi]
     k = 0
@@ -207,11 +234,11 @@ def _motions(text: str, file: str, starts: list[int], lo: int, hi: int, program:
                     k += 1
         for at, (_, r_hi) in zip(args, rest):
             _motion(text, file, starts, instruction, where, at, r_hi, program, frames_of,
-                    numbers)
+                    numbers, unreadable)
 
 
 def _motion(text, file, starts, instruction, where, at, line_end, program, frames_of,
-            numbers: _Numbers) -> None:
+            numbers: _Numbers, unreadable: dict[str, str]) -> None:
     p = _POSITION.match(text, at)
     if p is None:
         program.unknown.append((where, instruction))
@@ -234,6 +261,8 @@ def _motion(text, file, starts, instruction, where, at, line_end, program, frame
         if option is not None:
             runtime = f"{option.group(1)} moves the point by an offset known at run time"
     name = f"{kind}[{int(index)}]" if index.isdigit() else f"{kind}[{index}]"
+    if runtime is None and name in unreadable:
+        runtime = unreadable[name]
     uf, ut = frames_of.get(name, ("F", "F"))
     base = numbers.uf if uf == "F" else f"UF{int(uf)}"
     tool = numbers.ut if ut == "F" else f"UT{int(ut)}"
@@ -252,9 +281,10 @@ def parse_fanuc_tp(text: str, file: str = "<ls>",
     sections = _sections(text)
     if "MN" not in sections and "POS" not in sections:
         raise ParseError("not a FANUC .ls program: neither /MN nor /POS found", file, 1, 1)
-    frames_of = {}
+    frames_of: dict[str, tuple[str, str]] = {}
+    unreadable: dict[str, str] = {}
     if "POS" in sections:
-        frames_of = _positions(text, file, starts, *sections["POS"], program)
+        frames_of = _positions(text, file, starts, *sections["POS"], program, unreadable)
     if "MN" in sections:
-        _motions(text, file, starts, *sections["MN"], program, frames_of)
+        _motions(text, file, starts, *sections["MN"], program, frames_of, unreadable)
     return program

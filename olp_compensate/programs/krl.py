@@ -8,12 +8,15 @@ programming"; the formats seen in controller backups):
   degrees; S status and T turn as integers or ``'B010'`` binary literals), array elements
   ``NAME[3]={...}``, and the same aggregates written inline in a motion
   (``LIN {X 10,Y 0,Z 5,A 0,B 90,C 0}``); ``E6AXIS``/``AXIS`` targets (axis values, kept as
-  written);
+  written), declared or inline (``PTP {A1 0,A2 -90,A3 90,A4 0,A5 90,A6 0}``);
 - ``DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE,...}``: the tool and base a motion
   uses once ``FDAT_ACT=FP1`` and ``BAS(#PTP_PARAMS|#CP_PARAMS, ...)`` load it; also
   ``BAS(#TOOL, n)``, ``BAS(#BASE, n)``, ``$TOOL=TOOL_DATA[n]``, ``$BASE=BASE_DATA[n]``;
+- arrays declared without a value (``DECL E6POS XPATH[10]``) whose elements are given
+  in the data list (``XPATH[1]={X ...}``);
 - motions ``PTP``, ``LIN``, ``CIRC`` (auxiliary and end point), ``SPTP``, ``SLIN``,
-  ``SCIRC``; ``..._REL`` motions and system variables (``$POS_ACT``...) are run-time targets;
+  ``SCIRC``; ``..._REL`` motions, system variables (``$POS_ACT``...) and array elements
+  indexed by a variable (``XPATH[I]``) are run-time targets;
 - ``$config.dat``-style ``TOOL_DATA[n]={X ..,Y ..,Z ..,A ..,B ..,C ..}`` and ``BASE_DATA[n]``
   when such a file is given (frames of the program's tools and bases).
 
@@ -39,6 +42,8 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _FIELD = re.compile(rf"([A-Za-z_][A-Za-z0-9_]*)\s+({_NUMBER}|'[BbHh][0-9A-Fa-f]*'|#\w+|\"[^\"]*\")")
 _DECL = re.compile(r"^[ \t]*DECL[ \t]+(?:GLOBAL[ \t]+)?([A-Za-z_]\w*)[ \t]+([A-Za-z_$]\w*)"
                    r"[ \t]*(\[[^\]]*\])?[ \t]*=[ \t]*\{", re.I | re.M)
+_DECL_ARRAY = re.compile(r"^[ \t]*DECL[ \t]+(?:GLOBAL[ \t]+)?([A-Za-z_]\w*)[ \t]+([A-Za-z_$]\w*)"
+                         r"[ \t]*\[[^\]]*\][ \t]*(?:$|[;\r\n])", re.I | re.M)
 _ELEMENT = re.compile(r"^[ \t]*([A-Za-z_$]\w*)[ \t]*\[([^\]]*)\][ \t]*=[ \t]*\{", re.M)
 _FDAT_ACT = re.compile(r"\bFDAT_ACT\s*=\s*([A-Za-z_]\w*)", re.I)
 _BAS_PARAMS = re.compile(r"\bBAS\s*\(\s*#(PTP_PARAMS|CP_PARAMS|TOOL|BASE)\s*(?:,\s*(\d+))?", re.I)
@@ -47,6 +52,7 @@ _BASE_SET = re.compile(r"\$BASE\s*=\s*(BASE_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME|\
 _WITH_FDAT = re.compile(r"\bSTOOL2\s*\(\s*([A-Za-z_]\w*)\s*\)|\b([A-Za-z_]\w*)\.(?:BASE_NO|TOOL_NO)\b",
                         re.I)
 _MOTION = re.compile(r"^[ \t]*(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\b[ \t]*", re.I | re.M)
+_LITERAL_INDEX = re.compile(r"\[\s*\d+\s*(?:,\s*\d+\s*)*\]$")
 _NAME_ARG = re.compile(r"([A-Za-z_$][\w$]*(?:\[[^\]]*\])?)")
 
 POSE_FIELDS = ("X", "Y", "Z", "A", "B", "C")
@@ -114,6 +120,8 @@ def _declarations(text: str, file: str, program: PoseProgram, types: dict[str, s
     """Targets, FDATs and frame data declared in ``text`` (a .dat, a .src or $config.dat)."""
     clean = strip_comments(text)
     starts = line_starts_of(text)
+    for m in _DECL_ARRAY.finditer(clean):          # DECL E6POS XPATH[10]: elements follow
+        types.setdefault(m.group(2).upper(), m.group(1).upper())
     for m in _DECL.finditer(clean):
         typ, name = m.group(1).upper(), m.group(2)
         lo = m.end() - 1
@@ -236,7 +244,10 @@ def _motions(text: str, file: str, program: PoseProgram, frames: _Frames) -> Non
                 k += 1
             if k < len(clean) and clean[k] == "{":
                 end = _aggregate_end(clean, k, file, starts)
-                target = _target(text, file, starts, None, "E6POS", k, end)
+                fields = _fields(text, k, end)
+                typ = ("E6AXIS" if "X" not in fields and any(f in fields for f in AXIS_FIELDS)
+                       else "E6POS")              # PTP {A1 0, A2 -90, ...}: axis values
+                target = _target(text, file, starts, None, typ, k, end)
                 program.targets.append(target)
                 args.append((None, len(program.targets) - 1, k))
                 k = end
@@ -255,6 +266,8 @@ def _motions(text: str, file: str, program: PoseProgram, frames: _Frames) -> Non
                 runtime = f"{instruction} moves relative to where the robot is at run time"
             elif name is not None and name.startswith("$"):
                 runtime = f"{name} is a system variable, known only at run time"
+            elif name is not None and "[" in name and not _LITERAL_INDEX.search(name):
+                runtime = f"{name} is indexed at run time"
             elif inline is not None and not program.targets[inline].numbers:
                 runtime = "the aggregate leaves some of X, Y, Z, A, B, C to the current position"
             program.motions.append(PoseMotion(instruction=instruction, target=name, source=where,

@@ -24,7 +24,8 @@ nearest the joints it starts from. Each pose target's ``config`` holds the joint
 decide its branch where the script writes them: the ``qnear`` list, or the joint target
 moved to just before it (for the first motion: the first joint list of the script); where
 the previous motion is a pose, its solved joints decide (the compensation follows program
-order). Comments (``#``) are skipped.
+order). Comments (``#``) and the insides of strings (``textmsg("movel(...)")``) are
+skipped.
 """
 
 from __future__ import annotations
@@ -52,6 +53,12 @@ _NAME = re.compile(r"[A-Za-z_]\w*\Z")
 def strip_comments(text: str) -> str:
     """``text`` with ``#`` comments (outside strings) blanked, offsets kept."""
     return blank_comments(text, "#")
+
+
+def blank_strings(text: str) -> str:
+    """``text`` with the insides of ``"..."`` strings blanked (quotes and offsets kept), so
+    a message such as ``textmsg("movel(p[0,0,0,0,0,0])")`` is not read as a motion."""
+    return re.sub(r'"[^"\r\n]*"', lambda m: '"' + " " * (len(m.group()) - 2) + '"', text)
 
 
 def _args(clean: str, open_at: int) -> tuple[list[tuple[int, int]], int]:
@@ -93,7 +100,7 @@ def _numbers(text: str, a: int, b: int) -> tuple[Number, ...]:
 class _Reader:
     def __init__(self, text: str, file: str, program: PoseProgram):
         self.text, self.file, self.program = text, file, program
-        self.clean = strip_comments(text)
+        self.clean = blank_strings(strip_comments(text))
         self.starts = line_starts_of(text)
         self.assigned: dict[str, list[tuple[int, int]]] = {}
         self.named: dict[str, int] = {}           # name -> index in program.targets
