@@ -210,7 +210,8 @@ def _run_one(args, unit, retain: list | None) -> int:
             out.parent.mkdir(parents=True, exist_ok=True)
     files = list(zip(unit.outputs, result.data))
     if args.report:
-        files.append((Path(args.report), report.to_csv().encode("utf-8")))
+        files.append((Path(args.report), (piece.encode("utf-8")
+                                          for piece in report.csv_chunks())))
     write_files_atomic(files)   # all or, on a failure, none of a run's files renamed
     if not args.quiet:
         try:
@@ -227,32 +228,18 @@ def _run_one(args, unit, retain: list | None) -> int:
 
 def _summary(report, outputs, report_path: str | None, seconds: float,
              robot_line: str) -> None:
-    from ..compensation.pose import COMPENSATED
-    from ..compensation.program import KEPT
-
     rows = report.rows
     counts = report.counts()
     parts = (", ".join(f"{v} {k}" for k, v in sorted(counts.items())) if rows
              else "no location data: written as it is")
     print(f"olp-fix: {report.file}: {len(rows)} target uses ({parts}) in {seconds:.2f} s")
     print(robot_line)
-    shift = turn = dq = -1.0
-    problems = []
-    for r in rows:
-        if r.status in COMPENSATED:
-            dx, dy, dz = r.correction_mm
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 > shift:
-                shift = d2
-            if r.correction_deg > turn:
-                turn = r.correction_deg
-            if r.joint_change > dq:   # False for NaN
-                dq = r.joint_change
-        elif r.status not in KEPT:
-            problems.append(r)
-    if shift >= 0:
-        print(f"  largest correction {shift ** 0.5:.3f} mm and {turn:.4f} deg; largest joint "
-              f"change {max(dq, 0.0):.4f} deg")
+    largest = report.largest_correction()
+    problems = report.problem_rows()
+    if largest is not None:
+        shift, turn, dq = largest
+        print(f"  largest correction {shift:.3f} mm and {turn:.4f} deg; largest joint "
+              f"change {dq:.4f} deg")
     for r in problems[:SHOWN_PROBLEMS]:
         print(f"  {r.file}:{r.line}:{r.column}: {r.target}: {r.status}"
               + (f" ({r.note})" if r.note else ""))

@@ -155,6 +155,17 @@ def compensate_module(program: Program, res, comp: Compensator, *, emit: str, un
     teacher : the compensator of the robot the targets were taught on, or None.
     not_moved : the note of a target never moved to (left as written with unused='skip').
     """
+    rows, warnings, edits = module_rows_and_edits(program, res, comp, emit=emit, unused=unused,
+                                                  teacher=teacher, not_moved=not_moved)
+    text = splice(program.text, edits) if edits else program.text
+    return ModuleResult(text=text, rows=rows, warnings=warnings, edits=len(edits))
+
+
+def module_rows_and_edits(program: Program, res, comp: Compensator, *, emit: str,
+                          unused: str, teacher: Compensator | None = None,
+                          not_moved: str = NOT_MOVED) -> tuple[list, list, list]:
+    """:func:`compensate_module` before the splice: (rows in text order, warnings, the
+    edits of the text sorted by offset)."""
     vplus = program.dialect == "vplus"
     rows, job = _rows_not_solved(res, unused, not_moved)
     solved = _solve(comp, res, job, vplus, teacher) if job else None
@@ -165,8 +176,7 @@ def compensate_module(program: Program, res, comp: Compensator, *, emit: str, un
     rows.sort(key=LINE_COLUMN)
     warnings = list(res.warnings)
     edits = program_edits(program, comp, res, job, write, solved, emit, vplus, warnings)
-    text = splice(program.text, edits) if edits else program.text
-    return ModuleResult(text=text, rows=rows, warnings=warnings, edits=len(edits))
+    return rows, warnings, edits
 
 
 def _rows_not_solved(res, unused: str, not_moved: str) -> tuple[list, list[int]]:

@@ -13,6 +13,7 @@ import dataclasses
 import io
 import math
 import operator
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +26,8 @@ __all__ = ["TargetReport", "CompensationReport", "KEPT", "config_text", "config_
 KEPT = ("joint_target",)
 """Statuses of targets that need no compensation (the program is still fully compensated)."""
 
+CSV_CHUNK = 4096
+"""Report rows written per piece of :meth:`CompensationReport.csv_chunks`."""
 NOT_MOVED = "not moved to in this file: tool and work object unknown, left as written"
 LINE_COLUMN = operator.attrgetter("line", "column")
 """Sort key of report rows: text order."""
@@ -68,7 +71,11 @@ class TargetReport:
 @dataclass(frozen=True)
 class CompensationReport:
     """Everything :func:`~olp_compensate.compensation.program.compensate_program` did: one
-    row per target use, and warnings (one line each, file:line first)."""
+    row per target use, and warnings (one line each, file:line first).
+
+    rows : a tuple of :class:`TargetReport`, or (a big module compensated in columns) a
+        :class:`ReportRows` sequence that makes each row on access.
+    """
 
     file: str
     rows: tuple[TargetReport, ...]
@@ -79,6 +86,8 @@ class CompensationReport:
 
     @property
     def all_compensated(self) -> bool:
+        if isinstance(self.rows, ReportRows):
+            return not self.rows.problem_rows()
         return all(r.fine for r in self.rows)
 
     @property
@@ -87,6 +96,9 @@ class CompensationReport:
         return 0 if self.all_compensated else 2
 
     def counts(self) -> dict[str, int]:
+        """How many rows have each status."""
+        if isinstance(self.rows, ReportRows):
+            return self.rows.counts()
         out: dict[str, int] = {}
         for r in self.rows:
             out[r.status] = out.get(r.status, 0) + 1
@@ -94,15 +106,39 @@ class CompensationReport:
 
     def to_csv(self) -> str:
         """The report as CSV text (one row per target use; units in the column names)."""
+        return "".join(self.csv_chunks())
+
+    def csv_chunks(self):
+        """:meth:`to_csv` in pieces (a header, then lines by the thousand), to be written
+        one after the other without holding the whole text."""
         buf = io.StringIO()
         joint_columns = [f"q{k + 1}_deg" for k in range(self.n_joints)]
         csv.writer(buf, lineterminator="\n").writerow(
             ["target", "file", "line", "column", "status", "tool", "wobj", "dx_mm", "dy_mm",
              "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after",
              *joint_columns, "note"])
-        lines = [_CsvRows(self.n_joints).line(r) for r in self.rows]
-        lines.append("")
-        return buf.getvalue() + "\n".join(lines)
+        yield buf.getvalue()
+        writer = _CsvRows(self.n_joints)
+        if isinstance(self.rows, ReportRows):
+            yield from self.rows.csv_chunks(writer)
+            return
+        rows = self.rows
+        for k in range(0, len(rows), CSV_CHUNK):
+            yield "".join([writer.line(r) + "\n" for r in rows[k:k + CSV_CHUNK]])
+
+    def largest_correction(self) -> tuple[float, float, float] | None:
+        """(mm, deg, joint deg): the largest correction, turn and joint change among the
+        compensated rows (each the largest of its own), or None when none is."""
+        rows = self.rows
+        if isinstance(rows, ReportRows):
+            return rows.largest_correction()
+        return _largest(r for r in rows if r.status in COMPENSATED)
+
+    def problem_rows(self) -> list[TargetReport]:
+        """The rows neither compensated nor needing no compensation, in order."""
+        if isinstance(self.rows, ReportRows):
+            return self.rows.problem_rows()
+        return [r for r in self.rows if not r.fine]
 
 
 class _CsvRows:
@@ -250,3 +286,145 @@ def solved_note(notes: tuple[str, ...], tool_note: str) -> str:
     if "unused" in notes:
         kept.append("not moved to in this file: tool0/wobj0 assumed")
     return "; ".join(x for x in kept if x)
+
+
+def _largest(rows) -> tuple[float, float, float] | None:
+    """(mm, deg, joint deg) largest correction, turn and joint change of ``rows``."""
+    shift = turn = dq = -1.0
+    for r in rows:
+        dx, dy, dz = r.correction_mm
+        shift = max(shift, math.sqrt(dx * dx + dy * dy + dz * dz))
+        turn = max(turn, r.correction_deg)
+        if r.joint_change > dq:   # False for NaN
+            dq = r.joint_change
+    return None if shift < 0 else (shift, turn, max(dq, 0.0))
+
+
+# ---- rows held as columns (a big module compensated in columns) ---------------------
+
+@dataclass(frozen=True, eq=False)
+class RowColumns:
+    """Report rows of compensated targets as columns (see :class:`TargetReport` for the
+    meaning and units of each); ``pair`` indexes ``pair_names`` (tool, wobj)."""
+
+    names: list
+    file: str
+    line: np.ndarray
+    column: np.ndarray
+    status: list
+    pair: np.ndarray
+    pair_names: list
+    correction_mm: np.ndarray
+    correction_deg: np.ndarray
+    joint_change: np.ndarray
+    config_before: list
+    config_after: list
+    joints: np.ndarray
+    note: list
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def row(self, i: int) -> TargetReport:
+        """Row ``i`` as a :class:`TargetReport`."""
+        tool, wobj = self.pair_names[int(self.pair[i])]
+        return TargetReport(
+            target=self.names[i], file=self.file, line=int(self.line[i]),
+            column=int(self.column[i]), status=self.status[i], tool=tool, wobj=wobj,
+            correction_mm=tuple(self.correction_mm[i].tolist()),
+            correction_deg=float(self.correction_deg[i]),
+            joint_change=float(self.joint_change[i]), config_before=self.config_before[i],
+            config_after=self.config_after[i], joints=tuple(self.joints[i].tolist()),
+            note=self.note[i])
+
+    @staticmethod
+    def concatenate(parts: list[RowColumns]) -> RowColumns:
+        """One RowColumns of ``parts`` (of one file and the same pairs), in order."""
+        def joined(name):
+            values = [getattr(p, name) for p in parts]
+            if isinstance(values[0], list):
+                return [v for vs in values for v in vs]
+            return np.concatenate(values)
+        first = parts[0]
+        return RowColumns(**{f.name: (getattr(first, f.name) if f.name in ("file", "pair_names")
+                                      else joined(f.name))
+                             for f in dataclasses.fields(RowColumns)})
+
+
+class ReportRows(Sequence):
+    """The rows of a report as a sequence of :class:`TargetReport`, made on access from
+    ``columns`` (compensated targets) and ``others`` (rows held as objects), in the
+    ``order`` given: ``order[k] >= 0`` is column row ``order[k]``, ``-1 - j`` is
+    ``others[j]``."""
+
+    def __init__(self, columns: RowColumns, others: list, order: np.ndarray):
+        self.columns, self.others, self.order = columns, others, order
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        j = int(self.order[k])
+        return self.columns.row(j) if j >= 0 else self.others[-1 - j]
+
+    def __iter__(self):
+        row, others = self.columns.row, self.others
+        for j in self.order.tolist():
+            yield row(j) if j >= 0 else others[-1 - j]
+
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for status in self.columns.status:
+            out[status] = out.get(status, 0) + 1
+        for r in self.others:
+            out[r.status] = out.get(r.status, 0) + 1
+        return out
+
+    def problem_rows(self) -> list[TargetReport]:
+        return [r for r in self.others if not r.fine]   # others keep their text order
+
+    def largest_correction(self) -> tuple[float, float, float] | None:
+        c = self.columns
+        found = _largest(r for r in self.others if r.status in COMPENSATED)
+        if not len(c):
+            return found
+        change = c.joint_change[~np.isnan(c.joint_change)]
+        ours = (float(np.sqrt((c.correction_mm ** 2).sum(axis=1)).max()),
+                float(c.correction_deg.max()), float(change.max()) if len(change) else 0.0)
+        if found is None:
+            return ours
+        return tuple(max(a, b) for a, b in zip(ours, found))
+
+    def csv_chunks(self, writer: _CsvRows):
+        """The CSV lines of the rows, in pieces of :data:`CSV_CHUNK` rows."""
+        c, others = self.columns, self.others
+        quoted = writer.quoted
+        whole = np.isfinite(c.correction_mm.sum(axis=1) + c.correction_deg + c.joint_change
+                            + c.joints.sum(axis=1)).tolist() if len(c) else []
+        file = quoted[c.file]
+        tools = [(quoted[t], quoted[w]) for t, w in c.pair_names]
+        row_format = writer.row_format
+        for k in range(0, len(self.order), CSV_CHUNK):
+            order = self.order[k:k + CSV_CHUNK]
+            mine = order[order >= 0]
+            fields = zip(mine.tolist(), c.line[mine].tolist(), c.column[mine].tolist(),
+                         c.pair[mine].tolist(), c.correction_mm[mine].tolist(),
+                         c.correction_deg[mine].tolist(), c.joint_change[mine].tolist(),
+                         c.joints[mine].tolist())
+            lines = []
+            for j in order.tolist():
+                if j < 0:
+                    lines.append(writer.line(others[-1 - j]))
+                    continue
+                i, line, column, pair, shift, turn, change, joints = next(fields)
+                if not whole[i]:
+                    lines.append(writer.line(c.row(i)))
+                    continue
+                lines.append(row_format % (
+                    _csv_field(c.names[i]), file, line, column, quoted[c.status[i]],
+                    *tools[pair], *shift, turn, change, quoted[c.config_before[i]],
+                    quoted[c.config_after[i]], *joints, quoted[c.note[i]]))
+            lines.append("")
+            yield "\n".join(lines)

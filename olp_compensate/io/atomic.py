@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Iterable
 from pathlib import Path
 
 from ..errors import DataError, OlpError
@@ -130,11 +131,13 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
             Path(tmp).unlink(missing_ok=True)
 
 
-def write_files_atomic(files: list[tuple[Path, bytes]]) -> None:
+def write_files_atomic(files: list[tuple[Path, bytes | Iterable[bytes]]]) -> None:
     """Write several files that belong together (a program and its report): every
     temporary file first, then the renames back to back with SIGINT and SIGTERM held
     off, so that an interruption leaves all the new files or none of them (only a
-    SIGKILL between two renames, microseconds apart, can split them)."""
+    SIGKILL between two renames, microseconds apart, can split them). A file's data is
+    bytes, or an iterable of bytes pieces written one after the other (a big report is
+    never held whole)."""
     import signal
 
     temps = []
@@ -149,7 +152,11 @@ def write_files_atomic(files: list[tuple[Path, bytes]]) -> None:
                 mode = path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask()
                 fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, mode)
                 with os.fdopen(fd, "wb") as handle:
-                    handle.write(data)
+                    if isinstance(data, (bytes, bytearray, memoryview)):
+                        handle.write(data)
+                    else:
+                        for piece in data:
+                            handle.write(piece)
                     handle.flush()
                     os.fsync(handle.fileno())
                 os.chmod(tmp, mode)

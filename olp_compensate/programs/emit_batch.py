@@ -120,13 +120,36 @@ def _new_values(old: np.ndarray, position_mm, orientation, quat: bool) -> _NewVa
     return _NewValues(new=new, cols=cols, decimals=decimals, changed=changed)
 
 
-def _fill_edits(text: str, targets, values: _NewValues, slots: list) -> None:
+def edits_for_spans(text: str, old: np.ndarray, position_mm: np.ndarray,
+                    orientation: np.ndarray, begins: np.ndarray, ends: np.ndarray,
+                    targets) -> list[Edit]:
+    """:func:`edits_for_targets` of RAPID robtargets held as columns: ``old`` (n, >= 7)
+    their numbers as written, ``begins``/``ends`` (n,) where each one's x starts and its
+    q4 ends; ``targets[i]`` (a sequence that may make each on access) is read only for
+    the targets not written by the one-format path. Edits in target order."""
+    n = len(old)
+    if n == 0:
+        return []
+    values = _new_values(np.asarray(old, float)[:, :7], position_mm, orientation, True)
+    slots: list[Edit | None] = [None] * n
+    _fill_edits(text, targets, values, slots, (np.asarray(begins), np.asarray(ends)))
+    return [edit for edit in slots if edit is not None]
+
+
+def _fill_edits(text: str, targets, values: _NewValues, slots: list, bounds=None) -> None:
     """Put each changed target's edit in ``slots``: the plain-run path first, then
-    number by number for the targets it left."""
+    number by number for the targets it left. ``bounds``: (begins, ends) of every
+    target's numbers x to q4, when the caller has them (else read from the targets)."""
     cols, decimals, new = values.cols, values.decimals, values.new
     run = _PlainRun(cols, decimals, text)
     if run.ok:
-        rows, edits = run.edits(targets, new, values.changed.all(axis=1))
+        whole = values.changed.all(axis=1)
+        if bounds is not None and cols == list(range(7)):
+            rows = np.flatnonzero(whole)
+            found = (rows.tolist(), bounds[0][rows].tolist(), bounds[1][rows].tolist())
+        else:
+            found = run.bounds(targets, whole)
+        rows, edits = run.edits(*found, new)
         for i, edit in zip(rows, edits):
             slots[i] = edit
     for i in np.flatnonzero(values.changed.any(axis=1)).tolist():
@@ -194,11 +217,10 @@ class _PlainRun:
             templates.append(None if match is None else self.template(match.groups()[1::2]))
         return templates
 
-    def edits(self, targets, new: np.ndarray, whole: np.ndarray
-              ) -> tuple[list[int], list[Edit]]:
-        """The edits writing ``new[i]`` (n, columns) into ``targets[i]`` where ``whole[i]``
-        (every column changes) and the target's span is of the plain form, and those
-        indices ``i``."""
+    def bounds(self, targets, whole: np.ndarray) -> tuple[list[int], list[int], list[int]]:
+        """(rows, begins, ends): the targets ``i`` where ``whole[i]`` (every column
+        changes) and that have the columns, with where their first column starts and
+        their last ends."""
         first, last = self.first, self.last
         rows, begins, ends = [], [], []
         for i in np.flatnonzero(whole).tolist():
@@ -208,6 +230,12 @@ class _PlainRun:
                 rows.append(i)
                 begins.append(starts[first])
                 ends.append(starts[last] + len(texts[last]))
+        return rows, begins, ends
+
+    def edits(self, rows: list[int], begins: list[int], ends: list[int], new: np.ndarray
+              ) -> tuple[list[int], list[Edit]]:
+        """The edits writing ``new[i]`` (n, columns) over ``text[begin:end]`` for each of
+        ``rows`` whose span is of the plain form, and those rows."""
         templates = self.span_templates(begins, ends)
         plain = [template is not None for template in templates]
         replacements = map(operator.mod, compress(templates, plain),

@@ -20,12 +20,13 @@ from lark.utils import TextSlice
 from .grammar import check_text, convert_lark_error, current_sink, error_at, newline_style, parser
 from .rapid_accounting import unaccounted_literals
 from .rapid_build import TARGET_TYPES, Builder
+from .rapid_columns import ModuleColumns, MoveTable, TargetTable
 from .rapid_fast import LEXER_CALLBACKS
 from .rapid_records import (Arg, Assignment, Decl, Ex, Opt, RoutineRecord, Sink, TypeDef,
                             as_ex, call_record, end_of, start_of)
 from .targets import MotionUse, NameReference, Program, RuntimeTarget
 
-__all__ = ["parse_rapid", "TARGET_TYPES"]
+__all__ = ["parse_rapid", "parse_rapid_columns", "TARGET_TYPES"]
 
 
 class _Dims:
@@ -210,8 +211,21 @@ def parse_rapid(text: str, file: str = "<string>") -> Program:
 
     Raises ParseError (file, line, column, caret context) on any malformed input.
     """
+    return _parse(text, file, None)
+
+
+def parse_rapid_columns(text: str, file: str = "<string>") -> tuple[Program, ModuleColumns]:
+    """:func:`parse_rapid` keeping the module-level plain robtarget declarations and the
+    plain MoveL/MoveJ in columns (:mod:`.rapid_columns`): ``(program, columns)``, where
+    ``program`` holds everything else; ``with_objects(program, columns)`` is what
+    :func:`parse_rapid` gives."""
+    columns = ModuleColumns(TargetTable(), MoveTable())
+    return _parse(text, file, columns), columns
+
+
+def _parse(text: str, file: str, columns: ModuleColumns | None) -> Program:
     check_text(text, file)
-    sink = Sink(text, file, lambda start, end: _reparse_call(text, file, start, end))
+    sink = Sink(text, file, lambda start, end: _reparse_call(text, file, start, end), columns)
     token = current_sink.set(sink)
     try:
         parser("rapid.lark", Callbacks, ("start", "call")).parse(text, start="start")

@@ -34,11 +34,15 @@ def expected_openings(targets, joints, tools, wobjs) -> int:
 def unaccounted_literals(text: str, file: str, builder) -> list[TargetProblem]:
     """Problems for the robtarget literals of ``text`` that ``builder`` (a
     :class:`~.rapid_build.Builder` after its records are read) did not account for."""
+    columns = builder.sink.columns   # a column parse: the plain declarations' table
+    table = columns.targets if columns is not None else ()
     expected = expected_openings(builder.targets, builder.joints, builder.tools,
-                                 builder.wobjs)
+                                 builder.wobjs) + len(table)
     if text.count("[[") <= expected:
         return []
     known = {t.span[0] for t in builder.targets}
+    if table:
+        known.update(table.spans[0::2])
     known.update(p_offset for p_offset in _problem_offsets(builder))
     runtime = sorted((r for r in builder.runtime if r.span is not None),
                      key=lambda r: r.span[0])

@@ -86,6 +86,8 @@ class Builder(PositionedBuilder):
         if self._names is None:   # on first need: most big modules never ask
             robtargets = {t.name.lower() for t in self.targets[:self.fast_targets]
                           if t.name is not None}
+            if self.sink.columns is not None:
+                robtargets.update(n.lower() for n in self.sink.columns.targets.names)
             joints = set()
             for rec in self.sink.decls:
                 kind = self.base_type(rec.type_name)

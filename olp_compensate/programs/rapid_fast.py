@@ -2,10 +2,10 @@
 
 The grammar hands over runs of one-line declarations (FAST_DECLS) and calls (FAST_CALLS) as
 single tokens; the lexer callbacks here split them with anchored regular expressions, in
-text order. The plainest forms are built into model objects at once (a module-level
-``CONST robtarget p := [...]`` and ``MoveL p, v, z, tool\\WObj:=w`` each take one regex
-match); the others become the same records the grammar rules produce (``Sink``), so one
-builder (rapid.py) handles both. A motion call these regexes cannot read is parsed again by
+text order. The plainest forms (a module-level ``CONST robtarget p := [...]`` and
+``MoveL p, v, z, tool\\WObj:=w``) each take one regex match and become a model object at
+once, or (a column parse) a row of the parse's tables (rapid_columns.py); the others become the same records the grammar
+rules produce (``Sink``), so one builder (rapid.py) handles both. A motion call these regexes cannot read is parsed again by
 the grammar (start symbol ``call``), which gives the exact error if it is wrong.
 """
 
@@ -45,7 +45,6 @@ _FAST_ROBTARGET = re.compile(
 # (and reads what it refuses: non-ASCII digits, 'ſ' for 's')
 _TIGHT_ROBTARGET = re.compile(_FAST_ROBTARGET.pattern.replace(r"[ \t\r\n\f]*+", ""),
                               re.ASCII)
-_ROBTARGET_NUMBERS = range(5, 22)
 _STORAGE = {"CONST": "CONST", "PERS": "PERS", "VAR": "VAR"}
 
 
@@ -64,7 +63,7 @@ def _split_fast_decls(tok: Token, sink: Sink) -> None:
     module_level = sink.depth == 0
     while pos < end:
         if module_level:
-            pos = _direct_robtargets(sink, text, pos, end)
+            pos = _plain_robtargets(sink, text, pos, end)
             if pos >= end:
                 break
         m = match(text, pos, end)
@@ -76,13 +75,23 @@ def _split_fast_decls(tok: Token, sink: Sink) -> None:
         pos = m.end()
 
 
-def _direct_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
-    """Append the plain robtarget declarations from ``pos`` on to ``sink.targets``;
-    returns the offset after them."""
-    # the blank-free form first; whichever read the previous declaration goes first
+def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
+    """Record the plain robtarget declarations from ``pos`` on (one regex match each; the
+    blank-free form first, and whichever read the previous declaration goes first): as
+    rows of ``sink.columns.targets`` (a column parse), else as CartesianTarget objects in
+    ``sink.targets``. Returns the offset after them."""
     first, second = _TIGHT_ROBTARGET.match, _FAST_ROBTARGET.match
-    append, file, numbers = sink.targets.append, sink.file, _ROBTARGET_NUMBERS
-    storage_of, target = _STORAGE.get, CartesianTarget
+    if sink.columns is not None:
+        table, storage_of = sink.columns.targets.append, _STORAGE.get
+
+        def add(m, line, column):
+            storage = m.group(1)
+            table(m.group(3), storage_of(storage) or storage.upper(), line, column, m.regs)
+    else:
+        append, file = sink.targets.append, sink.file
+
+        def add(m, line, column):
+            append(_target_of(m, file, line, column))
     count, rfind = text.count, text.rfind
     index = sink.index
     last, line, line_start = index.position()  # sink.index.line_col, inlined (text order)
@@ -93,7 +102,6 @@ def _direct_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
             if m is None:
                 break
             first, second = second, first
-        g = m.groups()
         a = m.start(3)
         if a >= last:
             breaks = count("\n", last, a)
@@ -101,18 +109,26 @@ def _direct_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
                 line += breaks
                 line_start = rfind("\n", last, a) + 1
             last = a
-            source = (file, line, a - line_start + 1)
+            add(m, line, a - line_start + 1)
         else:
-            source = (file, *index.line_col(a))
-        storage = g[0]
-        append(target(
-            name=g[2], source=source, texts=g[4:], starts=tuple(map(m.start, numbers)),
-            orientation_kind=QUAT_WXYZ, span=m.span(4),
-            storage=storage_of(storage) or storage.upper(), array_index=None,
-            routine=None, type_span=m.span(2)))
+            add(m, *index.line_col(a))
         pos = m.end()
     index.moved(last, line, line_start)
     return pos
+
+
+_ROBTARGET_NUMBERS = range(5, 22)
+
+
+def _target_of(m: re.Match, file: str, line: int, column: int) -> CartesianTarget:
+    """The CartesianTarget of a plain declaration match (_FAST_ROBTARGET's groups)."""
+    g = m.groups()
+    storage = g[0]
+    return CartesianTarget(
+        name=g[2], source=(file, line, column), texts=g[4:],
+        starts=tuple(map(m.start, _ROBTARGET_NUMBERS)), orientation_kind=QUAT_WXYZ,
+        span=m.span(4), storage=_STORAGE.get(storage) or storage.upper(), array_index=None,
+        routine=None, type_span=m.span(2))
 
 
 def _enter_routine(tok: Token) -> Token:
@@ -210,7 +226,8 @@ def _on_fast_calls(tok: Token) -> Token:
 def _split_fast_calls(tok: Token, sink: Sink) -> None:
     """Record the calls of a FAST_CALLS run (anchored, in order).
 
-    MoveL/MoveJ of the plainest form become MotionUse at once (one regex match each);
+    MoveL/MoveJ of the plainest form become MotionUse, or rows of the motions' table, at
+    once (one regex match each);
     other argument lists are split by one regex (plain values and optional arguments) or
     item by item. A motion instruction whose arguments none of these reads is parsed
     again by the grammar (start symbol ``call``), which records it or raises the error;
@@ -220,7 +237,7 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
     out, inline = sink.calls, _INLINE_MOVE.match
     name_match, skip = _NAME_RE.match, _SEP_RE.match
     while pos < end:
-        pos = _direct_moves(sink, text, pos, end)
+        pos = _plain_moves(sink, text, pos, end)
         if pos >= end:
             break
         m = inline(text, pos, end)
@@ -243,37 +260,52 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
         pos = skip(text, semi + 1, end).end()
 
 
-def _direct_moves(sink: Sink, text: str, pos: int, end: int) -> int:
-    """Append the plainest MoveL/MoveJ from ``pos`` on to ``sink.motions``; returns the
-    offset after them."""
-    match, append = _SIMPLE_MOVE.match, sink.motions.append
-    routine, file = sink.routine, sink.file
-    use = MotionUse
+def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
+    """Record the plainest MoveL/MoveJ from ``pos`` on: as rows of ``sink.columns.moves``
+    (a column parse), else as MotionUse objects in ``sink.motions``. Returns the offset
+    after them."""
+    match, routine = _SIMPLE_MOVE.match, sink.routine
+    if sink.columns is not None:
+        table = sink.columns.moves.append
+
+        def add(m, start, line, column):
+            regs = m.regs
+            table(*m.group(1, 3, 4, 5, 6), routine, line, column,
+                  (*regs[1], start, regs[7][0], *regs[2]))
+    else:
+        append, file = sink.motions.append, sink.file
+
+        def add(m, start, line, column):
+            append(_use_of(m, start, file, line, column, routine))
     count, rfind = text.count, text.rfind
     index = sink.index
     last, line, line_start = index.position()  # sink.index.line_col, inlined (text order)
     while (m := match(text, pos, end)) is not None:
-        instruction, name, number, tool, wobj = m.group(1, 3, 4, 5, 6)
-        target_span = m.span(2)
-        a = target_span[0]
+        a = m.start(2)
         if a >= last:
             breaks = count("\n", last, a)
             if breaks:
                 line += breaks
                 line_start = rfind("\n", last, a) + 1
             last = a
-            source = (file, line, a - line_start + 1)
+            add(m, pos, line, a - line_start + 1)
         else:
-            source = (file, *index.line_col(a))
-        append(use(
-            instruction=instruction, source=source, role="to", target_name=name,
-            target_index=None if number is None else (int(number),), inline=None,
-            runtime=None, tool=tool, tool_inline=None, wobj=wobj, wobj_inline=None,
-            joint=False, routine=routine, instruction_span=m.span(1),
-            statement_span=(pos, m.start(7)), target_span=target_span))
+            add(m, pos, *index.line_col(a))
         pos = m.end()
     index.moved(last, line, line_start)
     return pos
+
+
+def _use_of(m: re.Match, start: int, file: str, line: int, column: int,
+            routine: str | None) -> MotionUse:
+    """The MotionUse of a _SIMPLE_MOVE match starting at ``start``."""
+    instruction, name, number, tool, wobj = m.group(1, 3, 4, 5, 6)
+    return MotionUse(
+        instruction=instruction, source=(file, line, column), role="to", target_name=name,
+        target_index=None if number is None else (int(number),), inline=None, runtime=None,
+        tool=tool, tool_inline=None, wobj=wobj, wobj_inline=None, joint=False,
+        routine=routine, instruction_span=m.span(1), statement_span=(start, m.start(7)),
+        target_span=m.span(2))
 
 
 def _direct_inline_move(sink: Sink, m: re.Match) -> None:

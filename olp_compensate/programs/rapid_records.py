@@ -105,14 +105,15 @@ class Arg:
 
 class Sink:
     """The records of one parse. The fast paths build module-level robtarget declarations
-    and the plainest MoveL/MoveJ into model objects at once (``targets``, ``motions``);
+    and the plainest MoveL/MoveJ into model objects at once (``targets``, ``motions``), or
+    (a column parse) into the tables of ``columns`` (rapid_columns.ModuleColumns);
     everything else is recorded for the builder."""
 
     __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
                  "targets", "motions", "depth", "routine", "pending", "reparse", "reparsing",
-                 "types")
+                 "types", "columns")
 
-    def __init__(self, text: str, file: str, reparse):
+    def __init__(self, text: str, file: str, reparse, columns=None):
         self.text, self.file, self.reparse = text, file, reparse
         self.index = LineIndex(text)
         self.decls: list[Decl] = []
@@ -128,6 +129,7 @@ class Sink:
         self.routine: str | None = None
         self.pending = 0
         self.reparsing = False   # inside a call parsed again by the grammar
+        self.columns = columns   # a column parse: the fast paths' tables, else None
 
 
 _TOKEN_KIND = {"NUM": "num", "STRING": "string", "AGGREGATE": "aggregate", "STAR": "star",

@@ -1,0 +1,348 @@
+"""Compensate one RAPID module with its plain targets held as columns (big modules).
+
+A generated module is mostly module-level ``CONST robtarget p := [...];`` each moved to
+by one plain ``MoveL p, v, z, tool\\WObj:=w;``. Parsed in columns
+(:func:`~olp_compensate.programs.rapid.parse_rapid_columns`), those targets are
+resolved, solved, reported and written here as arrays, a chunk of :data:`CHUNK` targets at
+a time, without an object per target; everything else of the module goes through
+:func:`~.program.module_rows_and_edits` as always. The text and report are the same as
+:func:`~.task.compensate_task` of the module gives (tests compare them byte for byte).
+
+The column path is taken when the table targets' meaning is plain: each declared once,
+named by no other statement than table motions (no routine parameter, copy, assignment,
+run-time expression or routine call), every table motion naming a table target without an
+index, each target moved to with one tool/work-object pair. Otherwise
+:func:`compensate_rapid_module` compensates the module's ordinary objects.
+"""
+
+from __future__ import annotations
+
+import heapq
+import operator
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
+                                      quat_wxyz_from_matrix)
+from ..programs.emit import splice, target_edits
+from ..programs.emit_batch import edits_for_spans
+from ..programs.rapid import parse_rapid_columns
+from ..programs.rapid_columns import ModuleColumns, TargetTable, with_objects
+from ..programs.semantics import _pair, _Resolver, resolve_task
+from ..programs.target_values import bad_values, value_problem
+from ..programs.targets import MotionUse, Program
+from .pose import Compensator
+from .program import _solve, module_rows_and_edits
+from .report import (LINE_COLUMN, NOT_MOVED, CompensationReport, ReportRows, RowColumns,
+                     TargetReport, config_texts, failure_row, solved_note, written_row)
+
+__all__ = ["compensate_rapid_module", "CHUNK"]
+
+CHUNK = 8192
+"""Targets resolved and solved together: bounds the memory of the arrays per target."""
+_DEFAULT_KEY = (("tool0",), ("wobj0",))
+_START = operator.itemgetter(0)
+
+
+def compensate_rapid_module(text: str, file: str, comp: Compensator, *, unused: str = "skip",
+                            teacher: Compensator | None = None, chunk: int = CHUNK
+                            ) -> tuple[str, CompensationReport]:
+    """Compensate one RAPID module (``text`` decoded, named ``file``) with ``emit='pose'``:
+    ``(new text, report)``, as :func:`~.task.compensate_task` of the parsed module gives;
+    in columns where the module allows it (see the module docstring)."""
+    program, columns = parse_rapid_columns(text, file)
+    plan = _plan(program, columns) if len(columns.targets) else None
+    if plan is None:
+        from .task import compensate_task   # task.py builds on program.py, as this does
+
+        (new,), report = compensate_task([with_objects(program, columns)], comp,
+                                         unused=unused, taught_on=teacher)
+        return new, report
+    (res,) = resolve_task([program])
+    rows, warnings, edits = module_rows_and_edits(program, res, comp, emit="pose",
+                                                  unused=unused, teacher=teacher)
+    table = _TablePart(program, columns.targets, plan, comp, unused, teacher)
+    del columns, res   # the motions' table is read: only the targets' is needed now
+    output = _Splice(text, edits)
+    for start in range(0, len(table.table), chunk):
+        output.add(table.compensate(start, min(start + chunk, len(table.table))))
+    others = sorted(rows + table.others, key=LINE_COLUMN)
+    report = CompensationReport(file=file, rows=table.rows(others), warnings=tuple(warnings),
+                                n_joints=comp.robot.n_joints, emit="pose", edits=output.count)
+    return output.text(), report
+
+
+class _Splice:
+    """The new text, spliced a chunk at a time: the edits of the objects (all known at
+    the start, sorted) merged with each chunk's, so no chunk's edits outlive it."""
+
+    def __init__(self, text: str, edits: list):
+        self.source, self.pending = text, edits
+        self.pieces: list[str] = []
+        self.pos = self.count = 0
+
+    def add(self, edits: list) -> None:
+        """Apply ``edits`` (sorted) and the pending ones before the last of them."""
+        if not edits:
+            return
+        bound = edits[-1][0]
+        k = next((i for i, e in enumerate(self.pending) if e[0] > bound), len(self.pending))
+        now, self.pending = heapq.merge(self.pending[:k], edits, key=_START), self.pending[k:]
+        self._apply(list(now))
+
+    def text(self) -> str:
+        """The whole new text (the edits not applied yet applied)."""
+        self._apply(self.pending)
+        self.pending = []
+        if not self.pieces:
+            return self.source
+        self.pieces.append(self.source[self.pos:])
+        return "".join(self.pieces)
+
+    def _apply(self, edits: list) -> None:
+        if not edits:
+            return
+        end = edits[-1][1]
+        self.pieces.append(splice(self.source[self.pos:end],
+                                  [(a - self.pos, b - self.pos, r) for a, b, r in edits]))
+        self.pos = end
+        self.count += len(edits)
+
+
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """How the table targets resolve: ``pair`` (n,) each one's index into ``pairs``
+    (tool0/wobj0 for a target no motion moves to) and ``uses`` (n,) its motions."""
+
+    pair: np.ndarray
+    uses: np.ndarray
+    pairs: tuple
+
+
+def _plan(program: Program, columns: ModuleColumns) -> _Plan | None:
+    """The resolution of the table targets, or None where their meaning is not plain."""
+    table, moves = columns.targets, columns.moves
+    row_of = {name if name.islower() else name.lower(): k for k, name in enumerate(table.names)}
+    if len(row_of) < len(table) or any(k >= 0 for k in moves.indices):
+        return None
+    if not _named_elsewhere(program).isdisjoint(row_of):
+        return None
+    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
+                        for name in moves.target_names),
+                       np.intp, len(moves))
+    if np.any(rows < 0):
+        return None
+    resolver = _Resolver([program])
+    keys: dict = {}    # pair key -> index into pairs
+    infos: list = []
+    memo: dict = {}    # (tool, wobj, routine) -> pair index
+    move_pair = np.empty(len(moves), np.intp)
+    for k, triple in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
+        p = memo.get(triple)
+        if p is None:
+            tool, wobj, routine = triple
+            key, info = resolver.frames_of(MotionUse(instruction="MoveL", source=(
+                program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), 0)
+            p = memo[triple] = keys.setdefault(key, len(keys))
+            if p == len(infos):
+                infos.append(info)
+        move_pair[k] = p
+    uses = np.bincount(rows, minlength=len(table))
+    pair = np.full(len(table), -1, np.intp)
+    pair[rows[::-1]] = move_pair[::-1]     # each target's first motion's pair
+    if np.any(pair[rows] != move_pair):    # moved to with several pairs
+        return None
+    if np.any(uses == 0):
+        default = keys.setdefault(_DEFAULT_KEY, len(keys))
+        if default == len(infos):
+            infos.append((("tool0", None), ("wobj0", None)))
+        pair[uses == 0] = default
+    return _Plan(pair=pair, uses=uses, pairs=tuple(_pair(info) for info in infos))
+
+
+def _named_elsewhere(program: Program) -> set[str]:
+    """Lower-case names that the program's objects declare or use as targets."""
+    names = {t.name for t in program.targets + program.joint_targets if t.name}
+    names.update(u.target_name for u in program.motions if u.target_name)
+    names.update(r.base_name for r in program.runtime if r.base_name)
+    names.update(u.runtime.base_name for u in program.motions
+                 if u.runtime is not None and u.runtime.base_name)
+    names.update(r.name for r in program.references)
+    for c in program.copies:
+        names.update(n for n in (c.name, c.source_name) if n)
+    names.update(p for r in program.routines for p in r.parameters)
+    return {n.lower() for n in names}
+
+
+@dataclass(eq=False)
+class _Chunk:
+    """What :func:`~.program._solve` reads of a resolution, for some table rows."""
+
+    written: np.ndarray
+    base_T_flange: np.ndarray
+    wobj_T_target: np.ndarray
+    entry_pairs: np.ndarray
+    pairs: tuple
+
+
+class _TablePart:
+    """The table targets compensated chunk by chunk: their rows as columns (compensated)
+    or objects (the others), and their edits, in text order."""
+
+    def __init__(self, program: Program, table: TargetTable, plan: _Plan,
+                 comp: Compensator, unused: str, teacher: Compensator | None):
+        self.program, self.table, self.plan = program, table, plan
+        self.comp, self.unused, self.teacher = comp, unused, teacher
+        self.spans = table.span_columns()
+        self.parts: list[RowColumns] = []
+        self.others: list[TargetReport] = []
+        self.pair_names = [(p.tool_name, p.wobj_name) for p in plan.pairs]
+        self._notes = [p.notes for p in plan.pairs]
+        self._words: dict[str, str] = {}   # one string per distinct status and note
+
+    def target(self, k: int):
+        return self.table.target(k, self.program.text, self.program.file)
+
+    def notes(self, k: int, pair: int) -> tuple[str, ...]:
+        """The resolution notes of table row ``k`` (as semantics.resolve gives them)."""
+        return (("unused",) if self.plan.uses[k] == 0 else ()) + self._notes[pair]
+
+    def compensate(self, a: int, b: int) -> list:
+        """Rows ``a:b`` of the table: their report rows kept; returns their edits."""
+        plan, pairs = self.plan, self.plan.pairs
+        values = self.table.values(self.program.text, a, b)
+        written = values[:, :11].copy()
+        pair = plan.pair[a:b]
+        bad = bad_values(written)
+        poses = np.full((b - a, 4, 4), np.nan)
+        good = np.flatnonzero(~bad)
+        poses[good] = pose_from_rotation_translation(
+            matrix_from_quat_wxyz(written[good, 3:7]), written[good, :3] * MM)
+        flange = np.full_like(poses, np.nan)
+        for p, frames in enumerate(pairs):
+            ks = good[pair[good] == p]
+            if frames.problem or not len(ks):
+                continue
+            if frames.stationary_tool:
+                flange[ks] = (frames.flange_T_tool @ invert_pose(poses[ks])
+                              @ invert_pose(frames.base_T_wobj))
+            else:
+                flange[ks] = frames.base_T_wobj @ poses[ks] @ invert_pose(frames.flange_T_tool)
+        job = self._rows_not_solved(a, bad, np.isfinite(flange[:, 0, 0]))
+        if not job:
+            return []
+        chunk = _Chunk(written=written, base_T_flange=flange, wobj_T_target=poses,
+                       entry_pairs=pair, pairs=pairs)
+        solved = _solve(self.comp, chunk, job, False, self.teacher)
+        return self._rows_solved(a, job, solved, values)
+
+    def _rows_not_solved(self, a: int, bad: np.ndarray, known: np.ndarray) -> list[int]:
+        """Rows for the chunk's targets decided without solving; returns the others (the
+        job, chunk indices)."""
+        unused = (self.plan.uses[a:a + len(bad)] == 0) & (self.unused == "skip")
+        job = ~bad & ~unused & known
+        pairs = self.plan.pairs
+        for i in np.flatnonzero(~job).tolist():
+            k, p = a + i, int(self.plan.pair[a + i])
+            t = self.target(k)
+            if bad[i]:
+                row = written_row(t, pairs[p], "bad_target", value_problem(t))
+            elif unused[i]:
+                row = written_row(t, pairs[p], "unused", NOT_MOVED)
+            else:
+                row = written_row(t, pairs[p], "unresolved", "; ".join(self.notes(k, p)))
+            self.others.append(row)
+        return np.flatnonzero(job).tolist()
+
+    def _rows_solved(self, a: int, job: list[int], solved, values: np.ndarray) -> list:
+        """Rows of the solved ``job`` (chunk indices) of the chunk at ``a`` (numbers as
+        written ``values``); returns their edits."""
+        table, pairs, robot = self.table, self.plan.pairs, self.comp.robot
+        rows = np.asarray(job) + a
+        pair = self.plan.pair[rows]
+        notes = [solved_note(n, tn) if n else tn for n, tn in zip(
+            (self.notes(k, p) for k, p in zip(rows.tolist(), pair.tolist())),
+            solved.tool_note)]
+        ok = solved.ok
+        for i in np.flatnonzero(~ok).tolist():
+            k, p = int(rows[i]), int(pair[i])
+            self.others.append(failure_row(TargetReport(
+                target=table.names[k], file=self.program.file, line=table.line[k],
+                column=table.column[k], status=solved.reason[i],
+                tool=pairs[p].tool_name, wobj=pairs[p].wobj_name,
+                config_before=solved.config_before[i], note=notes[i]),
+                solved.failures[i], robot, False))
+        keep = np.flatnonzero(ok)
+        if not len(keep):
+            return []
+        mine = rows[keep]
+        config_after = config_texts(solved.conf[keep])
+        words = self._words
+        self.parts.append(RowColumns(
+            names=[table.names[k] for k in mine.tolist()], file=self.program.file,
+            line=np.frombuffer(table.line, np.int64)[mine],
+            column=np.frombuffer(table.column, np.int64)[mine],
+            status=[words.setdefault(solved.reason[i], solved.reason[i])
+                    for i in keep.tolist()], pair=pair[keep],
+            pair_names=self.pair_names, correction_mm=solved.shift_mm[keep],
+            correction_deg=solved.turn_deg[keep], joint_change=solved.change_deg[keep],
+            config_before=[solved.config_before[i] for i in keep.tolist()],
+            config_after=config_after, joints=solved.joints_deg[keep],
+            note=[words.setdefault(notes[i], notes[i]) for i in keep.tolist()]))
+        return self._edits(mine, keep, solved, values[mine - a])
+
+    def _edits(self, mine: np.ndarray, keep: np.ndarray, solved, values: np.ndarray) -> list:
+        """The edits writing the compensated table targets ``mine`` (job rows ``keep``,
+        numbers as written ``values``), sorted."""
+        new = solved.new_targets[keep]
+        spans = self.spans[mine]
+        edits = edits_for_spans(self.program.text, values, new[:, :3, 3] / MM,
+                                quat_wxyz_from_matrix(new[:, :3, :3]), spans[:, 4],
+                                spans[:, 5], _Targets(self, mine))
+        conf = solved.conf[keep]
+        changed = np.flatnonzero(np.any(conf != solved.written[keep], axis=1)
+                                 & solved.has_conf[keep]).tolist()
+        if changed:
+            for j in changed:
+                edits += target_edits(self.target(int(mine[j])), config=conf[j])
+            edits.sort(key=_START)
+        return edits
+
+    def rows(self, others: list[TargetReport]) -> ReportRows:
+        """All rows of the module in text order: the table's compensated rows and
+        ``others`` (in text order)."""
+        if self.parts:
+            columns = RowColumns.concatenate(self.parts)
+            self.parts = []
+        else:
+            columns = RowColumns.concatenate([_empty_columns(self.program.file,
+                                                             self.comp.robot.n_joints)])
+        key_columns = (columns.line << 32) | columns.column
+        key_others = np.fromiter(((r.line << 32) | r.column for r in others), np.int64,
+                                 len(others))
+        order = np.concatenate([np.arange(len(columns)), -1 - np.arange(len(others))])
+        return ReportRows(columns, others, order[np.argsort(
+            np.concatenate([key_columns, key_others]), kind="stable")])
+
+
+class _Targets:
+    """Table rows ``rows`` as a sequence of CartesianTarget made on access."""
+
+    def __init__(self, part: _TablePart, rows: np.ndarray):
+        self.part, self.rows = part, rows
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, i: int):
+        return self.part.target(int(self.rows[i]))
+
+
+def _empty_columns(file: str, n_joints: int) -> RowColumns:
+    return RowColumns(names=[], file=file, line=np.zeros(0, np.int64),
+                      column=np.zeros(0, np.int64), status=[], pair=np.zeros(0, np.intp),
+                      pair_names=[], correction_mm=np.zeros((0, 3)),
+                      correction_deg=np.zeros(0), joint_change=np.zeros(0),
+                      config_before=[], config_after=[], joints=np.zeros((0, n_joints)),
+                      note=[])

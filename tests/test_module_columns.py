@@ -1,0 +1,170 @@
+"""The column path of a RAPID module (compensation/module_columns.py) against the object
+path it replaces for big modules: the same bytes and report wherever both solve the same
+batch, the targets reached on the virtual robot when solved chunk by chunk, and the
+object path wherever the module's targets are not plain."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_compensate import (TOLERANCE_M, World, _frames, _world, rapid_module, read_rapid_targets,
+                             written_targets)
+
+from olp_compensate.compensation.module_columns import _plan, compensate_rapid_module
+from olp_compensate.compensation.pose import Compensator
+from olp_compensate.compensation.report import ReportRows
+from olp_compensate.compensation.task import compensate_task
+from olp_compensate.errors import ParseError
+from olp_compensate.kinematics.conventions import (MM, invert_pose, quat_wxyz_from_matrix,
+                                                   rotation_angle_between)
+from olp_compensate.programs import loads
+from olp_compensate.programs.rapid import parse_rapid_columns
+
+HERE = Path(__file__).parent
+MODULES = sorted([*HERE.glob("programs/rapid_*/input.*"), *HERE.glob("tasks/*/*.mod"),
+                  HERE.parent / "samples" / "cell_a.mod"])
+
+SPECIAL = """MODULE Special
+  PERS tooldata tGun:=[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],[2.5,[0,0,80],[1,0,0,0],0,0,0]];
+  PERS tooldata tFixed:=[FALSE,[[900,100,600],[1,0,0,0]],[1,[0,0,0],[1,0,0,0],0,0,0]];
+  PERS wobjdata wHeld:=[TRUE,TRUE,"",[[0,0,150],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];
+  PERS wobjdata wTable:=[FALSE,TRUE,"",[[700,-300,300],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];
+  CONST robtarget pA:=[[1100.5,-20.25,950],[0.5,0,0.866025,0],[-1,-1,0,1],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST robtarget pNever:=[[1000,0,900],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST robtarget pZero:=[[1000,0,900],[0,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  PERS robtarget pOdd:=[[1000,0,900],[0,0,1,0],[0,0.5,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST robtarget pFar:=[[9000,0,900],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  VAR robtarget pUnknownTool:=[[1000,0,900],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST robtarget pTable:=[[300,250,120.25],[0,0.707107,0.707107,0],[0,1,-1,1],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST robtarget pHeld:=[[50,20,-30],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  PROC main()
+    MoveJ pA,v500,z10,tGun;
+    MoveL pZero,v500,z10,tGun;
+    MoveL pOdd,v500,z10,tGun;
+    MoveL pFar,v500,z10,tGun;
+    MoveL pUnknownTool,v500,z10,tNowhere;
+    MoveL pTable,v500,fine,tGun\\WObj:=wTable;
+    MoveL pA,v500,z10,tGun;
+    MoveL pHeld,v500,fine,tFixed\\WObj:=wHeld;
+  ENDPROC
+ENDMODULE
+"""
+"""Every row the column path makes as an object: unused, zero quaternion, confdata no
+integer, out of reach, unknown tool; a stationary tool; a target moved to twice."""
+
+
+@pytest.fixture(scope="module")
+def comp():
+    return Compensator(_world("abb_irb2400").calibration)
+
+
+def _both(text: str, file: str, comp, unused: str, taught_on=None):
+    try:
+        (expected,), report = compensate_task([loads(text, "rapid", file)], comp,
+                                              unused=unused, taught_on=taught_on)
+    except ParseError:
+        with pytest.raises(ParseError):
+            compensate_rapid_module(text, file, comp, unused=unused, teacher=taught_on)
+        return None
+    got, columns_report = compensate_rapid_module(text, file, comp, unused=unused,
+                                                  teacher=taught_on)
+    assert got == expected
+    assert columns_report.to_csv() == report.to_csv()
+    assert columns_report.warnings == report.warnings
+    assert (columns_report.edits, columns_report.exit_code, columns_report.counts()) == \
+        (report.edits, report.exit_code, report.counts())
+    assert list(columns_report.rows) == list(report.rows)
+    return columns_report
+
+
+def _taken(text: str) -> bool:
+    program, columns = parse_rapid_columns(text)
+    return len(columns.targets) > 0 and _plan(program, columns) is not None
+
+
+@pytest.mark.parametrize("unused", ["skip", "tool0"])
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: f"{p.parent.name}/{p.name}")
+def test_columns_give_the_object_paths_text_and_report(path, unused, comp):
+    text = path.read_bytes().decode("latin-1")
+    _both(text, str(path), comp, unused)
+
+
+@pytest.mark.parametrize("unused", ["skip", "tool0"])
+def test_every_row_kind_of_the_column_path(unused, comp):
+    assert _taken(SPECIAL)
+    report = _both(SPECIAL, "special.mod", comp, unused)
+    status = {r.target: r.status for r in report.rows}
+    assert isinstance(report.rows, ReportRows)
+    assert status["pNever"] == ("unused" if unused == "skip" else "ok")
+    assert (status["pZero"], status["pOdd"]) == ("bad_target", "bad_target")
+    assert status["pFar"] in ("unreachable", "not_converged")
+    assert status["pUnknownTool"] == "unresolved"
+    assert (status["pA"], status["pTable"], status["pHeld"]) == ("ok", "ok", "ok")
+    assert [r.target for r in report.rows] == [
+        "pA", "pNever", "pZero", "pOdd", "pFar", "pUnknownTool", "pTable", "pHeld"]
+
+
+def test_transfer_in_columns_is_the_object_paths(comp):
+    teacher = Compensator(World("abb_irb2400", seed=5).calibration)
+    assert _taken(SPECIAL)
+    report = _both(SPECIAL, "special.mod", comp, "skip", taught_on=teacher)
+    assert report.counts()["ok"] == 3
+
+
+@pytest.mark.parametrize("change, why", [
+    ("    MoveL Offs(pA,0,0,10),v500,z10,tGun;\n", "run-time use"),
+    ("    MoveL pTable,v500,z10,tGun;\n", "two tool/work-object pairs"),
+    ("    MyRoutine pA;\n", "handed to a routine"),
+    ("    pHeld := pA;\n", "copied"),
+    ("    MoveL pMissing,v500,z10,tGun;\n", "unknown target"),
+])
+def test_targets_whose_meaning_is_not_plain_take_the_object_path(change, why, comp):
+    text = SPECIAL.replace("  ENDPROC", change + "  ENDPROC")
+    assert not _taken(text), why
+    _both(text, "special.mod", comp, "skip")
+
+
+def test_a_target_declared_twice_takes_the_object_path(comp):
+    text = SPECIAL.replace("  PROC main()", "  CONST robtarget pa:=[[1,2,3],[1,0,0,0],"
+                           "[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()")
+    assert not _taken(text)
+    _both(text, "special.mod", comp, "skip")
+
+
+def test_chunked_column_path_reaches_the_targets_on_the_virtual_robot():
+    """Solved 5 targets at a time: the real tool reaches what the program meant."""
+    world = _world("abb_irb2400")
+    program_tool, wobj, tool_rot, _ = _frames(world, 3)
+    q = world.program_joints(23, seed=22)
+    numbers = written_targets(world, q, program_tool, wobj)
+    text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
+                        wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
+    assert _taken(text)
+    out, report = compensate_rapid_module(text, "loop.mod", Compensator(world.calibration),
+                                          chunk=5)
+    assert report.exit_code == 0 and len(report.rows) == len(numbers)
+    _, cart, _ = read_rapid_targets(out)
+    _, original, _ = read_rapid_targets(text)
+    real_tool = world.real_tool(tool_rot)
+    errors = []
+    for k in range(1, len(numbers) + 1):
+        frame = wobj if k % 2 else np.eye(4)
+        intended = world.desired_in_device(frame @ original[f"p{k}"][0])
+        pose, conf = cart[f"p{k}"]
+        q_ctrl = world.controller((frame @ pose @ invert_pose(program_tool))[None], conf[None])
+        reached = world.real_tcp_in_device(q_ctrl, real_tool)[0]
+        errors.append(np.linalg.norm(reached[:3, 3] - intended[:3, 3]))
+        assert rotation_angle_between(reached[:3, :3], intended[:3, :3]) < math.radians(0.005)
+    assert max(errors) < TOLERANCE_M, np.array(errors) / MM
+
+
+def test_report_rows_read_like_a_tuple(comp):
+    report = _both(SPECIAL, "special.mod", comp, "skip")
+    rows = list(report.rows)
+    assert len(report.rows) == len(rows) == 8
+    assert report.rows[0] == rows[0] and report.rows[-1] == rows[-1]
+    assert report.rows[2:5] == rows[2:5]
+    assert report.problem_rows() == [r for r in rows if not r.fine]
