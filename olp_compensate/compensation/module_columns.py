@@ -268,8 +268,8 @@ class _TablePart:
         for i in np.flatnonzero(~ok).tolist():
             k, p = int(rows[i]), int(pair[i])
             self.others.append(failure_row(TargetReport(
-                target=table.names[k], file=self.program.file, line=table.line[k],
-                column=table.column[k], status=solved.reason[i],
+                target=table.names[k], file=self.program.file, line=int(table.line[k]),
+                column=int(table.column[k]), status=solved.reason[i],
                 tool=pairs[p].tool_name, wobj=pairs[p].wobj_name,
                 config_before=solved.config_before[i], note=notes[i]),
                 solved.failures[i], robot, False))
@@ -281,8 +281,7 @@ class _TablePart:
         words = self._words
         self.parts.append(RowColumns(
             names=[table.names[k] for k in mine.tolist()], file=self.program.file,
-            line=np.frombuffer(table.line, np.int64)[mine],
-            column=np.frombuffer(table.column, np.int64)[mine],
+            line=table.line[mine], column=table.column[mine],
             status=[words.setdefault(solved.reason[i], solved.reason[i])
                     for i in keep.tolist()], pair=pair[keep],
             pair_names=self.pair_names, correction_mm=solved.shift_mm[keep],

@@ -17,7 +17,8 @@ from lark import Token
 from lark.exceptions import UnexpectedInput
 from lark.utils import TextSlice
 
-from .grammar import check_text, convert_lark_error, current_sink, error_at, newline_style, parser
+from .grammar import (LineIndex, check_text, convert_lark_error, current_sink, error_at,
+                      newline_style, parser)
 from .rapid_accounting import unaccounted_literals
 from .rapid_build import TARGET_TYPES, Builder
 from .rapid_columns import ModuleColumns, MoveTable, TargetTable
@@ -220,7 +221,9 @@ def parse_rapid_columns(text: str, file: str = "<string>") -> tuple[Program, Mod
     ``program`` holds everything else; ``with_objects(program, columns)`` is what
     :func:`parse_rapid` gives."""
     columns = ModuleColumns(TargetTable(), MoveTable())
-    return _parse(text, file, columns), columns
+    program = _parse(text, file, columns)
+    columns.place(LineIndex(text).starts)
+    return program, columns
 
 
 def _parse(text: str, file: str, columns: ModuleColumns | None) -> Program:

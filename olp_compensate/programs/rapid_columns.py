@@ -35,34 +35,41 @@ _BRACKETS = {ord("["): " ", ord("]"): " "}
 class TargetTable:
     """Module-level plain robtarget declarations, in text order.
 
-    Per row: ``names`` and ``storage`` ('CONST', 'PERS', 'VAR') as written; ``line``,
-    ``column`` of the name (1-based); ``spans``: the literal's (start, end), the type
-    word's (start, end), where its first number (x) starts and where its fourth
-    (quaternion) number ends. The 17 numbers' values come from :meth:`values` (one batch),
-    their texts and offsets from :meth:`target`.
+    Per row: ``names`` and ``storage`` ('CONST', 'PERS', 'VAR') as written; ``spans``:
+    the literal's (start, end), the type word's (start, end), where its first number (x)
+    starts and where its fourth (quaternion) number ends; ``line``, ``column`` of the name
+    (1-based; set by :meth:`place`, after the parse). The 17 numbers' values come from
+    :meth:`values` (one batch), their texts and offsets from :meth:`target`.
     """
 
-    __slots__ = ("names", "storage", "line", "column", "spans", "_words")
+    __slots__ = ("names", "storage", "spans", "offsets", "line", "column", "_words")
 
     def __init__(self):
         self.names: list[str] = []
         self.storage: list[str] = []
-        self.line, self.column = array("q"), array("q")
         self.spans = array("q")      # SPANS per row
-        self._words: dict[str, str] = {}   # one string per distinct storage word
+        self.offsets = array("q")    # where each name starts
+        self.line = self.column = np.zeros(0, np.int64)
+        self._words: dict[str, str] = {}   # written storage word -> upper case, one string
 
     def __len__(self) -> int:
         return len(self.names)
 
-    def append(self, name: str, storage: str, line: int, column: int, regs) -> None:
-        """Add a row from the ``regs`` of a declaration match (see rapid_fast.py: group 2
-        the type word, 4 the literal, 5-21 its numbers)."""
+    def append(self, name: str, storage: str, regs) -> None:
+        """Add a row from the ``regs`` of a declaration match (see rapid_fast.py: group 3
+        the name, 2 the type word, 4 the literal, 5-21 its numbers)."""
         self.names.append(name)
-        self.storage.append(self._words.setdefault(storage, storage))
-        self.line.append(line)
-        self.column.append(column)
+        word = self._words.get(storage)
+        if word is None:
+            word = self._words[storage] = storage.upper()
+        self.storage.append(word)
         literal, kind = regs[4], regs[2]
+        self.offsets.append(regs[3][0])
         self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[11][1]))
+
+    def place(self, line_starts: np.ndarray) -> None:
+        """Set ``line`` and ``column`` from the offsets where the text's lines start."""
+        self.line, self.column = _lines_and_columns(self.offsets, line_starts)
 
     def span_columns(self) -> np.ndarray:
         """(n, 6) int: literal start, end, type word start, end, first number start,
@@ -90,7 +97,7 @@ class TargetTable:
         s = self.spans[SPANS * i:SPANS * (i + 1)]
         m = ROBTARGET_RE.match(text, s[0], s[1])
         return CartesianTarget(
-            name=self.names[i], source=(file, self.line[i], self.column[i]),
+            name=self.names[i], source=(file, int(self.line[i]), int(self.column[i])),
             texts=m.groups(), starts=tuple(map(m.start, range(1, NUMBERS + 1))),
             orientation_kind=QUAT_WXYZ, span=(s[0], s[1]), storage=self.storage[i],
             array_index=None, routine=None, type_span=(s[2], s[3]))
@@ -104,7 +111,8 @@ class TargetTable:
         return [make((name, (file, line, column), m.groups(), tuple(map(m.start, numbers)),
                       QUAT_WXYZ, (a, b), storage, None, None, (ta, tb)))
                 for m, name, line, column, storage, a, b, ta, tb in zip(
-                    matches, self.names, self.line, self.column, self.storage, s[0::SPANS],
+                    matches, self.names, self.line.tolist(), self.column.tolist(), self.storage,
+                    s[0::SPANS],
                     s[1::SPANS], s[2::SPANS], s[3::SPANS])]
 
 
@@ -112,14 +120,14 @@ class MoveTable:
     """Plain ``MoveL``/``MoveJ`` to a named target (``p`` or ``p{k}``), in text order.
 
     Per row: ``instructions``, ``target_names``, ``tools``, ``wobjs`` (None: wobj0) and
-    ``routines`` as written (repeated words stored once); ``line``, ``column`` of the
-    target argument; ``indices`` (the literal array index, -1 for none); ``spans``: the
-    instruction word, the statement (without ';') and the target argument, (start, end)
-    each.
+    ``routines`` as written (repeated words stored once); ``indices`` (the literal array
+    index, -1 for none); ``spans``: the instruction word, the statement (without ';') and
+    the target argument, (start, end) each; ``line``, ``column`` of the target argument
+    (set by :meth:`place`, after the parse).
     """
 
-    __slots__ = ("instructions", "target_names", "tools", "wobjs", "routines", "line",
-                 "column", "indices", "spans", "_words")
+    __slots__ = ("instructions", "target_names", "tools", "wobjs", "routines", "indices",
+                 "spans", "line", "column", "_words")
 
     def __init__(self):
         self.instructions: list[str] = []
@@ -127,16 +135,16 @@ class MoveTable:
         self.tools: list[str] = []
         self.wobjs: list[str | None] = []
         self.routines: list[str | None] = []
-        self.line, self.column, self.indices = array("q"), array("q"), array("q")
+        self.indices = array("q")
         self.spans = array("q")      # 6 per row
+        self.line = self.column = np.zeros(0, np.int64)
         self._words: dict[str, str] = {}
 
     def __len__(self) -> int:
         return len(self.target_names)
 
     def append(self, instruction: str, name: str, index: str | None, tool: str,
-               wobj: str | None, routine: str | None, line: int, column: int,
-               spans) -> None:
+               wobj: str | None, routine: str | None, spans) -> None:
         """Add a row; ``spans``: the instruction's, the statement's and the target's."""
         words = self._words
         self.instructions.append(words.setdefault(instruction, instruction))
@@ -144,17 +152,20 @@ class MoveTable:
         self.tools.append(words.setdefault(tool, tool))
         self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
         self.routines.append(routine)
-        self.line.append(line)
-        self.column.append(column)
         self.indices.append(-1 if index is None else int(index))
         self.spans.extend(spans)
+
+    def place(self, line_starts: np.ndarray) -> None:
+        """Set ``line`` and ``column`` from the offsets where the text's lines start."""
+        self.line, self.column = _lines_and_columns(self.spans[4::6], line_starts)
 
     def use(self, i: int, file: str) -> MotionUse:
         """Row ``i`` as the :class:`MotionUse` the object parse makes."""
         s = self.spans[6 * i:6 * i + 6]
         index = self.indices[i]
         return MotionUse(
-            instruction=self.instructions[i], source=(file, self.line[i], self.column[i]),
+            instruction=self.instructions[i],
+            source=(file, int(self.line[i]), int(self.column[i])),
             role="to", target_name=self.target_names[i],
             target_index=None if index < 0 else (index,), inline=None, runtime=None,
             tool=self.tools[i], tool_inline=None, wobj=self.wobjs[i], wobj_inline=None,
@@ -170,7 +181,8 @@ class MoveTable:
                       None if index < 0 else (index,), None, None, tool, None, wobj, None,
                       False, routine, (a, b), (c, d), (e, f)))
                 for instruction, line, column, name, index, tool, wobj, routine, a, b, c, d,
-                e, f in zip(self.instructions, self.line, self.column, self.target_names,
+                e, f in zip(self.instructions, self.line.tolist(), self.column.tolist(),
+                            self.target_names,
                             self.indices, self.tools, self.wobjs, self.routines, s[0::6],
                             s[1::6], s[2::6], s[3::6], s[4::6], s[5::6])]
 
@@ -181,6 +193,19 @@ class ModuleColumns:
 
     targets: TargetTable
     moves: MoveTable
+
+    def place(self, line_starts) -> None:
+        """Give every row its line and column (``line_starts``: where the lines start)."""
+        starts = np.asarray(line_starts, np.int64)
+        self.targets.place(starts)
+        self.moves.place(starts)
+
+
+def _lines_and_columns(offsets, line_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1-based (line, column) arrays of character ``offsets``."""
+    at = np.asarray(offsets, np.int64)
+    line = np.searchsorted(line_starts, at, side="right")
+    return line, at - line_starts[line - 1] + 1
 
 
 def with_objects(program: Program, columns: ModuleColumns) -> Program:

@@ -78,20 +78,21 @@ def _split_fast_decls(tok: Token, sink: Sink) -> None:
 def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
     """Record the plain robtarget declarations from ``pos`` on (one regex match each; the
     blank-free form first, and whichever read the previous declaration goes first): as
-    rows of ``sink.columns.targets`` (a column parse), else as CartesianTarget objects in
-    ``sink.targets``. Returns the offset after them."""
+    rows of ``sink.columns.targets`` (a column parse, placed in lines afterwards), else as
+    CartesianTarget objects in ``sink.targets``. Returns the offset after them."""
     first, second = _TIGHT_ROBTARGET.match, _FAST_ROBTARGET.match
     if sink.columns is not None:
-        table, storage_of = sink.columns.targets.append, _STORAGE.get
-
-        def add(m, line, column):
-            storage = m.group(1)
-            table(m.group(3), storage_of(storage) or storage.upper(), line, column, m.regs)
-    else:
-        append, file = sink.targets.append, sink.file
-
-        def add(m, line, column):
-            append(_target_of(m, file, line, column))
+        add = sink.columns.targets.append
+        while True:
+            m = first(text, pos, end)
+            if m is None:
+                m = second(text, pos, end)
+                if m is None:
+                    return pos
+                first, second = second, first
+            add(m.group(3), m.group(1), m.regs)
+            pos = m.end()
+    append, file = sink.targets.append, sink.file
     count, rfind = text.count, text.rfind
     index = sink.index
     last, line, line_start = index.position()  # sink.index.line_col, inlined (text order)
@@ -109,9 +110,9 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
                 line += breaks
                 line_start = rfind("\n", last, a) + 1
             last = a
-            add(m, line, a - line_start + 1)
+            append(_target_of(m, file, line, a - line_start + 1))
         else:
-            add(m, *index.line_col(a))
+            append(_target_of(m, file, *index.line_col(a)))
         pos = m.end()
     index.moved(last, line, line_start)
     return pos
@@ -262,21 +263,17 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
 
 def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
     """Record the plainest MoveL/MoveJ from ``pos`` on: as rows of ``sink.columns.moves``
-    (a column parse), else as MotionUse objects in ``sink.motions``. Returns the offset
-    after them."""
+    (a column parse, placed in lines afterwards), else as MotionUse objects in
+    ``sink.motions``. Returns the offset after them."""
     match, routine = _SIMPLE_MOVE.match, sink.routine
     if sink.columns is not None:
-        table = sink.columns.moves.append
-
-        def add(m, start, line, column):
+        add = sink.columns.moves.append
+        while (m := match(text, pos, end)) is not None:
             regs = m.regs
-            table(*m.group(1, 3, 4, 5, 6), routine, line, column,
-                  (*regs[1], start, regs[7][0], *regs[2]))
-    else:
-        append, file = sink.motions.append, sink.file
-
-        def add(m, start, line, column):
-            append(_use_of(m, start, file, line, column, routine))
+            add(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
+            pos = m.end()
+        return pos
+    append, file = sink.motions.append, sink.file
     count, rfind = text.count, text.rfind
     index = sink.index
     last, line, line_start = index.position()  # sink.index.line_col, inlined (text order)
@@ -288,9 +285,9 @@ def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
                 line += breaks
                 line_start = rfind("\n", last, a) + 1
             last = a
-            add(m, pos, line, a - line_start + 1)
+            append(_use_of(m, pos, file, line, a - line_start + 1, routine))
         else:
-            add(m, pos, *index.line_col(a))
+            append(_use_of(m, pos, file, *index.line_col(a), routine))
         pos = m.end()
     index.moved(last, line, line_start)
     return pos
