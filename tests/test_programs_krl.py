@@ -277,3 +277,20 @@ def test_array_declared_without_value_and_variable_index():
     assert [t.name for t in program.targets] == ["XPATH[1]"]
     (motion,) = program.motions
     assert motion.target == "XPATH[I]" and "indexed at run time" in motion.runtime
+
+
+@pytest.mark.parametrize("zero_axes_bits", [0, 0b101001])
+def test_axes_taught_at_zero_keep_their_turn_bits(zero_axes_bits):
+    """A target taught with A1, A4 and A6 at exactly 0 (as home-like targets are): read
+    back from its rounded numbers the solver finds them a few microradians either side of
+    0, which is no sign; the written T bits of those axes hold whichever way they are
+    written (A2's bit, a real sign, is as taught)."""
+    q = np.radians([[0.0, -80.0, 100.0, 0.0, 40.0, 0.0], [0.0, -60.0, 80.0, 0.0, 70.0, 0.0]])
+    targets = [(values, s, t | zero_axes_bits) for values, s, t in _targets_at(q)]
+    assert all(t == 0b10 | zero_axes_bits for _, _, t in targets)
+    src, dat = krl_module(targets)
+    program = parse_krl(src, dat, "CELL.src", "CELL.dat", CONFIG_DAT, "$config.dat")
+    texts, report = compensate_pose_program(program, KRL, nominal_calibration(ROBOT))
+    statuses = [r.status for r in report.rows if r.status != "joint_target"]
+    assert statuses == ["ok", "ok"], [(r.status, r.note) for r in report.rows]
+    assert texts["CELL.src"] == src and texts["CELL.dat"] == dat

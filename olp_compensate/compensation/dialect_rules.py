@@ -163,9 +163,17 @@ def krl_status(geometry: ArmGeometry, q: np.ndarray) -> int:
     return s
 
 
-def krl_turn(q: np.ndarray) -> int:
-    """KUKA turn T: bit i set when axis i+1 is negative."""
-    return sum(1 << i for i, v in enumerate(q[:6]) if v < 0)
+ZERO_AXIS_RAD = 1e-5
+"""An axis this close to 0 (0.0006 deg, about what the written numbers resolve: 0.001 mm
+at a metre, 0.0001 deg) has no sign of its own: either T bit holds for it."""
+
+
+def krl_turn(q: np.ndarray, written: int | None = None) -> int:
+    """KUKA turn T: bit i set when axis i+1 is negative; for an axis within
+    :data:`ZERO_AXIS_RAD` of 0, the bit of ``written`` (clear without one)."""
+    keep = 0 if written is None else written
+    return sum(1 << i for i, v in enumerate(q[:6])
+               if v < -ZERO_AXIS_RAD or (abs(v) <= ZERO_AXIS_RAD and keep >> i & 1))
 
 
 def krl_written(target: PoseTarget) -> tuple[int, ...]:
@@ -204,7 +212,7 @@ def krl_choose(geometry: ArmGeometry, target: PoseTarget, branches: np.ndarray, 
         if t is not None:
             for i in range(min(6, len(q))):
                 want_negative = bool(t >> i & 1)
-                if (q[i] < 0) != want_negative:
+                if abs(q[i]) > ZERO_AXIS_RAD and (q[i] < 0) != want_negative:
                     shifted = q[i] + (-TWO_PI if q[i] >= 0 else TWO_PI)
                     if ranges[i, 0] <= shifted <= ranges[i, 1]:
                         q[i] = shifted
@@ -214,7 +222,7 @@ def krl_choose(geometry: ArmGeometry, target: PoseTarget, branches: np.ndarray, 
                       else "the nominal arm does not reach the target")
     reference = np.zeros(len(candidates[0])) if previous is None else previous
     best = min(candidates, key=lambda q: float(np.sum((q - reference) ** 2)))
-    if t is not None and krl_turn(best) != (t & 63):
+    if t is not None and krl_turn(best, t) != (t & 63):
         return None, (f"the turn T={t} asks axis signs the pose cannot have on status "
                       f"S={s} inside the axis ranges")
     return best, None
@@ -227,7 +235,7 @@ def krl_config(geometry: ArmGeometry, q: np.ndarray, target: PoseTarget) -> tupl
     if s is not None:
         values.append((s & ~7) | krl_status(geometry, q))
     if t is not None:
-        values.append(krl_turn(q))
+        values.append(krl_turn(q, t))
     return tuple(values)
 
 
