@@ -23,7 +23,9 @@ held-out errors on the region's rows). Files without the key have no regions.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
+import os
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -39,6 +41,7 @@ from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
                      robot_from_urdf_text)
 from .atomic import check_finite_json, write_text_atomic
+from .user_cache import cache_folder
 
 LENGTH_OR_ANGLE_LIMIT = 1e6
 """Largest plausible size of a length (mm) or angle (deg) in calib.json (1 km)."""
@@ -158,19 +161,21 @@ def write_calibration(path: str | Path, cal: Calibration) -> None:
 
 
 def calibration_from_dict(doc: dict, source: str = "<calibration>",
-                          robot: Robot | None = None) -> Calibration:
-    """Rebuild a calibration; ``robot``, when given, must have the file's fingerprint."""
-    import jsonschema
-
+                          robot: Robot | None = None, *, valid: bool = False) -> Calibration:
+    """Rebuild a calibration; ``robot``, when given, must have the file's fingerprint.
+    ``valid``: the document is known to match the schema (not checked again)."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ModelError(f"{source}: not an olp-compensate calibration file")
     if doc.get("version") != VERSION:
         raise ModelError(f"{source}: calibration format version {doc.get('version')!r}; this "
                          f"olp-compensate reads version {VERSION}")
-    exc = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
-    if exc is not None:
-        where = "/".join(str(p) for p in exc.absolute_path) or "(top level)"
-        raise ModelError(f"{source}: invalid calibration at {where}: {exc.message}")
+    if not valid:
+        import jsonschema
+
+        exc = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
+        if exc is not None:
+            where = "/".join(str(p) for p in exc.absolute_path) or "(top level)"
+            raise ModelError(f"{source}: invalid calibration at {where}: {exc.message}")
     _check_square(doc["robot"], "urdf_from_controller", source)
     _check_square(doc["robot"], "axis_ranges_deg", source, columns=2)
     embedded = robot_from_urdf_text(doc["robot"]["urdf"], name=doc["robot"]["name"],
@@ -320,10 +325,17 @@ def check_numbers(doc, source: str) -> None:
 
 
 def read_calibration(path: str | Path, robot: Robot | None = None) -> Calibration:
-    """Read and validate calib.json (see :func:`calibration_from_dict`)."""
+    """Read and validate calib.json (see :func:`calibration_from_dict`).
+
+    A file read whole and valid before (the same bytes, the same schema: a mark named by
+    their SHA-256 in the user's cache folder, :mod:`.user_cache`) is not checked against
+    the schema again: loading the validator took 50-70 ms of each olp-fix run, and a plant
+    runs olp-fix over thousands of programs with one calib.json. Every other check is
+    made at every read."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        data = path.read_bytes()
+        text = data.decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: cannot read calibration ({exc})") from None
     try:
@@ -333,4 +345,27 @@ def read_calibration(path: str | Path, robot: Robot | None = None) -> Calibratio
     except RecursionError:
         raise ModelError(f"{path}: not a calibration (nested too deeply)") from None
     check_numbers(doc, str(path))
-    return calibration_from_dict(doc, str(path), robot)
+    mark = _valid_mark(data)
+    valid = mark is not None and os.path.exists(mark)
+    calibration = calibration_from_dict(doc, str(path), robot, valid=valid)
+    if mark is not None and not valid:
+        try:
+            with open(mark, "x"):
+                pass
+        except OSError:   # another run made it, or the folder is read-only: no matter
+            pass
+    return calibration
+
+
+def _valid_mark(data: bytes) -> str | None:
+    """The cache file marking calib.json bytes ``data`` as valid, or None (no cache)."""
+    folder = cache_folder()
+    if folder is None:
+        return None
+    digest = hashlib.sha256(_schema_bytes() + b"\0" + data).hexdigest()
+    return os.path.join(folder, f"valid-calibration-{digest}")
+
+
+@lru_cache(maxsize=1)
+def _schema_bytes() -> bytes:
+    return (resources.files("olp_compensate.schemas") / "calibration-v1.json").read_bytes()

@@ -21,6 +21,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..data import data_folder
 from ..errors import ParseError
+from ..io.user_cache import cache_folder
 from .targets import SourceLocation
 
 
@@ -50,18 +51,10 @@ def parser(name: str, transformer_factory=None, start: tuple[str, ...] = ("start
 def cache_file(key: str) -> str | None:
     """Where lark keeps a grammar's analysis between runs (it checks the grammar's hash on
     load, and builds the parser again when the file is stale, unreadable or unwritable):
-    ``olp-compensate`` in the user's cache folder; None when there is no such folder."""
-    if os.name == "nt":
-        base = os.environ.get("LOCALAPPDATA", "")
-    else:
-        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
-                                                                ".cache")
-    if not os.path.isabs(base):
-        return None
-    folder = os.path.join(base, "olp-compensate")
-    try:
-        os.makedirs(folder, exist_ok=True)
-    except OSError:
+    the user's cache folder (:mod:`olp_compensate.io.user_cache`); None when there is
+    none."""
+    folder = cache_folder()
+    if folder is None:
         return None
     version = f"lark{lark.__version__}-py{sys.version_info[0]}.{sys.version_info[1]}"
     return os.path.join(folder, f"{key}-{version}.lark-cache")
