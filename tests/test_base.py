@@ -12,13 +12,12 @@ import pytest
 
 from olp_compensate.calibration.base import (PoorlyDeterminedBase, recalibrate_base, tilt_of)
 from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
-from olp_compensate.calibration.simulate import VirtualRobot, random_joints
+from olp_compensate.calibration.simulate import VirtualRobot
 from olp_compensate.cli import cal_base
 from olp_compensate.compensation.pose import compensate_poses
 from olp_compensate.cli.common import run_guarded
 from olp_compensate.io.calibration_file import read_calibration, write_calibration
-from olp_compensate.kinematics.conventions import (MM, rot_x, rot_y, rot_z,
-                                                   rotation_angle_between)
+from olp_compensate.kinematics.conventions import MM, rot_x, rot_y, rot_z
 from olp_compensate.kinematics.robot import load_robot
 
 TOOL_M = np.array([0.03, -0.02, 0.18])

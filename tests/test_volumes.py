@@ -11,7 +11,6 @@ from olp_compensate.calibration.simulate import VirtualRobot
 from olp_compensate.calibration.volumes import (CubeVolume, cube_points, cube_pose_set,
                                                 rapid_joint_program, vplus_joint_program)
 from olp_compensate.errors import DataError
-from olp_compensate.kinematics.conventions import MM
 from olp_compensate.kinematics.robot import load_robot
 
 TOOL_M = np.array([0.05, 0.0, 0.15])

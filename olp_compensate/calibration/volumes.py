@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import DataError
-from ..kinematics.conventions import rot_x, rot_y, rot_z
+from ..kinematics.conventions import rot_y, rot_z
 from ..kinematics.robot import Robot
 
 LAYOUTS = ("faces", "grid")

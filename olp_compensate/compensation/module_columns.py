@@ -23,17 +23,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz, pose_from_rotation_translation,
-                                      quat_wxyz_from_matrix)
+from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
+                                      pose_from_rotation_translation, quat_wxyz_from_matrix)
 from ..programs.emit import splice, target_edits
 from ..programs.emit_batch import edits_for_spans
 from ..programs.rapid import parse_rapid_columns
 from ..programs.rapid_columns import ModuleColumns, TargetTable, with_objects
-from ..programs.semantics import _pair, _Resolver, resolve_task
+from ..programs.semantics import Resolver, frame_pair, resolve_task
 from ..programs.target_values import bad_values, value_problem
 from ..programs.targets import MotionUse, Program
 from .pose import Compensator
-from .program import _solve, module_rows_and_edits
+from .program import module_rows_and_edits, solve_entries
 from .report import (LINE_COLUMN, NOT_MOVED, CompensationReport, ReportRows, RowColumns,
                      TargetReport, config_texts, failure_row, solved_note, written_row)
 
@@ -133,7 +133,7 @@ def _plan(program: Program, columns: ModuleColumns) -> _Plan | None:
                        np.intp, len(moves))
     if np.any(rows < 0):
         return None
-    resolver = _Resolver([program])
+    resolver = Resolver([program])
     keys: dict = {}    # pair key -> index into pairs
     infos: list = []
     memo: dict = {}    # (tool, wobj, routine) -> pair index
@@ -158,7 +158,7 @@ def _plan(program: Program, columns: ModuleColumns) -> _Plan | None:
         if default == len(infos):
             infos.append((("tool0", None), ("wobj0", None)))
         pair[uses == 0] = default
-    return _Plan(pair=pair, uses=uses, pairs=tuple(_pair(info) for info in infos))
+    return _Plan(pair=pair, uses=uses, pairs=tuple(frame_pair(info) for info in infos))
 
 
 def _named_elsewhere(program: Program) -> set[str]:
@@ -177,7 +177,7 @@ def _named_elsewhere(program: Program) -> set[str]:
 
 @dataclass(eq=False)
 class _Chunk:
-    """What :func:`~.program._solve` reads of a resolution, for some table rows."""
+    """What :func:`~.program.solve_entries` reads of a resolution, for some table rows."""
 
     written: np.ndarray
     base_T_flange: np.ndarray
@@ -234,7 +234,7 @@ class _TablePart:
             return []
         chunk = _Chunk(written=written, base_T_flange=flange, wobj_T_target=poses,
                        entry_pairs=pair, pairs=pairs)
-        solved = _solve(self.comp, chunk, job, False, self.teacher)
+        solved = solve_entries(self.comp, chunk, job, False, self.teacher)
         return self._rows_solved(a, job, solved, values)
 
     def _rows_not_solved(self, a: int, bad: np.ndarray, known: np.ndarray) -> list[int]:

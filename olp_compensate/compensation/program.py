@@ -168,7 +168,7 @@ def module_rows_and_edits(program: Program, res, comp: Compensator, *, emit: str
     edits of the text sorted by offset)."""
     vplus = program.dialect == "vplus"
     rows, job = _rows_not_solved(res, unused, not_moved)
-    solved = _solve(comp, res, job, vplus, teacher) if job else None
+    solved = solve_entries(comp, res, job, vplus, teacher) if job else None
     write = _rows_solved(res, job, solved, comp.robot, vplus, rows) if job else {}
     rows.extend(motion_row(use, "runtime" if use.runtime is not None else "unresolved", why)
                 for use, why in res.unresolved)
@@ -282,10 +282,12 @@ class _Solved:
     failures: list
 
 
-def _solve(comp: Compensator, res, job: list[int], vplus: bool,
-           teacher: Compensator | None = None) -> _Solved:
+def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
+                  teacher: Compensator | None = None) -> _Solved:
     """Solve the real arm for the job entries and derive what the report and the emitter
-    need (``teacher``: the robot the targets were taught on, see :func:`_taught_flanges`)."""
+    need (``teacher``: the robot the targets were taught on, see :func:`_taught_flanges`).
+    ``res``: a Resolution, or anything with its arrays ``written``, ``base_T_flange``,
+    ``wobj_T_target``, ``entry_pairs`` and its ``pairs``."""
     robot = comp.robot
     n = len(job)
     written = res.written[job, 7:11]

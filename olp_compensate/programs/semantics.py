@@ -159,7 +159,7 @@ def resolve_task(programs) -> tuple[Resolution, ...]:
     module's targets, the motions of that module whose target is unknown, and the
     warnings about that module."""
     programs = list(programs)
-    resolver = _Resolver(programs)
+    resolver = Resolver(programs)
     for m, program in enumerate(programs):
         for use in program.motions:
             resolver.assign_use(use, m)
@@ -177,7 +177,7 @@ def resolve_task(programs) -> tuple[Resolution, ...]:
         for m, (entries, shared) in enumerate(per_module))
 
 
-class _Resolver:
+class Resolver:
     """The state of one resolution, built in steps: each motion use is assigned to the
     literal target it moves to with its (tool, work object) pair (:meth:`assign_use`),
     then each target becomes one entry per pair (:meth:`entries_of`).
@@ -429,7 +429,7 @@ def _columns(entries, pair_info, shared, unresolved, frames, warnings) -> Resolu
     m = len(entries)
     keys: dict = {}   # pair key -> index into pairs
     pair_index = np.fromiter((keys.setdefault(e[2], len(keys)) for e in entries), np.intp, m)
-    pairs = tuple(_pair(pair_info[key]) for key in keys)
+    pairs = tuple(frame_pair(pair_info[key]) for key in keys)
     targets = tuple([e[0] for e in entries])
     cart = np.fromiter((type(t) is CartesianTarget for t in targets), bool, m)
     wobj_T_target = np.full((m, 4, 4), np.nan)
@@ -484,7 +484,7 @@ def _frame_pose(item) -> tuple[np.ndarray | None, str | None, bool | None]:
     return None, "is not a frame", None
 
 
-def _pair(info) -> FramePair:
+def frame_pair(info) -> FramePair:
     """The poses of a (tool, work object) pair, with its notes and problems."""
     (tool_name, tool), (wobj_name, wobj) = info
     notes = []
@@ -509,5 +509,6 @@ def _pair(info) -> FramePair:
                      tuple(notes), problem)
 
 
-__all__ = ["resolve", "resolve_task", "target_poses", "written_values", "Resolution",
+__all__ = ["resolve", "resolve_task", "Resolver", "frame_pair", "target_poses",
+           "written_values", "Resolution",
            "ResolvedTarget", "FramePair"]
