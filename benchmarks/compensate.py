@@ -133,6 +133,7 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
     """Seconds of each stage of olp-fix's column path on ``module`` (in this process, the
     garbage collector off as in the command)."""
     import gc
+    import heapq
 
     from olp_compensate.compensation import module_columns as mc
     from olp_compensate.programs.rapid import parse_rapid_columns
@@ -152,21 +153,21 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
                                                   unused="skip")
         table = mc._TablePart(program, columns.targets, plan, comp, "skip", None)
         stages["resolve the rest, plan the columns"] = time.perf_counter() - t0
-        output = mc._Splice(text, edits)
-        solve = write = 0.0
+        t0 = time.perf_counter()
         for start in range(0, len(columns.targets), mc.CHUNK):
-            t0 = time.perf_counter()
-            edits = table.compensate(start, min(start + mc.CHUNK, len(columns.targets)))
-            t1 = time.perf_counter()
-            output.add(edits)
-            solve, write = solve + t1 - t0, write + time.perf_counter() - t1
-        stages["chunks: values, IK, rows, edits"] = solve
+            table.compensate(start, min(start + mc.CHUNK, len(columns.targets)))
+        stages["chunks: values, IK, rows, edits"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        table.retry_failed()
+        stages["the targets not reached at once, again"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         others = sorted(rows + table.others, key=mc.LINE_COLUMN)
         report = mc.CompensationReport(file=str(module), rows=table.rows(others),
                                        n_joints=comp.robot.n_joints)
-        new = output.text().encode("latin-1")
-        stages["splice and encode the program"] = write + time.perf_counter() - t0
+        new = mc.splice_in_order(text, heapq.merge(
+            edits, *(zip(*columns) for columns in table.edits), key=mc._START))
+        new = new.encode("latin-1")
+        stages["splice and encode the program"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         csv_bytes = sum(len(piece.encode()) for piece in report.csv_chunks())
         stages["report CSV"] = time.perf_counter() - t0

@@ -126,3 +126,25 @@ def test_fixed_point_retry_solves_what_the_first_stages_left():
     assert reached[0].max() <= 1e-9 and reached[1].max() <= 1e-9
     np.testing.assert_array_equal(abb_confdata(IRB2400_OPW, solver.result.q[left])[:, 3],
                                   conf[left, 3])
+
+
+def test_without_retries_the_rows_reached_at_once_are_the_same_and_the_others_left():
+    """Targets near the wrist singularity of a perturbed arm, some of which only the
+    retries reach: ``retries=False`` stops after the closed-form stage; the rows it reports
+    reached are bit for bit the full solve's, the rows it leaves failed are the ones the
+    retries work on (and reach), and they took no retry steps."""
+    rng = np.random.default_rng(3)
+    robot = IRB2400.perturbed(rng)
+    n = 200
+    q = rng.uniform(IRB2400_LIMITS[:, 0] * 0.9, IRB2400_LIMITS[:, 1] * 0.9, (n, 6))
+    q[:, 4] = rng.choice([-1.0, 1.0], n) * rng.uniform(2e-3, 2e-2, n)
+    target, conf = robot.fk(q), abb_confdata(IRB2400_OPW, q)
+    full = _BranchSolver(IRB2400_OPW, robot.fk_jacobian, target, conf, IRB2400_LIMITS,
+                         SolveOptions(max_iterations=12), None).solve()[0]
+    first = _BranchSolver(IRB2400_OPW, robot.fk_jacobian, target, conf, IRB2400_LIMITS,
+                          SolveOptions(max_iterations=12, retries=False), None).solve()[0]
+    assert full.success.all()
+    left = ~first.success
+    assert 0 < left.sum() < n
+    np.testing.assert_array_equal(first.q[~left], full.q[~left])
+    assert first.iterations[left].max() <= CLOSED_FORM_STEPS

@@ -135,14 +135,15 @@ class Compensator:
             jac = jac @ dactual
         return flange, jac
 
-    def solve_real(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> IKSolution:
+    def solve_real(self, base_T_flange: np.ndarray, confdata: np.ndarray | None, *,
+                   retries: bool = True) -> IKSolution:
         """Joints (URDF axes) at which the calibrated arm reaches ``base_T_flange``
         (m, 4, 4), on ``confdata`` (m, 4) (None: nearest to zero, any configuration), to
         1e-9 m and 1e-9 rad, inside the URDF limits and the controller's axis ranges
-        (:meth:`check_axis_ranges`)."""
+        (:meth:`check_axis_ranges`); ``retries`` as :func:`~.ik.solve`."""
         return self.check_axis_ranges(solve(self.family, self.real_flange_and_jacobian,
                                             base_T_flange, confdata, self.limits,
-                                            reach=self.reach))
+                                            reach=self.reach, retries=retries))
 
     def check_axis_ranges(self, solution: IKSolution) -> IKSolution:
         """``solution`` with every reached row whose controller axes lie outside the
@@ -211,20 +212,21 @@ class Compensator:
 
     def compensate_flanges(self, desired_real_flange: np.ndarray,
                            requested_flange: np.ndarray | None = None,
-                           confdata: np.ndarray | None = None):
+                           confdata: np.ndarray | None = None, *, retries: bool = True):
         """Solve the real arm for ``desired_real_flange`` (m, 4, 4); return
         (joints URDF (m, n), nominal flange at those joints (m, 4, 4), IKSolution,
-        nominal joints of ``requested_flange`` (URDF, m, n) or None)."""
+        nominal joints of ``requested_flange`` (URDF, m, n) or None). ``retries`` as
+        :func:`~.ik.solve`."""
         if (requested_flange is not None and confdata is not None
                 and np.shape(requested_flange) == np.shape(desired_real_flange)
                 and np.array_equal(requested_flange, desired_real_flange)):
             # the same poses: the nominal joints are the closed form solve starts from
             solution, nominal = solve_with_nominal(
                 self.family, self.real_flange_and_jacobian, desired_real_flange, confdata,
-                self.limits, reach=self.reach)
+                self.limits, reach=self.reach, retries=retries)
             solution = self.check_axis_ranges(solution)
         else:
-            solution = self.solve_real(desired_real_flange, confdata)
+            solution = self.solve_real(desired_real_flange, confdata, retries=retries)
             nominal = None
             if requested_flange is not None:
                 nominal = self.solve_nominal(requested_flange, confdata)

@@ -283,11 +283,14 @@ class _Solved:
 
 
 def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
-                  teacher: Compensator | None = None) -> _Solved:
+                  teacher: Compensator | None = None, *, retries: bool = True) -> _Solved:
     """Solve the real arm for the job entries and derive what the report and the emitter
     need (``teacher``: the robot the targets were taught on, see :func:`_taught_flanges`).
     ``res``: a Resolution, or anything with its arrays ``written``, ``base_T_flange``,
-    ``wobj_T_target``, ``entry_pairs`` and its ``pairs``."""
+    ``wobj_T_target``, ``entry_pairs`` and its ``pairs``. ``retries`` False (a plain
+    Compensator only): the solver's retries of failed entries are left out, and so is the
+    account of why they failed (their ``failures`` are None): the caller solves them
+    again."""
     robot = comp.robot
     n = len(job)
     written = res.written[job, 7:11]
@@ -306,9 +309,10 @@ def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
             desired[idx] = _taught_flanges(teacher, requested[idx], conf, desired[idx],
                                            tool_change[idx])
         if regional is None:
-            qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf)
+            qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf,
+                                                        retries=retries)
             explained = explain_failures(comp, sol, desired[idx], conf) \
-                if not sol.success.all() else ()
+                if retries and not sol.success.all() else ()
         else:
             regions, tool_keys = regional
             qi, fi, sol, nomi, where = comp.solve_regions(

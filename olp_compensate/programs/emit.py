@@ -18,7 +18,7 @@ from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_qu
                             nearest_euler_zyz_deg)
 from .targets import QUAT_WXYZ, CartesianTarget, Edit, JointTarget, ToolData
 
-__all__ = ["splice", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
+__all__ = ["splice", "splice_in_order", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
            "joint_emit_edits", "format_like", "format_int_like", "aligned_quaternion",
            "nearest_euler_zyz_deg", "MM_DECIMALS", "QUAT_DECIMALS", "DEG_DECIMALS"]
 
@@ -31,11 +31,16 @@ def splice(text: str, edits: Iterable[Edit]) -> str:
         return text
     if any(a[0] > b[0] for a, b in zip(edits, edits[1:])):
         edits.sort(key=_edit_start)  # stable: insertions at one offset keep their order
+    return splice_in_order(text, edits)
+
+
+def splice_in_order(text: str, edits: Iterable[Edit]) -> str:
+    """:func:`splice` of edits given in offset order (any iterable of (start, end,
+    replacement), read once: a generator over columns of edits holds none of them)."""
     parts = []
     pos = 0
     n = len(text)
-    for e in edits:
-        start, end, rep = e
+    for start, end, rep in edits:
         if start < pos:
             raise DataError(f"overlapping edits at offsets {start}..{end} (previous edit "
                             f"ends at {pos})")
@@ -44,6 +49,8 @@ def splice(text: str, edits: Iterable[Edit]) -> str:
         parts.append(text[pos:start])
         parts.append(rep)
         pos = end
+    if not parts:
+        return text
     parts.append(text[pos:])
     return "".join(parts)
 

@@ -41,6 +41,7 @@ class SolveOptions:
     quadrant_tolerance: float = np.pi / 4
     boundary_tolerance: float = 1e-9
     singular_tol: float = 1e-7
+    retries: bool = True
 
 
 def solve(family_params: OPWParameters | URParameters,
@@ -48,7 +49,8 @@ def solve(family_params: OPWParameters | URParameters,
           confdata=None, limits=None, *, position_tol: float = 1e-9,
           rotation_tol: float = 1e-9, max_iterations: int = 100,
           quadrant_tolerance: float = np.pi / 4, boundary_tolerance: float = 1e-9,
-          singular_tol: float = 1e-7, reach: ReachBound | None = None) -> IKSolution:
+          singular_tol: float = 1e-7, reach: ReachBound | None = None,
+          retries: bool = True) -> IKSolution:
     """Joints reaching ``target (m, 4, 4)`` (m) on the model ``fk_jacobian``, per branch.
 
     1. The nominal closed form of ``family_params`` on the branch ``confdata (m, 4)`` =
@@ -76,11 +78,14 @@ def solve(family_params: OPWParameters | URParameters,
     ``max_iterations`` bounds the Newton steps of each of these stages. ``reach``: the
     model's :class:`ReachBound` (its chain on the joints ``fk_jacobian`` takes); targets
     still failed after 2. that it proves out of reach (on the requested wrist
-    configuration) are 'unreachable' at once, without 4. and 5.
+    configuration) are 'unreachable' at once, without 4. and 5. ``retries`` False stops
+    after 3. (a caller that gathers the failed targets of many batches retries them in one:
+    4. and 5. cost per Newton step, whatever the number of targets).
     """
     options = SolveOptions(position_tol=position_tol, rotation_tol=rotation_tol,
                            max_iterations=max_iterations, quadrant_tolerance=quadrant_tolerance,
-                           boundary_tolerance=boundary_tolerance, singular_tol=singular_tol)
+                           boundary_tolerance=boundary_tolerance, singular_tol=singular_tol,
+                           retries=retries)
     return _BranchSolver(family_params, fk_jacobian, target, confdata, limits, options,
                          reach).solve()[0]
 
@@ -340,10 +345,10 @@ class _BranchSolver:
         self.closed_form_stage()
         self.screen_reach()
         rows = self.failed_rows()
-        if len(rows):
+        if len(rows) and self.options.retries:
             self.multi_start(rows, self.start[rows], self.result.q[rows],
                              min(_MULTI_START_STEPS, self.max_iterations))
-        self.fixed_point_retry()
+            self.fixed_point_retry()
         self.result.reason[self.status == 1] = "unreachable"
         self.result.success[self.status == 1] = False
         start = self.start.copy()
