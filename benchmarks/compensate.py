@@ -242,7 +242,7 @@ def main() -> int:
         # where the time goes, in-process, stage by stage as olp-fix runs them
         stages = lane_stages(module, cal)
         for name, seconds in stages.items():
-            print(f"  {name:<34} {seconds:6.2f} s  ({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
+            print(f"  {name:<40} {seconds:6.2f} s  ({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
     return 0
 
 
