@@ -1,18 +1,18 @@
 """Columns of a big RAPID module's plainest statements, without an object per statement.
 
 A generated module holds tens of thousands of module-level ``CONST robtarget p := [...];``
-and ``MoveL p, v, z, tool\\WObj:=w;``. Parsed with ``columns=True``
-(:func:`~.rapid.parse_rapid`), the fast paths (rapid_fast.py) append those to the two
-tables here instead of making a :class:`~.targets.CartesianTarget` or
-:class:`~.targets.MotionUse` each: flat arrays of offsets and values (about 400 bytes a
-target and 150 a motion, against 3 KB as objects). Everything else of the module is
-parsed into objects as always.
+and ``MoveL p, v, z, tool\\WObj:=w;``. Parsed by
+:func:`~.rapid.parse_rapid_columns`, the fast paths (rapid_fast.py) append those to the
+two tables here instead of making a :class:`~.targets.CartesianTarget` or
+:class:`~.targets.MotionUse` each: names and flat arrays of offsets (about 150 bytes a
+row, against 3 KB as objects; the numbers' values are read in batches,
+:meth:`TargetTable.values`). Everything else of the module is parsed into objects as
+always.
 
 :meth:`TargetTable.target` and :meth:`MoveTable.use` make the object of one row, equal
 to what the object parse makes; :func:`with_objects` turns a column parse into the
 ordinary :class:`~.targets.Program`. Offsets are into the decoded program text; numbers
-are as written (mm, quaternion w first, confdata, external axes).
-"""
+are as written (mm, quaternion w first, confdata, external axes)."""
 
 from __future__ import annotations
 
@@ -102,7 +102,6 @@ class TargetTable:
             orientation_kind=QUAT_WXYZ, span=(s[0], s[1]), storage=self.storage[i],
             array_index=None, routine=None, type_span=(s[2], s[3]))
 
-
     def targets(self, text: str, file: str) -> list[CartesianTarget]:
         """Every row as :meth:`target` makes it (in one pass)."""
         s = self.spans.tolist()
@@ -111,9 +110,8 @@ class TargetTable:
         return [make((name, (file, line, column), m.groups(), tuple(map(m.start, numbers)),
                       QUAT_WXYZ, (a, b), storage, None, None, (ta, tb)))
                 for m, name, line, column, storage, a, b, ta, tb in zip(
-                    matches, self.names, self.line.tolist(), self.column.tolist(), self.storage,
-                    s[0::SPANS],
-                    s[1::SPANS], s[2::SPANS], s[3::SPANS])]
+                    matches, self.names, self.line.tolist(), self.column.tolist(),
+                    self.storage, s[0::SPANS], s[1::SPANS], s[2::SPANS], s[3::SPANS])]
 
 
 class MoveTable:
@@ -172,7 +170,6 @@ class MoveTable:
             joint=False, routine=self.routines[i], instruction_span=(s[0], s[1]),
             statement_span=(s[2], s[3]), target_span=(s[4], s[5]))
 
-
     def uses(self, file: str) -> list[MotionUse]:
         """Every row as :meth:`use` makes it (in one pass)."""
         s = self.spans.tolist()
@@ -182,9 +179,9 @@ class MoveTable:
                       False, routine, (a, b), (c, d), (e, f)))
                 for instruction, line, column, name, index, tool, wobj, routine, a, b, c, d,
                 e, f in zip(self.instructions, self.line.tolist(), self.column.tolist(),
-                            self.target_names,
-                            self.indices, self.tools, self.wobjs, self.routines, s[0::6],
-                            s[1::6], s[2::6], s[3::6], s[4::6], s[5::6])]
+                            self.target_names, self.indices, self.tools, self.wobjs,
+                            self.routines, s[0::6], s[1::6], s[2::6], s[3::6], s[4::6],
+                            s[5::6])]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
