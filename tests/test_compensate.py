@@ -553,3 +553,16 @@ def test_nominal_joints_of_the_same_poses_are_the_closed_forms(irb2400_world):
     assert np.all(np.isnan(nominal[0])) and np.all(np.isnan(expected[0]))
     np.testing.assert_array_equal(nominal[1:], expected[1:])
     np.testing.assert_allclose(nominal[1:], q[1:], atol=1e-9)
+
+
+def test_report_rows_pickle_field_for_field():
+    """-j N workers send their rows back pickled: every field survives, whatever fields
+    the row has."""
+    import dataclasses
+    import pickle
+
+    from olp_compensate.compensation.report import TargetReport
+
+    row = TargetReport(**{f.name: f"value of {f.name}" for f in dataclasses.fields(TargetReport)})
+    back = pickle.loads(pickle.dumps(row, pickle.HIGHEST_PROTOCOL))
+    assert back == row and type(back) is TargetReport
