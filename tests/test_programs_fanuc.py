@@ -334,3 +334,346 @@ def test_record_of_another_group_only():
     ((where, what),) = program.unknown
     assert where == ("t.ls", 6, 1) and "GP4 only" in what
     assert "group 1" in program.motions[0].runtime
+
+
+# ---- user and tool frames from a backup's SYSFRAME.VA ------------------------------------
+
+def _va_number(value: float) -> str:
+    """A number as the .VA dump writes it: 3 decimals right-aligned in 9, ``.140`` for 0.14
+    (but ``0.000`` for zero)."""
+    return f"{value:9.3f}" if value == 0 else _f(value)
+
+
+def _va_element(group: int, frame: int, values, head: str = "", config: str = "N D B, 0, 0, 0"):
+    """One ``[g,n] =`` element of a POSITION array (values None: '' Uninitialized)."""
+    if values is None:
+        return [f"    [{group},{frame}] = '' Uninitialized"]
+    x, y, z, w, p, r = values
+    return [f"    [{group},{frame}] = {head}", f"  Group: {group}   Config: {config}",
+            f"  X: {_va_number(x)}   Y: {_va_number(y)}   Z: {_va_number(z)}",
+            f"  W: {_va_number(w)}   P: {_va_number(p)}   R: {_va_number(r)}"]
+
+
+def sysframe_va(uframes: dict, utools: dict, size: int = 9, newline: str = "\r\n") -> str:
+    """A SYSFRAME.VA text laid out as real backups are (written for these tests): other
+    variables around, ``$MNUFRAME``/``$MNUTOOL`` arrays of two groups, group 2 all other
+    values. ``uframes``/``utools``: frame number -> six values or None (uninitialized);
+    the frames not named are zeros, as a controller keeps its unused frames."""
+    lines = ["[*SYSTEM*]$CELL_FLOOR  Storage: SHADOW  Access: RW  : POSITION = ",
+             "  Group: 1   Config: N D B, 0, 0, 0",
+             "  X:   111.000   Y:   222.000   Z:   333.000",
+             "  W:     0.000   P:     0.000   R:     0.000", ""]
+    for name, frames, selected in (("$MNUFRAME", uframes, 2), ("$MNUTOOL", utools, 3)):
+        lines.append(f"[*SYSTEM*]{name}  Storage: SHADOW  Access: RW  : "
+                     f"ARRAY[2,{size}] OF POSITION")
+        for n in range(1, size + 1):
+            lines += _va_element(1, n, frames.get(n, (0.0,) * 6),
+                                 head="'' " if n % 3 == 0 else "",
+                                 config="N U T, 0, 0, 0" if n in frames else "N D B, 0, 0, 0")
+        for n in range(1, size + 1):
+            lines += _va_element(2, n, (9.0, 8.0, 7.0, 6.0, 5.0, 4.0), config="")
+        lines += ["", f"[*SYSTEM*]{name}NUM  Storage: SHADOW  Access: RW  : ARRAY[2] OF BYTE",
+                  f"  [1] = {selected}", "  [2] = 1", ""]
+    return newline.join(lines) + newline
+
+
+READER_TEXT = """[*SYSTEM*]$CELL_FLOOR  Storage: SHADOW  Access: RW  : POSITION = 
+  Group: 1   Config: N D B, 0, 0, 0
+  X:   100.000   Y:     0.000   Z:     0.000
+  W:     0.000   P:     0.000   R:     0.000
+
+[*SYSTEM*]$MNUFRAME  Storage: SHADOW  Access: RW  : ARRAY[2,4] OF POSITION
+    [1,1] = 
+  Group: 1   Config: N D B, 0, 0, 0
+  X:     0.000   Y:     0.000   Z:     0.000
+  W:     0.000   P:     0.000   R:     0.000
+    [1,2] = 'Fixture A'
+  Group: 1   Config: N U T, 0, 0, 0
+  X:  1200.000   Y:  -350.000   Z:   450.000
+  W:      .140   P:     -.080   R:    90.000
+    [1,3] = '' Uninitialized
+    [1,4] = 
+  Group: 1   Config: N D B, 0, 0, 0
+  X: ********   Y: ********   Z: ********
+  W: ********   P: ********   R: ********
+    [2,1] = 
+  Group: 2   Config: 
+  X:    55.000   Y:    66.000   Z:    77.000
+  W:     0.000   P:     0.000   R:     0.000
+    [2,2] = 
+  Group: 2   Config: 
+  X:    55.000   Y:    66.000   Z:    77.000
+  W:     0.000   P:     0.000   R:     0.000
+
+[*SYSTEM*]$MNUFRAMENUM  Storage: SHADOW  Access: RW  : ARRAY[2] OF BYTE
+  [1] = 2
+  [2] = 1
+
+$MNUTOOL  Storage: CMOS  Access: RW  : ARRAY[1,3] OF POSITION
+  [1,1] = '' Group: 1
+    X:  -1.314   Y: -109.600   Z: 764.587
+    W: -180.000   P:   0.000   R: -90.000
+  [1,3] = 'Gripper' Group: 1
+    X:  12.500   Y: 0.000   Z: 1.25e2   W: 0.000   P: -90.000   R: 0.000
+[*SYSTEM*]$MNUTOOLNUM  Storage: CMOS  Access: RW  : ARRAY[1] OF BYTE
+  [1] = 3
+"""
+
+
+def test_sysframe_va_reader_reads_group_1_frames_at_their_numbers():
+    from olp_compensate.programs.fanuc_frames import read_system_frames
+
+    for newline in ("\n", "\r\n"):
+        frames = read_system_frames(READER_TEXT.replace("\n", newline), "SYSFRAME.VA")
+        assert frames.frames == {
+            "UF1": (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),             # zeros: a frame it holds
+            "UF2": (1200.0, -350.0, 450.0, 0.14, -0.08, 90.0),
+            "UT1": (-1.314, -109.6, 764.587, -180.0, 0.0, -90.0),
+            "UT3": (12.5, 0.0, 125.0, 0.0, -90.0, 0.0)}
+        # uninitialized (the word, or ********) at their element's line and column
+        assert frames.uninitialized == {"UF3": (15, 5, "$MNUFRAME[1,3]"),
+                                        "UF4": (16, 5, "$MNUFRAME[1,4]")}
+        assert frames.counts == {"UF": 4, "UT": 2}          # group 2 and $...NUM not read
+        assert "UF3 ($MNUFRAME[1,3]) is uninitialized" in frames.why_unknown("UF3")
+        assert frames.why_unknown("UF3").startswith("SYSFRAME.VA:15:5: ")
+        assert "no element [1,2]" in frames.why_unknown("UT2")
+        assert frames.why_unknown("UF2") is None and frames.why_unknown("UF0") is None
+
+
+def test_sysframe_va_of_one_variable_only():
+    from olp_compensate.programs.fanuc_frames import read_system_frames
+
+    text = READER_TEXT.split("$MNUTOOL  Storage")[0]
+    frames = read_system_frames(text, "SYSTEM.VA")
+    assert set(frames.frames) == {"UF1", "UF2"} and "UT" not in frames.counts
+    assert frames.why_unknown("UT1") == "SYSTEM.VA: UT1: the file has no $MNUTOOL"
+
+
+@pytest.mark.parametrize("old, new, line, column, words", [
+    ("Y:  -350.000", "Y:  -35O.000", 13, 22, "Y = '-35O.000' is not a number"),
+    ("  W:      .140   P:     -.080   R:    90.000\n", "", 11, 5, "[1,2] has no W, P, R"),
+    ("R:    90.000", "R:    90.000   R: 1.0", 14, 48, "R given twice"),
+    ("  X:  1200.000   Y:  -350.000   Z:   450.000",
+     "  J1 =  1200.000 deg  J2 = -350.000 deg", 13, 3, "joint values"),
+    ("    [1,2] = 'Fixture A'", "    [2] = 'Fixture A'", 11, 6,
+     "expected an element [group,frame]"),
+    ("    [1,2] = 'Fixture A'", "    [1,0] = 'Fixture A'", 11, 6, "frame 0"),
+    ("    [1,2] = 'Fixture A'", "    [1,2] = Fixture A", 11, 13, "cannot read 'Fixture A'"),
+    ("$MNUTOOL  Storage", "$MNUFRAME  Storage", 33, 1, "$MNUFRAME is given twice"),
+])
+def test_a_sysframe_entry_that_cannot_be_read_is_a_parse_error(old, new, line, column, words):
+    from olp_compensate.errors import ParseError
+    from olp_compensate.programs.fanuc_frames import read_system_frames
+
+    assert old in READER_TEXT
+    with pytest.raises(ParseError) as info:
+        read_system_frames(READER_TEXT.replace(old, new, 1), "SYSFRAME.VA")
+    assert (info.value.file, info.value.line, info.value.column) == ("SYSFRAME.VA", line, column)
+    assert words in info.value.message, info.value.message
+    assert str(info.value).startswith(f"SYSFRAME.VA:{line}:{column}: ")
+
+
+def test_a_file_without_frames_is_a_parse_error():
+    from olp_compensate.errors import ParseError
+    from olp_compensate.programs.fanuc_frames import read_system_frames
+
+    with pytest.raises(ParseError, match=r"neither \$MNUFRAME nor \$MNUTOOL") as info:
+        read_system_frames("[*SYSTEM*]$MNUFRAMENUM  Storage: SHADOW  Access: RW  : ARRAY[1] "
+                           "OF BYTE\n  [1] = 2\n", "$config.dat")
+    assert (info.value.line, info.value.column) == (1, 1)
+
+
+UF2_MM = (1150.25, -320.5, 410.75, 1.5, -2.25, 30.0)
+"""The cell's user frame 2 (as the controller holds it; 3 decimals as the .VA writes)."""
+
+
+def _targets_in_frame(q_ctrl, tool_mm, uf_mm, controller):
+    """(values in UF, letters, turns) of the TCP poses at controller joints ``q_ctrl``."""
+    tool = FANUC_TP.convention.pose(np.array(tool_mm))
+    base_T_uf = FANUC_TP.convention.pose(np.array(uf_mm))
+    out = []
+    for q in q_ctrl:
+        pose = invert_pose(base_T_uf) @ controller.nominal.flange_poses(q[None])[0] @ tool
+        out.append((_wpr(pose), fanuc_letters(controller.geometry, q),
+                    tuple(turn_number(math.degrees(v)) for v in q[3:6])))
+    return out
+
+
+@pytest.fixture(scope="module")
+def uf2_cell(fanuc_world):
+    """A program in UF 2 / UT 3 for the virtual robot, its SYSFRAME.VA, the controller, and
+    the calibration with its measured point named as the program's tool (UT3)."""
+    import dataclasses
+
+    from olp_compensate.calibration.calibration import ToolPoint
+
+    virtual, cal = fanuc_world
+    tools = dict(cal.tools)
+    tools["UT3"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
+    cal = dataclasses.replace(cal, tools=tools)
+    tool_mm = tuple(np.round(virtual.tools["tcp"] * 1e4) / 10) + (0.0, 0.0, 0.0)
+    controller = FanucController()
+    written = _targets_in_frame(_program_joints(8, 21), tool_mm, UF2_MM, controller)
+    text = ls_program(written, uf=2, ut=3)
+    va = sysframe_va({2: UF2_MM, 5: (1.0, 2.0, 3.0, 0.0, 0.0, 0.0)},
+                     {3: tool_mm, 1: (0.0, 0.0, 100.0, 0.0, 0.0, 0.0)})
+    return dict(virtual=virtual, cal=cal, tool_mm=tool_mm, controller=controller,
+                written=written, text=text, va=va)
+
+
+def _reach_mm(cell, new_text):
+    """(untouched, compensated) distances, mm, from each target's meant point to where the
+    virtual robot's real TCP goes when the nominal controller runs the program."""
+    virtual, controller = cell["virtual"], cell["controller"]
+    tool = FANUC_TP.convention.pose(np.array(cell["tool_mm"]))
+    uf = FANUC_TP.convention.pose(np.array(UF2_MM))
+    again = {t.name: t for t in parse_fanuc_tp(new_text, "CELL.ls").targets}
+    before_mm, after_mm = [], []
+    for k, (values, letters, turns) in enumerate(cell["written"], 1):
+        values = np.array([float(_f(v)) for v in values])          # as written in the file
+        meant = (cell["cal"].device_T_base @ uf @ FANUC_TP.convention.pose(values))[:3, 3]
+        before = controller.joints(uf @ FANUC_TP.convention.pose(values) @ invert_pose(tool),
+                                   letters, turns)
+        target = again[f"P[{k}]"]
+        new_values = np.array([n.value for n in target.numbers])
+        new_config = [n.text for n in target.config]
+        after = controller.joints(uf @ FANUC_TP.convention.pose(new_values) @ invert_pose(tool),
+                                  new_config[:3], [int(t) for t in new_config[3:]])
+        reached = virtual.true_frames(np.array([before, after]), ["tcp", "tcp"])[:, :3, 3]
+        before_mm.append(np.linalg.norm(reached[0] - meant) * 1e3)
+        after_mm.append(np.linalg.norm(reached[1] - meant) * 1e3)
+    return before_mm, after_mm
+
+
+def _files(tmp_path, cell, va=None):
+    from olp_compensate.compensation.files import ProgramFiles
+
+    ls = tmp_path / "CELL.ls"
+    ls.write_bytes(cell["text"].encode("latin-1"))
+    config = tmp_path / "SYSFRAME.VA"
+    config.write_bytes((cell["va"] if va is None else va).encode("latin-1"))
+    return ProgramFiles("fanuc", (ls,), ("CELL.ls",)), config
+
+
+def test_frames_from_sysframe_va_compensate_a_program_in_uf2_ut3(uf2_cell, tmp_path):
+    from olp_compensate.compensation.files import compensate_files
+
+    files, config = _files(tmp_path, uf2_cell)
+    result = compensate_files(files, uf2_cell["cal"], frames_path=config)
+    report = result.report
+    assert report.exit_code == 0, [(r.target, r.status, r.note) for r in report.rows]
+    rows = [r for r in report.rows if r.target.startswith("P[") and r.target != "P[99]"]
+    assert len(rows) == 8 and all(r.wobj == "UF2" and r.tool == "UT3" for r in rows)
+    assert all("real TCP of UT3 from the calibration" in r.note for r in rows)
+    new_text = result.data[0].decode("latin-1")
+    before_mm, after_mm = _reach_mm(uf2_cell, new_text)
+    print(f"FANUC UF2/UT3 from SYSFRAME.VA: untouched misses by {min(before_mm):.2f}.."
+          f"{max(before_mm):.2f} mm, compensated by at most {max(after_mm):.4f} mm")
+    assert max(after_mm) < 0.05, after_mm
+    assert min(before_mm) > 0.5, before_mm
+    assert new_text.split("/POS")[0] == uf2_cell["text"].split("/POS")[0]
+
+
+def test_frames_from_sysframe_va_with_the_nominal_calibration_give_the_bytes_back(uf2_cell,
+                                                                                 tmp_path):
+    from olp_compensate.compensation.files import compensate_files
+
+    files, config = _files(tmp_path, uf2_cell)
+    result = compensate_files(files, nominal_calibration(ROBOT), frames_path=config)
+    assert result.data[0] == uf2_cell["text"].encode("latin-1")
+    statuses = [r.status for r in result.report.rows]
+    assert statuses.count("ok") + statuses.count("singular") == 8, result.report.rows
+    assert result.report.warnings == ()
+
+
+def test_without_the_sysframe_va_the_frames_are_unresolved_and_named(uf2_cell, tmp_path):
+    from olp_compensate.compensation.files import compensate_files
+
+    files, _ = _files(tmp_path, uf2_cell)
+    # the nominal calibration has no tool UT3: the tool is named
+    result = compensate_files(files, nominal_calibration(ROBOT))
+    assert result.data[0] == uf2_cell["text"].encode("latin-1")
+    unresolved = [r for r in result.report.rows if r.status == "unresolved"]
+    assert len(unresolved) == 8 and all("UT3 unknown" in r.note for r in unresolved)
+    # a calibration with a tool UT3 gives the tool; the user frame is then named
+    result = compensate_files(files, uf2_cell["cal"])
+    unresolved = [r for r in result.report.rows if r.status == "unresolved"]
+    assert len(unresolved) == 8 and all("UF2 unknown" in r.note for r in unresolved)
+    assert result.report.exit_code == 2
+
+
+def test_an_uninitialized_frame_is_unresolved_with_the_frame_and_the_file(uf2_cell, tmp_path):
+    from olp_compensate.compensation.files import compensate_files
+
+    va = sysframe_va({2: None}, {3: uf2_cell["tool_mm"]})
+    files, config = _files(tmp_path, uf2_cell, va)
+    result = compensate_files(files, uf2_cell["cal"], frames_path=config)
+    assert result.data[0] == uf2_cell["text"].encode("latin-1")      # never as identity
+    unresolved = [r for r in result.report.rows if r.status == "unresolved"]
+    assert len(unresolved) == 8 and all(r.wobj == "UF2" and "UF2 unknown" in r.note
+                                        for r in unresolved)
+    line = va.split("\r\n").index("    [1,2] = '' Uninitialized") + 1
+    (warning,) = result.report.warnings
+    assert warning.startswith(f"{config}:{line}:5: UF2 ($MNUFRAME[1,2]) is uninitialized"), \
+        warning
+    # a tool frame the file does not hold: named with the file too
+    va = sysframe_va({2: UF2_MM}, {}, size=2)
+    files, config = _files(tmp_path, uf2_cell, va)
+    result = compensate_files(files, nominal_calibration(ROBOT), frames_path=config)
+    assert all("UT3 unknown" in r.note for r in result.report.rows if r.status == "unresolved")
+    (warning,) = result.report.warnings
+    assert warning.startswith(f"{config}: UT3 is not in the file") and "tool3" in warning
+
+
+def test_a_frame_the_program_sets_at_run_time_does_not_take_the_backups_value(uf2_cell,
+                                                                              tmp_path):
+    """``UFRAME[2]=PR[5]`` in /MN: UF2 is not what SYSFRAME.VA holds while the program
+    runs, so its targets stay unresolved (never compensated in a stale frame), with a
+    warning at that line."""
+    from olp_compensate.compensation.files import compensate_files
+
+    statement = "   2:  UFRAME[2]=PR[5] ;\r\n"
+    text = uf2_cell["text"].replace("   2:  UTOOL_NUM", statement + "   2:  UTOOL_NUM", 1)
+    line = text[:text.index(statement)].count("\n") + 1
+    cell = dict(uf2_cell, text=text)
+    files, config = _files(tmp_path, cell)
+    result = compensate_files(files, uf2_cell["cal"], frames_path=config)
+    assert result.data[0] == cell["text"].encode("latin-1")
+    unresolved = [r for r in result.report.rows if r.status == "unresolved"]
+    assert len(unresolved) == 8 and all("UF2 unknown" in r.note for r in unresolved)
+    assert any(w.startswith(f"CELL.ls:{line}: UF2 is set at run time")
+               and "SYSFRAME.VA" in w for w in result.report.warnings), result.report.warnings
+
+
+def test_olp_fix_reads_the_frames_of_a_sysframe_va(uf2_cell, tmp_path, capsys):
+    import csv
+
+    from olp_compensate.cli.fix import main
+    from olp_compensate.io.calibration_file import write_calibration
+
+    _, config = _files(tmp_path, uf2_cell)
+    prog, model = tmp_path / "CELL.ls", tmp_path / "calib.json"
+    write_calibration(model, uf2_cell["cal"])
+    out, report = tmp_path / "out.ls", tmp_path / "report.csv"
+    assert main([str(prog), "--config", str(config), "--model", str(model), "-o", str(out),
+                 "--report", str(report), "-q"]) == 0
+    before_mm, after_mm = _reach_mm(uf2_cell, out.read_bytes().decode("latin-1"))
+    assert max(after_mm) < 0.05 and min(before_mm) > 0.5
+    with open(report, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["target"] not in ("P[99]",)]
+    assert len(rows) == 8 and {r["wobj"] for r in rows} == {"UF2"}
+    # without --config: the targets are reported, the program written back unchanged
+    assert main([str(prog), "--model", str(model), "-o", str(tmp_path / "plain.ls"),
+                 "-q"]) == 2
+    assert (tmp_path / "plain.ls").read_bytes() == prog.read_bytes()
+    # a frame entry that cannot be read: one line with file:line:column, exit 1, no output
+    capsys.readouterr()
+    bad = uf2_cell["va"].replace("-320.500", "-320,500", 1)
+    assert bad != uf2_cell["va"]
+    config.write_bytes(bad.encode("latin-1"))
+    assert main([str(prog), "--config", str(config), "--model", str(model), "-o",
+                 str(tmp_path / "bad.ls"), "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    line = bad.split("\r\n").index(next(s for s in bad.split("\r\n") if "-320,500" in s)) + 1
+    assert len(err) == 1 and f"SYSFRAME.VA:{line}:" in err[0] and "not a number" in err[0], err
+    assert not (tmp_path / "bad.ls").exists()

@@ -64,8 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="calibration of the robot the targets were taught on (robot-to-robot "
                         "transfer: the real robot of --model reaches where that robot's real "
                         "tool went); both of the same robot model")
-    p.add_argument("--config", metavar="$config.dat",
-                   help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]")
+    p.add_argument("--config", metavar="FRAMES",
+                   help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]; "
+                        "FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) with $MNUFRAME and "
+                        "$MNUTOOL (user and tool frames of group 1)")
     p.add_argument("--region", metavar="NAME",
                    help="use this region's local model for every target ('global': the global "
                         "model); default: each target's region by its position, when the "

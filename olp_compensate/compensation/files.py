@@ -76,7 +76,8 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     emit, unused : as :func:`.program.compensate_program` (RAPID and V+ only).
     taught_on : the calibration of the robot the targets were taught on: the pose to reach
         is where that robot's real tool went (robot-to-robot transfer).
-    frames_path : KRL ``$config.dat`` with ``TOOL_DATA`` and ``BASE_DATA``.
+    frames_path : KRL ``$config.dat`` with ``TOOL_DATA`` and ``BASE_DATA``; FANUC
+        ``SYSFRAME.VA`` (or ``SYSTEM.VA``) with ``$MNUFRAME`` and ``$MNUTOOL``.
     """
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     texts = [_read(p) for p in files.paths]
@@ -123,10 +124,13 @@ def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
                             str(frames_path) if frames_path else "$config.dat")
         return program, KRL
     if files.dialect == "fanuc":
+        from ..programs.fanuc_frames import read_system_frames
         from ..programs.fanuc_tp import parse_fanuc_tp
         from .rules_fanuc import fanuc_rules
 
-        return parse_fanuc_tp(texts[0], names[0]), fanuc_rules()
+        system = (None if frames_path is None else
+                  read_system_frames(_read(Path(frames_path)), str(frames_path)))
+        return parse_fanuc_tp(texts[0], names[0], system_frames=system), fanuc_rules()
     if files.dialect == "val3":
         from ..programs.val3 import parse_val3
         from .rules_val3 import VAL3

@@ -23,7 +23,12 @@ tabs, ``-.131`` number forms and labels ``P[1:"App"]`` / ``P[1:App]``):
   the ``UTOOL_NUM``/``UFRAME_NUM`` in force (text order) where the record says ``F``.
 
 Frames (``UFRAME``/``UTOOL`` data) live in the controller's system variables, not in the
-program: pass them as ``frames={"UF1": (x, y, z, w, p, r), "UT4": (...)}`` (mm, deg).
+program: pass them as ``frames={"UF1": (x, y, z, w, p, r), "UT4": (...)}`` (mm, deg), or as
+the ``$MNUFRAME``/``$MNUTOOL`` of a backup's ``SYSFRAME.VA``
+(``system_frames=read_system_frames(text, "SYSFRAME.VA")``, :mod:`.fanuc_frames`); a frame
+the program uses that the file holds no value for (uninitialized, or not in the file) is
+named in a note with the file, and its targets stay unresolved (unless calib.json has a tool
+of that name).
 Remarks (``!``) and disabled lines (``//``) are skipped.
 """
 
@@ -32,6 +37,7 @@ from __future__ import annotations
 import re
 
 from ..errors import ParseError
+from .fanuc_frames import SystemFrames
 from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget,
                             is_finite_number, line_column,
                             line_starts_of)
@@ -271,10 +277,14 @@ def _motion(text, file, starts, instruction, where, at, line_end, program, frame
 
 
 def parse_fanuc_tp(text: str, file: str = "<ls>",
-                   frames: dict[str, tuple[float, ...]] | None = None) -> PoseProgram:
+                   frames: dict[str, tuple[float, ...]] | None = None,
+                   system_frames: SystemFrames | None = None) -> PoseProgram:
     """Read a FANUC ``.ls`` program (decoded text). ``frames``: user frames and tools the
-    controller holds, ``"UF<n>"``/``"UT<n>"`` -> (x, y, z mm, w, p, r deg)."""
+    controller holds, ``"UF<n>"``/``"UT<n>"`` -> (x, y, z mm, w, p, r deg);
+    ``system_frames``: those of a ``SYSFRAME.VA`` (``frames`` wins where both name one)."""
     program = PoseProgram(dialect="fanuc_tp", texts={file: text}, targets=[], motions=[])
+    if system_frames is not None:
+        program.frames.update(system_frames.frames)
     if frames:
         program.frames.update({k: tuple(float(v) for v in vals) for k, vals in frames.items()})
     starts = line_starts_of(text)
@@ -287,4 +297,44 @@ def parse_fanuc_tp(text: str, file: str = "<ls>",
         frames_of = _positions(text, file, starts, *sections["POS"], program, unreadable)
     if "MN" in sections:
         _motions(text, file, starts, *sections["MN"], program, frames_of, unreadable)
+    if system_frames is not None:
+        if "MN" in sections:
+            _drop_reassigned(text, file, starts, *sections["MN"], program, system_frames,
+                             frames)
+        _frame_notes(program, system_frames)
     return program
+
+
+_FRAME_SET = re.compile(r"^[ \t]*\d+:[ \t]*(UFRAME|UTOOL)[ \t]*\[[ \t]*(\d+)[ \t]*\][ \t]*=",
+                        re.M)
+
+
+def _drop_reassigned(text: str, file: str, starts: list[int], lo: int, hi: int,
+                     program: PoseProgram, system_frames: SystemFrames, given) -> None:
+    """A frame the program sets at run time (``UFRAME[2]=PR[5]``, ``UTOOL[3]=...``) is not
+    the backup's value while the program runs: its SYSFRAME.VA value is not used (its
+    targets stay unresolved, unless calib.json has a tool of its name), with a note."""
+    for m in _FRAME_SET.finditer(text, lo, hi):
+        key = ("UF" if m.group(1) == "UFRAME" else "UT") + str(int(m.group(2)))
+        if key in system_frames.frames and not (given and key in given):
+            program.frames.pop(key, None)
+            line = line_column(text, m.start(1), starts)[0]
+            program.notes.append(f"{file}:{line}: {key} is set at run time "
+                                 f"({m.group(1)}[{m.group(2)}]=...): its value in "
+                                 f"{system_frames.file} is not used")
+
+
+
+def _frame_notes(program: PoseProgram, system_frames: SystemFrames) -> None:
+    """A note for each frame the program's motions use that ``system_frames`` holds no
+    value for (and no other frame data gives), once, in the order first used."""
+    used = dict.fromkeys(key for m in program.motions if m.runtime is None
+                         for key in (m.base, m.tool) if key is not None)
+    for key in used:
+        why = None if key in program.frames else system_frames.why_unknown(key)
+        if why is None:
+            continue
+        targets = (f"targets in {key} are left unresolved" if key.startswith("UF") else
+                   f"targets with {key} are left unresolved unless calib.json has a tool "
+                   f"{key} (or tool{key[2:]})")
+        program.notes.append(f"{why}: {targets}")
