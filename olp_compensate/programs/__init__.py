@@ -25,7 +25,6 @@ from .rapid import parse_rapid
 from .semantics import Resolution, ResolvedTarget, resolve
 from .targets import (CartesianTarget, Edit, JointTarget, MotionUse, NameReference, Number,
                       Program, Routine, RuntimeTarget, SourceLocation, ToolData, WorkObject)
-from .vplus import parse_vplus
 
 ENCODING = "latin-1"
 DIALECTS = ("rapid", "vplus")
@@ -70,8 +69,19 @@ def loads(text: str | bytes, dialect: str, file: str = "<string>") -> Program:
     if dialect == "rapid":
         return parse_rapid(text, file)
     if dialect == "vplus":
+        from .vplus import parse_vplus
+
         return parse_vplus(text, file)
     raise ValueError(f"dialect: expected one of {DIALECTS}, got {dialect!r}")
+
+
+def __getattr__(name: str):
+    # the V+ reader is imported when first used: a RAPID run never needs it (PEP 562)
+    if name == "parse_vplus":
+        from .vplus import parse_vplus
+
+        return parse_vplus
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def dumps(program: Program, edits=()) -> str:
