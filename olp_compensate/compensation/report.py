@@ -117,7 +117,7 @@ class CompensationReport:
         return "".join(self.csv_chunks())
 
     def csv_chunks(self):
-        """:meth:`to_csv` in pieces (a header, then lines by the thousand), to be written
+        """:meth:`to_csv` in pieces (a header, then :data:`CSV_CHUNK` rows each), written
         one after the other without holding the whole text."""
         buf = io.StringIO()
         joint_columns = [f"q{k + 1}_deg" for k in range(self.n_joints)]
