@@ -5,8 +5,10 @@ by one plain ``MoveL p, v, z, tool\\WObj:=w;``. Parsed in columns
 (:func:`~olp_compensate.programs.rapid.parse_rapid_columns`), those targets are
 resolved, solved, reported and written here as arrays, a chunk of :data:`CHUNK` targets at
 a time, without an object per target; everything else of the module goes through
-:func:`~.program.module_rows_and_edits` as always. The text and report are the same as
-:func:`~.task.compensate_task` of the module gives (tests compare them byte for byte).
+:func:`~.program.module_rows_and_edits` as always. The text and report are those
+:func:`~.task.compensate_task` of the module gives (tests compare them byte for byte);
+only a target solved in another batch (past :data:`CHUNK` targets, or retried) can differ
+in the last digits of its joints, as numpy's vector and scalar loops round differently.
 
 The column path is taken when the table targets' meaning is plain: each declared once,
 named by no other statement than table motions (no routine parameter, copy, assignment,
