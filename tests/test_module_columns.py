@@ -168,3 +168,80 @@ def test_report_rows_read_like_a_tuple(comp):
     assert report.rows[0] == rows[0] and report.rows[-1] == rows[-1]
     assert report.rows[2:5] == rows[2:5]
     assert report.problem_rows() == [r for r in rows if not r.fine]
+
+
+# ---- whole tasks ----------------------------------------------------------------------
+
+TASK = HERE / "tasks" / "cell_task"
+TASK_ORDER = ("CalibData.mod", "WObjData.mod", "Weld.mod", "Pick.mod", "user.sys")
+
+CALIB_DATA = """MODULE CalibData
+  PERS tooldata tGun:=[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],[2.5,[0,0,80],[1,0,0,0],0,0,0]];
+  PERS wobjdata wTable:=[FALSE,TRUE,"",[[700,-300,300],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];
+ENDMODULE
+"""
+
+
+def _task_both(texts, names, comp, unused="skip"):
+    from olp_compensate.compensation.module_columns import compensate_rapid_task
+
+    expected, report = compensate_task([loads(t, "rapid", n) for t, n in zip(texts, names)],
+                                       comp, unused=unused)
+    got, columns_report = compensate_rapid_task(texts, names, comp, unused=unused, chunk=7)
+    assert got == expected
+    assert columns_report.to_csv() == report.to_csv()
+    assert columns_report.warnings == report.warnings
+    assert (columns_report.edits, columns_report.exit_code, columns_report.counts()) == \
+        (report.edits, report.exit_code, report.counts())
+    assert list(columns_report.rows) == list(report.rows)
+    assert columns_report.problem_rows() == report.problem_rows()
+    return columns_report
+
+
+def _task_plans(texts, names):
+    from olp_compensate.compensation.module_columns import _task_plans as plans
+
+    parsed = [parse_rapid_columns(t, n) for t, n in zip(texts, names)]
+    return [p is not None for p in plans([p for p, _ in parsed], [c for _, c in parsed])]
+
+
+@pytest.mark.parametrize("unused", ["skip", "tool0"])
+def test_the_cell_task_through_the_task_path_is_the_object_paths(unused, comp):
+    """The golden task shares its targets across modules (a PERS in two modules, targets
+    moved to from another module): no module is plain, the result is the object path's."""
+    texts = [(TASK / name).read_bytes().decode("latin-1") for name in TASK_ORDER]
+    assert not any(_task_plans(texts, TASK_ORDER))
+    _task_both(texts, TASK_ORDER, comp, unused)
+
+
+def _motion_module(name: str, prefix: str, tool: str = "tGun") -> str:
+    """A module of plain targets (from SPECIAL's reachable ones) moved to with the task's
+    tool and work object, declared in another module."""
+    targets = [line for line in SPECIAL.splitlines()
+               if "CONST robtarget pA" in line or "robtarget pTable" in line]
+    decls = [line.replace(" pA:=", f" {prefix}A:=").replace(" pTable:=", f" {prefix}T:=")
+             for line in targets]
+    return "\n".join([f"MODULE {name}", *decls, "  PROC main()",
+                      f"    MoveJ {prefix}A,v500,z10,{tool};",
+                      f"    MoveL {prefix}T,v500,fine,{tool}\\WObj:=wTable;",
+                      "  ENDPROC", "ENDMODULE", ""])
+
+
+def test_a_module_using_its_own_targets_and_the_tasks_tools_takes_the_columns(comp):
+    texts = [CALIB_DATA, _motion_module("Cell", "c"), _motion_module("Other", "o")]
+    names = ["CalibData.mod", "Cell.mod", "Other.mod"]
+    assert _task_plans(texts, names) == [False, True, True]
+    report = _task_both(texts, names, comp)
+    assert report.counts() == {"ok": 4}
+    assert [r.file for r in report.rows] == ["Cell.mod"] * 2 + ["Other.mod"] * 2
+
+
+def test_targets_another_module_moves_to_or_declares_take_the_object_path(comp):
+    user = _motion_module("User", "c").replace("MoveJ cA", "MoveJ oA")   # Other's target
+    texts = [CALIB_DATA, user, _motion_module("Other", "o")]
+    names = ["CalibData.mod", "User.mod", "Other.mod"]
+    assert _task_plans(texts, names) == [False, False, False]
+    _task_both(texts, names, comp)
+    again = [CALIB_DATA, _motion_module("Cell", "c"), _motion_module("Twin", "c")]
+    assert _task_plans(again, ["CalibData.mod", "Cell.mod", "Twin.mod"]) == [False] * 3
+    _task_both(again, ["CalibData.mod", "Cell.mod", "Twin.mod"], comp)

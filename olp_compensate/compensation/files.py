@@ -81,16 +81,15 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     """
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     texts = [_read(p) for p in files.paths]
-    if files.dialect == "rapid" and len(texts) == 1 and emit == "pose":
-        from .module_columns import compensate_rapid_module
+    if files.dialect == "rapid" and emit == "pose":
+        from .module_columns import compensate_rapid_task
         from .program import check_options
         from .task import _teacher
 
         check_options(emit, unused)
-        new_text, report = compensate_rapid_module(texts[0], files.names[0], comp,
-                                                   unused=unused,
-                                                   teacher=_teacher(taught_on, comp))
-        return FilesResult(data=(new_text.encode(ENCODING),), report=report)
+        new, report = compensate_rapid_task(texts, list(files.names), comp, unused=unused,
+                                            teacher=_teacher(taught_on, comp))
+        return FilesResult(data=tuple(t.encode(ENCODING) for t in new), report=report)
     if files.dialect in TEXT_DIALECTS:
         from ..programs import loads
         from .task import compensate_task

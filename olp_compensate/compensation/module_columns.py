@@ -1,4 +1,4 @@
-"""Compensate one RAPID module with its plain targets held as columns (big modules).
+"""Compensate RAPID modules and tasks with their plain targets held as columns (big modules).
 
 A generated module is mostly module-level ``CONST robtarget p := [...];`` each moved to
 by one plain ``MoveL p, v, z, tool\\WObj:=w;``. Parsed in columns
@@ -10,11 +10,12 @@ a time, without an object per target; everything else of the module goes through
 only a target solved in another batch (past :data:`CHUNK` targets, or retried) can differ
 in the last digits of its joints, as numpy's vector and scalar loops round differently.
 
-The column path is taken when the table targets' meaning is plain: each declared once,
-named by no other statement than table motions (no routine parameter, copy, assignment,
-run-time expression or routine call), every table motion naming a table target without an
-index, each target moved to with one tool/work-object pair. Otherwise
-:func:`compensate_rapid_module` compensates the module's ordinary objects.
+The column path is taken, module by module, where the table targets' meaning is plain:
+each declared once in the whole task, named by no other statement than its module's table
+motions (no routine parameter, copy, assignment, run-time expression, routine call or
+other module's motion), every table motion naming a table target of its module without an
+index, each target moved to with one tool/work-object pair (tools and work objects may be
+declared in any module). Otherwise the module's targets are compensated as objects.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from __future__ import annotations
 import heapq
 import operator
 from array import array
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,10 +39,11 @@ from ..programs.target_values import bad_values, value_problem
 from ..programs.targets import MotionUse, Program
 from .pose import Compensator
 from .program import module_rows_and_edits, solve_entries
-from .report import (LINE_COLUMN, NOT_MOVED, CompensationReport, ReportRows, RowColumns,
-                     TargetReport, config_texts, failure_row, solved_note, written_row)
+from .report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport, ReportRows,
+                     RowColumns, TargetReport, config_texts, failure_row, solved_note,
+                     written_row)
 
-__all__ = ["compensate_rapid_module", "CHUNK"]
+__all__ = ["compensate_rapid_module", "compensate_rapid_task", "CHUNK"]
 
 CHUNK = 8192
 """Targets resolved and solved together: bounds the memory of the arrays per target."""
@@ -57,29 +60,77 @@ def compensate_rapid_module(text: str, file: str, comp: Compensator, *, unused: 
     """Compensate one RAPID module (``text`` decoded, named ``file``) with ``emit='pose'``:
     ``(new text, report)``, as :func:`~.task.compensate_task` of the parsed module gives;
     in columns where the module allows it (see the module docstring)."""
-    program, columns = parse_rapid_columns(text, file)
-    plan = _plan(program, columns) if len(columns.targets) else None
-    if plan is None:
-        from .task import compensate_task   # task.py builds on program.py, as this does
+    (new,), report = compensate_rapid_task([text], [file], comp, unused=unused,
+                                           teacher=teacher, chunk=chunk)
+    return new, report
 
-        (new,), report = compensate_task([with_objects(program, columns)], comp,
-                                         unused=unused, taught_on=teacher)
-        return new, report
-    (res,) = resolve_task([program])
-    rows, warnings, edits = module_rows_and_edits(program, res, comp, emit="pose",
-                                                  unused=unused, teacher=teacher)
-    table = _TablePart(program, columns.targets, plan, comp, unused, teacher)
-    del columns, res   # the motions' table is read: only the targets' is needed now
-    for start in range(0, len(table.table), chunk):
-        table.compensate(start, min(start + chunk, len(table.table)))
-    table.retry_failed()
-    count = len(edits) + sum(len(starts) for starts, _, _ in table.edits)
-    others = sorted(rows + table.others, key=LINE_COLUMN)
-    report = CompensationReport(file=file, rows=table.rows(others), warnings=tuple(warnings),
-                                n_joints=comp.robot.n_joints, emit="pose", edits=count)
-    new_text = splice_in_order(text, heapq.merge(
-        edits, *(zip(*columns) for columns in table.edits), key=_START))
-    return new_text, report
+
+def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator, *,
+                          unused: str = "skip", teacher: Compensator | None = None,
+                          chunk: int = CHUNK) -> tuple[list[str], CompensationReport]:
+    """Compensate the modules of one RAPID task (decoded ``texts`` named ``files``, in the
+    order the controller loads them) with ``emit='pose'``: ``(new texts, report)``, as
+    :func:`~.task.compensate_task` gives; each module's plain targets in columns where
+    their meaning is plain within the whole task (no other module declares or names
+    them), the rest as objects."""
+    from .task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
+
+    parsed = [parse_rapid_columns(text, file) for text, file in zip(texts, files)]
+    plans = _task_plans([p for p, _ in parsed], [c for _, c in parsed])
+    programs = [p if plan is not None else with_objects(p, c)
+                for (p, c), plan in zip(parsed, plans)]
+    if all(plan is None for plan in plans):
+        return compensate_task(programs, comp, unused=unused, taught_on=teacher)
+    resolutions = resolve_task(programs)
+    if len(programs) > 1:
+        programs = _calls_to_task_routines(programs)
+    not_moved = NOT_MOVED if len(programs) == 1 else NOT_MOVED_IN_TASK
+    new_texts, parts, warnings, count = [], [], [], 0
+    for m, (program, res) in enumerate(zip(programs, resolutions)):
+        rows, module_warnings, edits = module_rows_and_edits(
+            program, res, comp, emit="pose", unused=unused, teacher=teacher,
+            not_moved=not_moved)
+        warnings += module_warnings
+        if plans[m] is None:
+            new_texts.append(splice_in_order(program.text, edits))
+            parts.append(tuple(rows))
+            count += len(edits)
+            continue
+        table = _TablePart(program, parsed[m][1].targets, plans[m], comp, unused, teacher,
+                           not_moved)
+        parsed[m] = None   # the motions' table is read: only the targets' is needed now
+        for start in range(0, len(table.table), chunk):
+            table.compensate(start, min(start + chunk, len(table.table)))
+        table.retry_failed()
+        count += len(edits) + sum(len(starts) for starts, _, _ in table.edits)
+        parts.append(table.rows(sorted(rows + table.others, key=LINE_COLUMN)))
+        new_texts.append(splice_in_order(program.text, heapq.merge(
+            edits, *(zip(*columns) for columns in table.edits), key=_START)))
+    report = CompensationReport(
+        file=files[0], rows=parts[0] if len(parts) == 1 else ChainedRows(parts),
+        warnings=tuple(warnings), n_joints=comp.robot.n_joints, emit="pose", edits=count)
+    return new_texts, report
+
+
+def _task_plans(programs: list[Program], columns: list[ModuleColumns]) -> list:
+    """Each module's :class:`_Plan`, or None where its table targets are not plain within
+    the task: a name declared in another module's table too, named by any module's objects
+    or moved to by another module's table motions."""
+    lowers = [[name.lower() for name in c.targets.names] for c in columns]
+    declared = Counter(name for names in lowers for name in set(names))
+    named = set().union(*map(_named_elsewhere, programs))
+    moved_to = [{name.lower() for name in c.moves.target_names} for c in columns]
+    resolver = Resolver(programs) if any(len(c.targets) for c in columns) else None
+    plans = []
+    for m, (program, names) in enumerate(zip(programs, lowers)):
+        mine = set(names)
+        if (not names or any(declared[x] > 1 for x in mine) or not named.isdisjoint(mine)
+                or any(not mine.isdisjoint(moved_to[k]) for k in range(len(programs))
+                       if k != m)):
+            plans.append(None)
+        else:
+            plans.append(_plan(program, columns[m], resolver, m))
+    return plans
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,8 +143,10 @@ class _Plan:
     pairs: tuple
 
 
-def _plan(program: Program, columns: ModuleColumns) -> _Plan | None:
-    """The resolution of the table targets, or None where their meaning is not plain."""
+def _plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = None,
+          m: int = 0) -> _Plan | None:
+    """The resolution of the table targets of module ``m`` (``resolver``: of the task's
+    modules, default of this one alone), or None where their meaning is not plain."""
     table, moves = columns.targets, columns.moves
     row_of = {name if name.islower() else name.lower(): k for k, name in enumerate(table.names)}
     if len(row_of) < len(table) or any(k >= 0 for k in moves.indices):
@@ -105,7 +158,7 @@ def _plan(program: Program, columns: ModuleColumns) -> _Plan | None:
                        np.intp, len(moves))
     if np.any(rows < 0):
         return None
-    resolver = Resolver([program])
+    resolver = Resolver([program]) if resolver is None else resolver
     keys: dict = {}    # pair key -> index into pairs
     infos: list = []
     memo: dict = {}    # (tool, wobj, routine) -> pair index
@@ -115,7 +168,7 @@ def _plan(program: Program, columns: ModuleColumns) -> _Plan | None:
         if p is None:
             tool, wobj, routine = triple
             key, info = resolver.frames_of(MotionUse(instruction="MoveL", source=(
-                program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), 0)
+                program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), m)
             p = memo[triple] = keys.setdefault(key, len(keys))
             if p == len(infos):
                 infos.append(info)
@@ -170,9 +223,11 @@ class _TablePart:
     1.2 % out of reach, 1.0 s in chunks of 8,192)."""
 
     def __init__(self, program: Program, table: TargetTable, plan: _Plan,
-                 comp: Compensator, unused: str, teacher: Compensator | None):
+                 comp: Compensator, unused: str, teacher: Compensator | None,
+                 not_moved: str = NOT_MOVED):
         self.program, self.table, self.plan = program, table, plan
         self.comp, self.unused, self.teacher = comp, unused, teacher
+        self.not_moved = not_moved
         self.spans = table.span_columns()
         self.parts: list[RowColumns] = []
         self.others: list[TargetReport] = []
@@ -253,7 +308,7 @@ class _TablePart:
             if bad[i]:
                 row = written_row(t, pairs[p], "bad_target", value_problem(t))
             elif unused[i]:
-                row = written_row(t, pairs[p], "unused", NOT_MOVED)
+                row = written_row(t, pairs[p], "unused", self.not_moved)
             else:
                 row = written_row(t, pairs[p], "unresolved", "; ".join(self.notes(k, p)))
             self.others.append(row)

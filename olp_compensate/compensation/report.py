@@ -8,9 +8,11 @@ unit of every number in its column name (mm, deg).
 
 from __future__ import annotations
 
+import bisect
 import csv
 import dataclasses
 import io
+import itertools
 import math
 import operator
 from collections.abc import Sequence
@@ -94,7 +96,7 @@ class CompensationReport:
 
     @property
     def all_compensated(self) -> bool:
-        if isinstance(self.rows, ReportRows):
+        if isinstance(self.rows, RowSequence):
             return not self.rows.problem_rows()
         return all(r.fine for r in self.rows)
 
@@ -105,7 +107,7 @@ class CompensationReport:
 
     def counts(self) -> dict[str, int]:
         """How many rows have each status."""
-        if isinstance(self.rows, ReportRows):
+        if isinstance(self.rows, RowSequence):
             return self.rows.counts()
         out: dict[str, int] = {}
         for r in self.rows:
@@ -127,7 +129,7 @@ class CompensationReport:
              *joint_columns, "note"])
         yield buf.getvalue()
         writer = _CsvRows(self.n_joints)
-        if isinstance(self.rows, ReportRows):
+        if isinstance(self.rows, RowSequence):
             yield from self.rows.csv_chunks(writer)
             return
         rows = self.rows
@@ -138,13 +140,13 @@ class CompensationReport:
         """(mm, deg, joint deg): the largest correction, turn and joint change among the
         compensated rows (each the largest of its own), or None when none is."""
         rows = self.rows
-        if isinstance(rows, ReportRows):
+        if isinstance(rows, RowSequence):
             return rows.largest_correction()
         return _largest(r for r in rows if r.status in COMPENSATED)
 
     def problem_rows(self) -> list[TargetReport]:
         """The rows neither compensated nor needing no compensation, in order."""
-        if isinstance(self.rows, ReportRows):
+        if isinstance(self.rows, RowSequence):
             return self.rows.problem_rows()
         return [r for r in self.rows if not r.fine]
 
@@ -359,7 +361,24 @@ class RowColumns:
                              for f in dataclasses.fields(RowColumns)})
 
 
-class ReportRows(Sequence):
+class RowSequence(Sequence):
+    """Report rows that are not a tuple: made on access, with the summaries the report
+    asks of them computed without making every row."""
+
+    def counts(self) -> dict[str, int]:
+        raise NotImplementedError
+
+    def problem_rows(self) -> list[TargetReport]:
+        raise NotImplementedError
+
+    def largest_correction(self) -> tuple[float, float, float] | None:
+        raise NotImplementedError
+
+    def csv_chunks(self, writer: _CsvRows):
+        raise NotImplementedError
+
+
+class ReportRows(RowSequence):
     """The rows of a report as a sequence of :class:`TargetReport`, made on access from
     ``columns`` (compensated targets) and ``others`` (rows held as objects), in the
     ``order`` given: ``order[k] >= 0`` is column row ``order[k]``, ``-1 - j`` is
@@ -436,3 +455,58 @@ class ReportRows(Sequence):
                     quoted[c.config_after[i]], *joints, quoted[c.note[i]]))
             lines.append("")
             yield "\n".join(lines)
+
+
+class ChainedRows(RowSequence):
+    """The rows of several modules one after the other; each part a :class:`RowSequence`
+    or a tuple of :class:`TargetReport`."""
+
+    def __init__(self, parts: list):
+        self.parts = list(parts)
+        self.ends = list(itertools.accumulate(len(p) for p in self.parts))
+
+    def __len__(self) -> int:
+        return self.ends[-1] if self.ends else 0
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        if k < 0:
+            k += len(self)
+        if not 0 <= k < len(self):
+            raise IndexError(k)
+        p = bisect.bisect_right(self.ends, k)
+        return self.parts[p][k - (self.ends[p - 1] if p else 0)]
+
+    def __iter__(self):
+        return itertools.chain.from_iterable(self.parts)
+
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for part in self.parts:
+            if isinstance(part, RowSequence):
+                for status, n in part.counts().items():
+                    out[status] = out.get(status, 0) + n
+            else:
+                for r in part:
+                    out[r.status] = out.get(r.status, 0) + 1
+        return out
+
+    def problem_rows(self) -> list[TargetReport]:
+        return [r for part in self.parts for r in (
+            part.problem_rows() if isinstance(part, RowSequence) else
+            [r for r in part if not r.fine])]
+
+    def largest_correction(self) -> tuple[float, float, float] | None:
+        found = [part.largest_correction() if isinstance(part, RowSequence) else
+                 _largest(r for r in part if r.status in COMPENSATED) for part in self.parts]
+        found = [f for f in found if f is not None]
+        return tuple(max(values) for values in zip(*found)) if found else None
+
+    def csv_chunks(self, writer: _CsvRows):
+        for part in self.parts:
+            if isinstance(part, RowSequence):
+                yield from part.csv_chunks(writer)
+            else:
+                for k in range(0, len(part), CSV_CHUNK):
+                    yield "".join([writer.line(r) + "\n" for r in part[k:k + CSV_CHUNK]])
