@@ -4,7 +4,8 @@ Writes, in a temporary folder, two controller-backup-like trees of 20 programs e
 target made from random in-range joints of the robot the tree is for (so each is reachable,
 away from the wrist singularity):
 
-- ``irb2400``: an ABB IRB 2400 cell, 12 RAPID modules and 8 V+ ``.pg`` files;
+- ``irb2400``: an ABB IRB 2400 cell, 12 RAPID modules in two tasks (each module's
+  targets named its own) and 8 V+ ``.pg`` files;
 - ``kr16``: a KUKA KR 16-2 cell, 20 KRL ``.src``/``.dat`` pairs (``$config.dat`` given with
   ``--config``);
 
@@ -36,6 +37,7 @@ import filecmp
 import math
 import os
 import pickle
+import re
 import resource
 import shutil
 import statistics
@@ -144,7 +146,11 @@ def write_backup(kind: str, folder: Path, n_targets: int) -> tuple[str, Path | N
             path = tree / "RAPID" / f"TASK{k % 2 + 1}" / "PROGMOD" / f"cell{k}.mod"
             path.parent.mkdir(parents=True, exist_ok=True)
             joints = _joints(robot, comp, n_targets, 10 + k)
-            path.write_bytes(generate_module(n_targets, joints=joints).encode("latin-1"))
+            # the modules of a task declare their targets under names of their own (a
+            # controller refuses one global CONST declared in two modules); the tool and
+            # work object are PERS, one variable of the task
+            module = re.sub(r"\bp(\d+)\b", rf"c{k}p\1", generate_module(n_targets, joints=joints))
+            path.write_bytes(module.replace("MODULE Big", f"MODULE Cell{k}").encode("latin-1"))
         for k in range(8):
             path = tree / "VPLUS" / f"cell{k}.pg"
             path.parent.mkdir(parents=True, exist_ok=True)
