@@ -72,12 +72,19 @@ def _both(text: str, file: str, comp, unused: str, taught_on=None):
     got, columns_report = compensate_rapid_module(text, file, comp, unused=unused,
                                                   teacher=taught_on)
     assert got == expected
+    _same_report(columns_report, report)
+    return columns_report
+
+
+def _same_report(columns_report, report) -> None:
+    """The column path's report says what the object path's does, row for row."""
     assert columns_report.to_csv() == report.to_csv()
     assert columns_report.warnings == report.warnings
     assert (columns_report.edits, columns_report.exit_code, columns_report.counts()) == \
         (report.edits, report.exit_code, report.counts())
     assert list(columns_report.rows) == list(report.rows)
-    return columns_report
+    assert columns_report.problem_rows() == report.problem_rows()
+    assert columns_report.largest_correction() == report.largest_correction()
 
 
 def _taken(text: str) -> bool:
@@ -189,12 +196,7 @@ def _task_both(texts, names, comp, unused="skip"):
                                        comp, unused=unused)
     got, columns_report = compensate_rapid_task(texts, names, comp, unused=unused, chunk=7)
     assert got == expected
-    assert columns_report.to_csv() == report.to_csv()
-    assert columns_report.warnings == report.warnings
-    assert (columns_report.edits, columns_report.exit_code, columns_report.counts()) == \
-        (report.edits, report.exit_code, report.counts())
-    assert list(columns_report.rows) == list(report.rows)
-    assert columns_report.problem_rows() == report.problem_rows()
+    _same_report(columns_report, report)
     return columns_report
 
 
