@@ -11,17 +11,17 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.calibration.simulate import VirtualRobot, random_joints
+from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
-from olp_compensate.compensation.ik import closed_form_inverse, fit_family
+from olp_compensate.compensation.ik import closed_form_inverse
 from olp_compensate.compensation.rules_fanuc import (FANUC_TP, fanuc_letters, fanuc_rules,
                                                      turn_number)
 from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert_pose,
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
-from virtual_world import identified_world
+from virtual_world import identified_world, nominal_arm
 
 ROBOT = load_robot("fanuc_r2000ic_165f")
 TOOL_MM = (12.0, -5.0, 380.0, 0.0, 0.0, 0.0)
@@ -106,10 +106,7 @@ class FanucController:
     J6 moved into the written revolutions."""
 
     def __init__(self):
-        n = ROBOT.n_joints
-        self.nominal = VirtualRobot(ROBOT, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
-        self.family = fit_family(lambda q: self.nominal.flange_poses(
-            ROBOT.controller_from_joints(q)))
+        self.nominal, self.family = nominal_arm(ROBOT)
         self.geometry = ArmGeometry(ROBOT)
 
     def joints(self, base_T_flange, letters, turns):

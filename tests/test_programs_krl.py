@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.calibration.simulate import VirtualRobot, random_joints
+from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import KRL, ArmGeometry, krl_status, krl_turn
-from olp_compensate.compensation.ik import closed_form_inverse, fit_family
+from olp_compensate.compensation.ik import closed_form_inverse
 from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert_pose,
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.krl import parse_krl, status_text, status_value
 from olp_compensate.programs.targets import Number
-from virtual_world import identified_world
+from virtual_world import identified_world, nominal_arm
 
 ROBOT = load_robot("kuka_kr16_2")
 TOOL_MM = np.array([12.0, -5.0, 180.0, 0.0, 0.0, 0.0])      # TOOL_DATA[1] in $config.dat
@@ -70,10 +70,7 @@ class KukaController:
     turned to T's signs."""
 
     def __init__(self):
-        n = ROBOT.n_joints
-        self.nominal = VirtualRobot(ROBOT, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
-        self.family = fit_family(lambda q: self.nominal.flange_poses(
-            ROBOT.controller_from_joints(q)))
+        self.nominal, self.family = nominal_arm(ROBOT)
         self.geometry = ArmGeometry(ROBOT)
 
     def joints(self, base_T_flange, s, t):
@@ -89,10 +86,11 @@ class KukaController:
         raise AssertionError(f"no branch with S={s}")
 
 
-def _targets_at(q_ctrl, base=np.eye(4)):
-    """(six numbers, S, T) of the nominal TCP (TOOL_DATA[1]) at controller joints q."""
-    controller = KukaController()
-    tool = KRL.convention.pose(TOOL_MM)
+def _targets_at(q_ctrl, base=np.eye(4), tool_mm=TOOL_MM, controller=None):
+    """(six numbers, S, T) of the nominal TCP (``tool_mm``, TOOL_DATA[1]'s X..C) at
+    controller joints q."""
+    controller = KukaController() if controller is None else controller
+    tool = KRL.convention.pose(np.asarray(tool_mm, float))
     out = []
     for q in q_ctrl:
         pose = invert_pose(base) @ controller.nominal.flange_poses(q[None])[0] @ tool
@@ -194,12 +192,7 @@ def test_compensated_krl_reaches_its_targets_on_the_virtual_robot(kuka_world):
                                 "{X %.1f,Y %.1f,Z %.1f," % tuple(tool_mm[:3]))
     tool = KRL.convention.pose(tool_mm)
     controller = KukaController()
-    written = []
-    for qk in q:
-        pose = controller.nominal.flange_poses(qk[None])[0] @ tool
-        values = np.concatenate([pose[:3, 3] * 1e3,
-                                 np.degrees(euler_zyx_from_matrix(pose[:3, :3]))])
-        written.append((values, krl_status(controller.geometry, qk), krl_turn(qk)))
+    written = _targets_at(q, tool_mm=tool_mm, controller=controller)
     src, dat = krl_module(written)
     program = parse_krl(src, dat, "CELL.src", "CELL.dat", config, "$config.dat")
     texts, report = compensate_pose_program(program, KRL, cal)
@@ -235,14 +228,7 @@ def test_taught_on_the_same_robot_gives_the_bytes_back(kuka_world):
     q = _program_joints(5, 9)
     tool_mm = np.array([0.0, 0.0, 180.0, 0.0, 0.0, 0.0])
     config = CONFIG_DAT.replace("{X 12.0,Y -5.0,Z 180.0,", "{X 0.0,Y 0.0,Z 180.0,")
-    controller = KukaController()
-    tool = KRL.convention.pose(tool_mm)
-    written = []
-    for qk in q:
-        pose = controller.nominal.flange_poses(qk[None])[0] @ tool
-        values = np.concatenate([pose[:3, 3] * 1e3,
-                                 np.degrees(euler_zyx_from_matrix(pose[:3, :3]))])
-        written.append((values, krl_status(controller.geometry, qk), krl_turn(qk)))
+    written = _targets_at(q, tool_mm=tool_mm)
     src, dat = krl_module(written)
     program = parse_krl(src, dat, "CELL.src", "CELL.dat", config, "$config.dat")
     texts, report = compensate_pose_program(program, KRL, cal, taught_on=cal)

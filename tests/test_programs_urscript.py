@@ -11,15 +11,14 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.calibration.simulate import VirtualRobot
 from olp_compensate.compensation.dialect_program import compensate_pose_program
-from olp_compensate.compensation.ik import closed_form_inverse, fit_family
+from olp_compensate.compensation.ik import closed_form_inverse
 from olp_compensate.compensation.rules_urscript import URSCRIPT
 from olp_compensate.kinematics.conventions import (invert_pose, rotation_from_rotvec,
                                                    rotvec_from_rotation)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.urscript import parse_urscript
-from virtual_world import identified_world
+from virtual_world import identified_world, nominal_arm
 
 ROBOT = load_robot("ur10e")
 TCP = (0.0, 0.0, 0.15, 0.0, 0.0, 0.0)
@@ -66,10 +65,7 @@ class URController:
     by whole turns (+-360 deg ranges)."""
 
     def __init__(self):
-        n = ROBOT.n_joints
-        self.nominal = VirtualRobot(ROBOT, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
-        self.family = fit_family(lambda q: self.nominal.flange_poses(
-            ROBOT.controller_from_joints(q)))
+        self.nominal, self.family = nominal_arm(ROBOT)
 
     def joints(self, base_T_flange, reference):
         branches = ROBOT.controller_from_joints(closed_form_inverse(self.family,

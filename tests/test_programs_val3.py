@@ -11,16 +11,16 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
-from olp_compensate.calibration.simulate import VirtualRobot, random_joints
+from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
-from olp_compensate.compensation.ik import closed_form_inverse, fit_family
+from olp_compensate.compensation.ik import closed_form_inverse
 from olp_compensate.compensation.rules_val3 import VAL3, val3_config
 from olp_compensate.kinematics.conventions import (euler_xyz_from_matrix, invert_pose, rot_x,
                                                    rot_y, rot_z)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.val3 import parse_val3
-from virtual_world import identified_world
+from virtual_world import identified_world, nominal_arm
 
 ROBOT = load_robot("staubli_tx2_60")
 TOOL_MM = (0.0, 0.0, 120.0, 0.0, 0.0, 0.0)
@@ -78,10 +78,7 @@ class StaubliController:
     forward kinematics of the data-sheet URDF; the branch with the written configuration."""
 
     def __init__(self):
-        n = ROBOT.n_joints
-        self.nominal = VirtualRobot(ROBOT, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
-        self.family = fit_family(lambda q: self.nominal.flange_poses(
-            ROBOT.controller_from_joints(q)))
+        self.nominal, self.family = nominal_arm(ROBOT)
         self.geometry = ArmGeometry(ROBOT)
 
     def joints(self, base_T_flange, config):

@@ -25,3 +25,15 @@ def identified_world(robot, seed: int, tool_alias: str | None = None):
         tools[tool_alias] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
         cal = dataclasses.replace(cal, tools=tools)
     return virtual, cal
+
+
+def nominal_arm(robot):
+    """(the data-sheet arm as a VirtualRobot, the closed-form family fitted on its forward
+    kinematics): what a test's own nominal controller of ``robot`` solves with."""
+    from olp_compensate.calibration.simulate import VirtualRobot
+    from olp_compensate.compensation.ik import fit_family
+
+    n = robot.n_joints
+    nominal = VirtualRobot(robot, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
+    family = fit_family(lambda q: nominal.flange_poses(robot.controller_from_joints(q)))
+    return nominal, family
