@@ -26,8 +26,6 @@ import dataclasses
 import hashlib
 import json
 import os
-from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +39,7 @@ from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
                      robot_from_urdf_text)
 from .atomic import check_finite_json, write_text_atomic
+from .schemas import schema, schema_bytes, schema_error, validator
 from .user_cache import cache_folder
 
 LENGTH_OR_ANGLE_LIMIT = 1e6
@@ -56,21 +55,17 @@ FORMAT = "olp-compensate calibration"
 VERSION = 1
 
 
-@lru_cache(maxsize=1)
+SCHEMA = "calibration-v1.json"
+
+
 def calibration_schema() -> dict:
     """The JSON schema of calib.json version 1."""
-    text = (resources.files("olp_compensate.schemas") / "calibration-v1.json").read_text()
-    return json.loads(text)
+    return schema(SCHEMA)
 
 
-@lru_cache(maxsize=1)
 def _validator():
-    """A validator of calib.json documents. The schema itself is checked against its
-    metaschema by the tests, not at every read (that took 80 ms of each olp-fix run)."""
-    import jsonschema
-
-    schema = calibration_schema()
-    return jsonschema.validators.validator_for(schema)(schema)
+    """A validator of calib.json documents."""
+    return validator(SCHEMA)
 
 
 def _num(value) -> float | None:
@@ -169,13 +164,9 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
     if doc.get("version") != VERSION:
         raise ModelError(f"{source}: calibration format version {doc.get('version')!r}; this "
                          f"olp-compensate reads version {VERSION}")
-    if not valid:
-        import jsonschema
-
-        exc = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
-        if exc is not None:
-            where = "/".join(str(p) for p in exc.absolute_path) or "(top level)"
-            raise ModelError(f"{source}: invalid calibration at {where}: {exc.message}")
+    error = None if valid else schema_error(doc, _validator())
+    if error is not None:
+        raise ModelError(f"{source}: invalid calibration at {error[0]}: {error[1]}")
     _check_square(doc["robot"], "urdf_from_controller", source)
     _check_square(doc["robot"], "axis_ranges_deg", source, columns=2)
     embedded = robot_from_urdf_text(doc["robot"]["urdf"], name=doc["robot"]["name"],
@@ -362,10 +353,5 @@ def _valid_mark(data: bytes) -> str | None:
     folder = cache_folder()
     if folder is None:
         return None
-    digest = hashlib.sha256(_schema_bytes() + b"\0" + data).hexdigest()
+    digest = hashlib.sha256(schema_bytes(SCHEMA) + b"\0" + data).hexdigest()
     return os.path.join(folder, f"valid-calibration-{digest}")
-
-
-@lru_cache(maxsize=1)
-def _schema_bytes() -> bytes:
-    return (resources.files("olp_compensate.schemas") / "calibration-v1.json").read_bytes()

@@ -10,8 +10,6 @@ quaternion), the views skipped with their reasons, and the board it was calibrat
 from __future__ import annotations
 
 import json
-from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +20,7 @@ from ..errors import ModelError
 from ..kinematics.conventions import (invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, quat_wxyz_from_matrix)
 from .atomic import write_text_atomic
+from .schemas import schema, schema_error, validator
 
 FORMAT = "olp-compensate camera"
 VERSION = 1
@@ -31,20 +30,9 @@ _KEYS = (("fx", "fx_px"), ("mu", "mu"), ("cx", "cx_px"), ("cy", "cy_px"), ("k1",
 """(attribute of CameraIntrinsics, key in the file)."""
 
 
-@lru_cache(maxsize=1)
 def camera_schema() -> dict:
     """The JSON schema of camera.json version 1."""
-    text = (resources.files("olp_compensate.schemas") / "camera.schema.json").read_text()
-    return json.loads(text)
-
-
-@lru_cache(maxsize=1)
-def _validator():
-    """A validator of camera.json documents (the schema itself is checked by the tests)."""
-    import jsonschema
-
-    schema = camera_schema()
-    return jsonschema.validators.validator_for(schema)(schema)
+    return schema("camera.schema.json")
 
 
 def _num(value) -> float | None:
@@ -97,12 +85,9 @@ def camera_from_dict(doc: dict, source: str = "<camera>") -> CameraCalibration:
     if doc.get("version") != VERSION:
         raise ModelError(f"{source}: camera format version {doc.get('version')!r}; this "
                          f"olp-compensate reads version {VERSION}")
-    import jsonschema
-
-    exc = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
-    if exc is not None:
-        where = "/".join(str(p) for p in exc.absolute_path) or "(top level)"
-        raise ModelError(f"{source}: invalid camera file at {where}: {exc.message}")
+    error = schema_error(doc, validator("camera.schema.json"))
+    if error is not None:
+        raise ModelError(f"{source}: invalid camera file at {error[0]}: {error[1]}")
     size = doc["image"]
 
     def intrinsics(d):

@@ -1,0 +1,42 @@
+"""The JSON schemas of the project's files (package data ``olp_compensate.schemas``) and
+the check of a document against one. A schema itself is checked against its metaschema by
+the tests, not at every read (that took 80 ms of each olp-fix run)."""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from importlib import resources
+
+
+@lru_cache(maxsize=None)
+def schema_bytes(name: str) -> bytes:
+    """The bytes of schema ``name`` (``"calibration-v1.json"``)."""
+    return (resources.files("olp_compensate.schemas") / name).read_bytes()
+
+
+@lru_cache(maxsize=None)
+def schema(name: str) -> dict:
+    """Schema ``name`` as a dictionary."""
+    return json.loads(schema_bytes(name))
+
+
+@lru_cache(maxsize=None)
+def validator(name: str):
+    """A jsonschema validator of documents of schema ``name`` (jsonschema imported here:
+    it takes 45-70 ms)."""
+    import jsonschema
+
+    found = schema(name)
+    return jsonschema.validators.validator_for(found)(found)
+
+
+def schema_error(doc, check) -> tuple[str, str] | None:
+    """(JSON path, message) of the error jsonschema finds most relevant in ``doc`` under
+    the validator ``check``, or None for a valid document."""
+    import jsonschema
+
+    exc = jsonschema.exceptions.best_match(check.iter_errors(doc))
+    if exc is None:
+        return None
+    return "/".join(str(p) for p in exc.absolute_path) or "(top level)", exc.message
