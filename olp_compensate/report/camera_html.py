@@ -10,9 +10,7 @@ perspective bias of the circle centres, "observed" is the detected centroid minu
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +24,7 @@ from ..camera.model import project_points
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.images import read_grey
+from .figures import figure_html, png, pyplot
 
 PICTURE_WIDTH_PX = 800
 """Detection pictures wider than this are shrunk for the page."""
@@ -62,26 +61,9 @@ def view_residuals(cal: CameraCalibration, board: Board,
     return out
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _png(fig) -> bytes:
-    plt = _pyplot()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    return buffer.getvalue()
-
-
 def per_view_figure(cal: CameraCalibration):
     """Bar chart: reprojection RMS and max of every view, px."""
-    plt = _pyplot()
+    plt = pyplot()
     names = [v.name for v in cal.views]
     fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(names) + 2), 3.6))
     x = np.arange(len(names))
@@ -97,7 +79,7 @@ def per_view_figure(cal: CameraCalibration):
 def residual_field_figure(views: list[ViewResiduals], width: int, height: int,
                           magnify: float):
     """Residual arrows of every view over the image frame (``magnify`` times longer)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 6.4 * height / width + 0.6))
     if views:
         p = np.concatenate([v.pixels for v in views])
@@ -127,12 +109,6 @@ def _jpeg(image: np.ndarray) -> bytes:
     if not ok:
         raise DataError("camera report: cannot encode a picture")
     return data.tobytes()
-
-
-def _img(data: bytes, kind: str, caption: str) -> str:
-    return (f"<figure><img src='data:image/{kind};base64,{base64.b64encode(data).decode()}' "
-            f"alt='{html.escape(caption)}'><figcaption>{html.escape(caption)}</figcaption>"
-            f"</figure>")
 
 
 def _magnify(views: list[ViewResiduals], width: int) -> float:
@@ -172,16 +148,16 @@ def calibration_html(cal: CameraCalibration, board: Board, detected: dict[str, n
         for v in cal.views)
     skipped = "".join(f"<li>{html.escape(s.name)}: {html.escape(s.reason)}</li>"
                       for s in tuple(cal.skipped) + tuple(cal.rac_excluded))
-    figures = [_img(_png(per_view_figure(cal)), "png", "reprojection error per view, px"),
-               _img(_png(residual_field_figure(views, k.width, k.height, magnify)), "png",
-                    f"residuals of all views over the image, x{magnify:g} "
-                    f"(projected minus observed)")]
+    field = residual_field_figure(views, k.width, k.height, magnify)
+    figures = [figure_html(png(per_view_figure(cal), dpi=100),
+                           "reprojection error per view, px"),
+               figure_html(png(field, dpi=100), f"residuals of all views over the image, "
+                                                f"x{magnify:g} (projected minus observed)")]
     for v in views:
         if images is not None and v.name in images:
             picture = draw_detection(images[v.name], v.pixels, v.residuals, magnify)
-            figures.append(_img(_jpeg(picture), "jpeg",
-                                f"{v.name}: detected dots (marker in blue) and residuals "
-                                f"x{magnify:g}"))
+            figures.append(figure_html(_jpeg(picture), f"{v.name}: detected dots (marker in "
+                                       f"blue) and residuals x{magnify:g}", kind="jpeg"))
     sigma = f", sigma {cal.sigma_px:.3f} px" if np.isfinite(cal.sigma_px) else ""
     heading = html.escape(title or "Camera calibration")
     return f"""<!DOCTYPE html>

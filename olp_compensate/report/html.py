@@ -15,9 +15,7 @@ histograms before and after, and measured against predicted error per point.
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 from pathlib import Path
 
 import numpy as np
@@ -26,18 +24,10 @@ from ..calibration.diagnose import Diagnosis, KeptEffect, diagnosis_to_dict, sum
 from ..calibration.effects import Backlash, JointCompliance, ThermalExpansion
 from ..errors import OlpError
 from ..io.atomic import write_bytes_atomic, write_text_atomic
+from .figures import figure_html, png, pyplot
 
 MDEG_PER_RAD = 180.0 / np.pi * 1e3
 BEFORE, AFTER, CURVE = "#9a9a9a", "#1f77b4", "#d62728"
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def apparent_axis_error(d: Diagnosis, residual: np.ndarray, joint: int):
@@ -70,7 +60,7 @@ def _variable(d: Diagnosis, kept: KeptEffect):
 def effect_figure(d: Diagnosis, kept: KeptEffect):
     """Apparent error against the explaining variable, before (geometric model, with the
     fitted effect) and after (extended model)."""
-    plt = _pyplot()
+    plt = pyplot()
     e = kept.effect
     x, xlabel = _variable(d, kept)
     if isinstance(e, ThermalExpansion):
@@ -111,7 +101,7 @@ def effect_figure(d: Diagnosis, kept: KeptEffect):
 def structure_figure(d: Diagnosis):
     """Apparent axis errors of the geometric model against every axis angle and, where
     gravity loads the axis, its torque; plus temperature, time and payload when measured."""
-    plt = _pyplot()
+    plt = pyplot()
     n = d.robot.n_joints
     torque = d.inputs.torque
     loaded = [j for j in range(n) if torque is not None and np.ptp(torque[:, j]) > 1e-3]
@@ -161,7 +151,7 @@ def structure_figure(d: Diagnosis):
 
 def histogram_figure(d: Diagnosis):
     """Held-out errors of each point before and after, with the noise's own distribution."""
-    plt = _pyplot()
+    plt = pyplot()
     before = d.geometric.heldout_errors * 1e3
     after = d.extended.heldout_errors * 1e3
     fig, ax = plt.subplots(figsize=(6.5, 4))
@@ -189,7 +179,7 @@ def histogram_figure(d: Diagnosis):
 def prediction_figure(d: Diagnosis):
     """Measured error of the geometric model against the error the extended model predicts
     for it, per point and device axis."""
-    plt = _pyplot()
+    plt = pyplot()
     measured = d.residual_before * 1e3
     predicted = d.predicted_change * 1e3
     fig, ax = plt.subplots(figsize=(5, 5))
@@ -230,14 +220,6 @@ def figures(d: Diagnosis) -> list[tuple[str, str, object]]:
     return out
 
 
-def _png(fig) -> bytes:
-    plt = _pyplot()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    plt.close(fig)
-    return buffer.getvalue()
-
-
 def write_pngs(d: Diagnosis, folder: str | Path) -> list[str]:
     """Write every figure as ``folder/STEM.png``; returns the file names."""
     folder = Path(folder)
@@ -247,7 +229,7 @@ def write_pngs(d: Diagnosis, folder: str | Path) -> list[str]:
         raise OlpError(f"{folder}: cannot create the folder ({exc.strerror})") from None
     names = []
     for stem, _, fig in figures(d):
-        write_bytes_atomic(folder / f"{stem}.png", _png(fig))
+        write_bytes_atomic(folder / f"{stem}.png", png(fig))
         names.append(f"{stem}.png")
     return names
 
@@ -273,8 +255,7 @@ def html_report(d: Diagnosis) -> str:
              + rows + "</table>")
     held = doc["heldout_rms_mm"]
     figs = "".join(
-        f"<figure><img src='data:image/png;base64,{base64.b64encode(_png(fig)).decode()}' "
-        f"alt='{html.escape(caption)}'><figcaption>{html.escape(caption)}</figcaption></figure>"
+        figure_html(png(fig), caption)
         for _, caption, fig in figures(d))
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">

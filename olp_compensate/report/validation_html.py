@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import math
 from pathlib import Path
 
@@ -18,22 +17,14 @@ import numpy as np
 
 from ..calibration.validation import ErrorStats, ValidationReport, validation_summary
 from ..io.atomic import write_text_atomic
+from .figures import figure_html, png, pyplot
 
 BEFORE, AFTER = "#9a9a9a", "#1f77b4"
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def histogram_figure(report: ValidationReport):
     """Histogram of the error norms before and after, mm."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.6))
     before, after = report.errors_before_m * 1e3, report.errors_after_m * 1e3
     top = max(float(np.max(before)), float(np.max(after)), 1e-6)
@@ -52,7 +43,7 @@ def histogram_figure(report: ValidationReport):
 
 def axes_figure(report: ValidationReport, joint_units: list[str]):
     """Error against each controller axis, before and after."""
-    plt = _pyplot()
+    plt = pyplot()
     n = report.joints.shape[1]
     cols = 3
     rows = math.ceil(n / cols)
@@ -77,7 +68,7 @@ def axes_figure(report: ValidationReport, joint_units: list[str]):
 
 def distance_figure(report: ValidationReport):
     """Error against the distance from the volume's centre (base frame), mm."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.6))
     d = report.distance_from_centre_m * 1e3
     ax.scatter(d, report.errors_before_m * 1e3, s=10, color=BEFORE, label="before")
@@ -92,7 +83,7 @@ def distance_figure(report: ValidationReport):
 
 def scatter3d_figure(report: ValidationReport):
     """The validation points in the base frame, coloured by the error after calibration."""
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(7, 5.5))
     ax = fig.add_subplot(projection="3d")
     p = report.points_base_m * 1e3
@@ -119,14 +110,6 @@ def figures(report: ValidationReport, joint_units: list[str]) -> list[tuple[str,
              scatter3d_figure(report))]
 
 
-def _png(fig) -> bytes:
-    plt = _pyplot()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    return buffer.getvalue()
-
-
 def _cells(s: ErrorStats) -> str:
     std = "" if not math.isfinite(s.std) else f"{s.std * 1e3:.3f}"
     return "".join(f"<td>{v}</td>" for v in (
@@ -142,8 +125,7 @@ def html_report(report: ValidationReport, joint_units: list[str]) -> str:
     table = "".join(f"<tr><td>{html.escape(name)}</td><td>{when}</td>{_cells(s)}</tr>"
                     for name, when, s in rows)
     figs = "".join(
-        f"<figure><img src='data:image/png;base64,{base64.b64encode(_png(fig)).decode()}' "
-        f"alt='{html.escape(caption)}'><figcaption>{html.escape(caption)}</figcaption></figure>"
+        figure_html(png(fig, dpi=100), caption)
         for caption, fig in figures(report, joint_units))
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
@@ -178,7 +160,7 @@ def write_html(report: ValidationReport, joint_units: list[str], path: str | Pat
 def iso_figure(results, attained_m: np.ndarray, poses: np.ndarray):
     """Attained positions of each pose relative to its commanded position (x-y and x-z
     projections, mm), with the barycentre and the RP_l circle about it."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(2, len(results), figsize=(2.6 * len(results), 5.4), squeeze=False)
     theta = np.linspace(0, 2 * np.pi, 100)
     for k, r in enumerate(results):
@@ -218,7 +200,7 @@ def iso_html(results, conditions: dict, attained_m: np.ndarray, poses: np.ndarra
             cells += [f"{np.degrees(v):+.4f}" for v in r.ap_abc_rad]
             cells += [f"&plusmn;{np.degrees(v):.4f}" for v in r.rp_abc_rad]
         rows.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
-    image = base64.b64encode(_png(iso_figure(results, attained_m, poses))).decode()
+    image = base64.b64encode(png(iso_figure(results, attained_m, poses), dpi=100)).decode()
     summary = html.escape(chr(10).join(iso_summary(results, conditions)))
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>ISO 9283 AP and RP</title>
