@@ -13,7 +13,8 @@ from olp_compensate.errors import DataError
 from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like,
                                      joint_emit_edits, joint_target_edits, load, loads,
                                      splice, target_edits, tool_edits)
-from olp_compensate.programs.emit import aligned_quaternion, nearest_euler_zyz_deg
+from olp_compensate.programs.emit import (EditColumns, SplicedText, aligned_quaternion,
+                                          nearest_euler_zyz_deg)
 from olp_compensate.programs.semantics import written_values
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,6 +57,28 @@ def test_splice_checks_overlap_and_order():
         splice("abcdef", [Edit(0, 3, "x"), Edit(2, 4, "y")])
     with pytest.raises(DataError, match="outside"):
         splice("abc", [Edit(2, 9, "x")])
+
+
+def test_spliced_text_written_in_blocks_is_the_splice():
+    """A SplicedText merges its runs of edits by offset (the earlier run first at one
+    offset) and gives the same bytes whole and in blocks of any size."""
+    rng = np.random.default_rng(4)
+    text = "".join(rng.choice(list("ab;\r\n\u00e9[],.0123456789"), 5000))
+    cuts = np.sort(rng.choice(len(text), 600, replace=False)).reshape(-1, 2)
+    edits = [Edit(int(a), int(b), "x" * int(rng.integers(0, 9))) for a, b in cuts]
+    runs = [edits[0::3], EditColumns(*(list(c) for c in zip(*edits[1::3]))), edits[2::3]]
+    expected = splice(text, edits + [Edit(0, 0, "<"), Edit(0, 0, ">")])
+    spliced = SplicedText(text, [[Edit(0, 0, "<")], *runs, [Edit(0, 0, ">")]])
+    assert spliced.spliced() == expected
+    assert len(spliced) == len(edits) + 2
+    for block in (1, 7, 1000, 1 << 20):
+        pieces = list(spliced.blocks("latin-1", block))
+        assert b"".join(pieces) == expected.encode("latin-1")
+        assert all(len(piece) >= block for piece in pieces[:-1])
+    assert spliced.encode("latin-1") == expected.encode("latin-1")
+    assert SplicedText(text).encode("latin-1") == text.encode("latin-1")
+    with pytest.raises(DataError, match="overlapping"):
+        list(SplicedText(text, [[Edit(0, 3, "x")], [Edit(2, 4, "y")]]).blocks("latin-1"))
 
 
 def test_quaternion_sign_is_kept_and_unchanged_numbers_stay():

@@ -210,7 +210,7 @@ def _run_one(args, unit, retain: list | None) -> int:
     if output_is_folder(args):           # -o OUTDIR mirrors the input tree
         for out in unit.outputs:
             out.parent.mkdir(parents=True, exist_ok=True)
-    files = list(zip(unit.outputs, result.data))
+    files = [(out, result.pieces(i)) for i, out in enumerate(unit.outputs)]
     if args.report:
         files.append((Path(args.report), (piece.encode("utf-8")
                                           for piece in report.csv_chunks())))

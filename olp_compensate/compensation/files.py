@@ -9,13 +9,18 @@ new bytes of each file and one report whose rows name the files as the user know
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..calibration.calibration import Calibration
 from ..errors import DataError, ParseError
 from .pose import Compensator
 from .report import CompensationReport
+
+if TYPE_CHECKING:
+    from ..programs.emit import SplicedText
 
 ENCODING = "latin-1"
 POSE_DIALECTS = ("krl", "fanuc", "val3", "urscript")
@@ -45,10 +50,25 @@ class ProgramFiles:
 
 @dataclass(frozen=True)
 class FilesResult:
-    """The new bytes of each file (same order as ``ProgramFiles.paths``) and the report."""
+    """The new content of each file (same order as ``ProgramFiles.paths``) and the report.
 
-    data: tuple[bytes, ...]
+    new : each file's new bytes, or its text with the edits still to splice
+        (:class:`~olp_compensate.programs.emit.SplicedText`, a RAPID module: a big one is
+        written by :meth:`pieces` without its new text ever held whole).
+    """
+
+    new: tuple[bytes | SplicedText, ...]
     report: CompensationReport
+
+    @property
+    def data(self) -> tuple[bytes, ...]:
+        """The new bytes of each file."""
+        return tuple(n if isinstance(n, bytes) else n.encode(ENCODING) for n in self.new)
+
+    def pieces(self, i: int) -> bytes | Iterator[bytes]:
+        """The new bytes of file ``i``, whole or in consecutive pieces (to write)."""
+        new = self.new[i]
+        return new if isinstance(new, bytes) else new.blocks(ENCODING)
 
 
 def dialect_of(path: str | Path) -> str:
@@ -89,7 +109,7 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
         check_options(emit, unused)
         new, report = compensate_rapid_task(texts, list(files.names), comp, unused=unused,
                                             teacher=_teacher(taught_on, comp))
-        return FilesResult(data=tuple(t.encode(ENCODING) for t in new), report=report)
+        return FilesResult(new=tuple(new), report=report)
     if files.dialect in TEXT_DIALECTS:
         from ..programs import loads
         from .task import compensate_task
@@ -97,7 +117,7 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
         programs = [loads(t, files.dialect, n) for t, n in zip(texts, files.names)]
         new, report = compensate_task(programs, comp, emit=emit, unused=unused,
                                       taught_on=taught_on)
-        return FilesResult(data=tuple(t.encode(ENCODING) for t in new), report=report)
+        return FilesResult(new=tuple(t.encode(ENCODING) for t in new), report=report)
     if emit != "pose":
         raise DataError(f"{files.names[0]}: emit={emit!r}: joint targets are written for "
                         f"RAPID and V+ programs only")
@@ -105,7 +125,7 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
 
     program, rules = _parse_pose_dialect(files, texts, frames_path)
     new, report = compensate_pose_program(program, rules, comp, taught_on=taught_on)
-    return FilesResult(data=tuple(new[name].encode(ENCODING) for name in files.names),
+    return FilesResult(new=tuple(new[name].encode(ENCODING) for name in files.names),
                        report=report)
 
 

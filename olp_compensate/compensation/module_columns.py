@@ -20,17 +20,15 @@ declared in any module). Otherwise the module's targets are compensated as objec
 
 from __future__ import annotations
 
-import heapq
 import operator
 from array import array
-from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, quat_wxyz_from_matrix)
-from ..programs.emit import splice_in_order, target_edits
+from ..programs.emit import EditColumns, SplicedText, target_edits
 from ..programs.emit_batch import edits_for_spans
 from ..programs.rapid import parse_rapid_columns
 from ..programs.rapid_columns import ModuleColumns, TargetTable, with_objects
@@ -62,17 +60,18 @@ def compensate_rapid_module(text: str, file: str, comp: Compensator, *, unused: 
     in columns where the module allows it (see the module docstring)."""
     (new,), report = compensate_rapid_task([text], [file], comp, unused=unused,
                                            teacher=teacher, chunk=chunk)
-    return new, report
+    return new.spliced(), report
 
 
 def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator, *,
                           unused: str = "skip", teacher: Compensator | None = None,
-                          chunk: int = CHUNK) -> tuple[list[str], CompensationReport]:
+                          chunk: int = CHUNK) -> tuple[list[SplicedText], CompensationReport]:
     """Compensate the modules of one RAPID task (decoded ``texts`` named ``files``, in the
-    order the controller loads them) with ``emit='pose'``: ``(new texts, report)``, as
+    order the controller loads them) with ``emit='pose'``: ``(new modules, report)``, as
     :func:`~.task.compensate_task` gives; each module's plain targets in columns where
     their meaning is plain within the whole task (no other module declares or names
-    them), the rest as objects."""
+    them), the rest as objects. The new modules are spliced when read (a big one is
+    written without its new text ever held whole)."""
     from .task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
 
     parsed = [parse_rapid_columns(text, file) for text, file in zip(texts, files)]
@@ -80,7 +79,8 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
     programs = [p if plan is not None else with_objects(p, c)
                 for (p, c), plan in zip(parsed, plans)]
     if all(plan is None for plan in plans):
-        return compensate_task(programs, comp, unused=unused, taught_on=teacher)
+        new_texts, report = compensate_task(programs, comp, unused=unused, taught_on=teacher)
+        return [SplicedText(t) for t in new_texts], report
     resolutions = resolve_task(programs)
     if len(programs) > 1:
         programs = _calls_to_task_routines(programs)
@@ -92,7 +92,7 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
             not_moved=not_moved)
         warnings += module_warnings
         if plans[m] is None:
-            new_texts.append(splice_in_order(program.text, edits))
+            new_texts.append(SplicedText(program.text, [edits]))
             parts.append(tuple(rows))
             count += len(edits)
             continue
@@ -102,10 +102,9 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
         for start in range(0, len(table.table), chunk):
             table.compensate(start, min(start + chunk, len(table.table)))
         table.retry_failed()
-        count += len(edits) + sum(len(starts) for starts, _, _ in table.edits)
+        count += len(edits) + sum(map(len, table.edits))
         parts.append(table.rows(sorted(rows + table.others, key=LINE_COLUMN)))
-        new_texts.append(splice_in_order(program.text, heapq.merge(
-            edits, *(zip(*columns) for columns in table.edits), key=_START)))
+        new_texts.append(SplicedText(program.text, [edits, *table.edits]))
     report = CompensationReport(
         file=files[0], rows=parts[0] if len(parts) == 1 else ChainedRows(parts),
         warnings=tuple(warnings), n_joints=comp.robot.n_joints, emit="pose", edits=count)
@@ -116,21 +115,35 @@ def _task_plans(programs: list[Program], columns: list[ModuleColumns]) -> list:
     """Each module's :class:`_Plan`, or None where its table targets are not plain within
     the task: a name declared in another module's table too, named by any module's objects
     or moved to by another module's table motions."""
-    lowers = [[name.lower() for name in c.targets.names] for c in columns]
-    declared = Counter(name for names in lowers for name in set(names))
-    named = set().union(*map(_named_elsewhere, programs))
-    moved_to = [{name.lower() for name in c.moves.target_names} for c in columns]
+    shared = _modules_sharing_names(programs, columns)
     resolver = Resolver(programs) if any(len(c.targets) for c in columns) else None
-    plans = []
-    for m, (program, names) in enumerate(zip(programs, lowers)):
-        mine = set(names)
-        if (not names or any(declared[x] > 1 for x in mine) or not named.isdisjoint(mine)
-                or any(not mine.isdisjoint(moved_to[k]) for k in range(len(programs))
-                       if k != m)):
-            plans.append(None)
-        else:
-            plans.append(_plan(program, columns[m], resolver, m))
-    return plans
+    return [None if m in shared or not len(c.targets) else _plan(program, c, resolver, m)
+            for m, (program, c) in enumerate(zip(programs, columns))]
+
+
+def _modules_sharing_names(programs: list[Program], columns: list[ModuleColumns]) -> set:
+    """The modules with a table target declared in another module too, named by any
+    module's objects or moved to by another module's table motions (one dict of the
+    table names, no lower-case copies of names already in lower case)."""
+    owner: dict[str, int] = {}    # lower-case table name -> the first module declaring it
+    shared = set()
+    for m, c in enumerate(columns):
+        for name in c.targets.names:
+            first = owner.setdefault(name if name.islower() else name.lower(), m)
+            if first != m:
+                shared.update((first, m))
+    if not owner:
+        return shared
+    for name in set().union(*map(_named_elsewhere, programs)):
+        if name in owner:
+            shared.add(owner[name])
+    if len(columns) > 1:
+        for m, c in enumerate(columns):
+            for name in c.moves.target_names:
+                first = owner.get(name if name.islower() else name.lower(), m)
+                if first != m:
+                    shared.add(first)
+    return shared
 
 
 @dataclass(frozen=True, eq=False)
@@ -213,8 +226,8 @@ class _Chunk:
 
 class _TablePart:
     """The table targets compensated chunk by chunk: their rows as columns (compensated)
-    or objects (the others), and their edits (``edits``: (starts, ends, replacements) in
-    offset order, one per chunk; about half the memory of Edit records).
+    or objects (the others), and their edits (``edits``: :class:`EditColumns` in offset
+    order, one per chunk; about half the memory of Edit records).
 
     With a plain :class:`Compensator` the solver's retries of targets it did not reach at
     once (and the account of how close the arm comes) are left out of the chunks: the
@@ -231,7 +244,7 @@ class _TablePart:
         self.spans = table.span_columns()
         self.parts: list[RowColumns] = []
         self.others: list[TargetReport] = []
-        self.edits: list[tuple[array, array, list]] = []
+        self.edits: list[EditColumns] = []
         self.defer = type(comp) is Compensator   # a RegionalCompensator retries at once
         self.failed: list[tuple] = []   # (rows, values, written, flange, poses, pair)
         self.pair_names = [(p.tool_name, p.wobj_name) for p in plan.pairs]
@@ -350,8 +363,8 @@ class _TablePart:
             config_after=config_after, joints=solved.joints_deg[keep],
             note=[words.setdefault(notes[i], notes[i]) for i in keep.tolist()]))
         edits = self._edits(mine, keep, solved, values[keep])
-        self.edits.append((array("q", [e[0] for e in edits]), array("q", [e[1] for e in edits]),
-                           [e[2] for e in edits]))
+        self.edits.append(EditColumns(array("q", [e[0] for e in edits]),
+                                      array("q", [e[1] for e in edits]), [e[2] for e in edits]))
 
     def _edits(self, mine: np.ndarray, keep: np.ndarray, solved, values: np.ndarray) -> list:
         """The edits writing the compensated table targets ``mine`` (job rows ``keep``,

@@ -9,8 +9,9 @@ the splice and the edits of one target, tool or joint target.
 
 from __future__ import annotations
 
+import heapq
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Sequence
 
 from ..errors import DataError
 from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_quaternion,
@@ -18,7 +19,7 @@ from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_qu
                             nearest_euler_zyz_deg)
 from .targets import QUAT_WXYZ, CartesianTarget, Edit, JointTarget, ToolData
 
-__all__ = ["splice", "splice_in_order", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
+__all__ = ["splice", "splice_in_order", "SplicedText", "EditColumns", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
            "joint_emit_edits", "format_like", "format_int_like", "aligned_quaternion",
            "nearest_euler_zyz_deg", "MM_DECIMALS", "QUAT_DECIMALS", "DEG_DECIMALS"]
 
@@ -37,7 +38,72 @@ def splice(text: str, edits: Iterable[Edit]) -> str:
 def splice_in_order(text: str, edits: Iterable[Edit]) -> str:
     """:func:`splice` of edits given in offset order (any iterable of (start, end,
     replacement), read once: a generator over columns of edits holds none of them)."""
-    parts = []
+    parts = list(_spliced_pieces(text, edits))
+    return text if len(parts) == 1 else "".join(parts)
+
+
+class EditColumns:
+    """Edits held as columns, in offset order: ``starts`` and ``ends`` (character offsets)
+    and ``replacements``; iterating gives (start, end, replacement) each time anew."""
+
+    __slots__ = ("starts", "ends", "replacements")
+
+    def __init__(self, starts: Sequence[int], ends: Sequence[int],
+                 replacements: Sequence[str]):
+        self.starts, self.ends, self.replacements = starts, ends, replacements
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def __iter__(self) -> Iterator[tuple[int, int, str]]:
+        return zip(self.starts, self.ends, self.replacements)
+
+
+class SplicedText:
+    """``text`` with edits, spliced when read: :meth:`blocks` gives the new text's bytes a
+    block at a time (a big module is written without its new text ever held whole),
+    :meth:`encode` all of them. ``runs``: sequences of edits, each in offset order and
+    iterable again, merged by offset (at one offset, the earlier run's edit first)."""
+
+    __slots__ = ("text", "runs")
+
+    def __init__(self, text: str, runs: Sequence[Iterable[Edit]] = ()):
+        self.text, self.runs = text, tuple(runs)
+
+    def edits(self) -> Iterator[Edit]:
+        """All edits in offset order."""
+        if len(self.runs) == 1:
+            return iter(self.runs[0])
+        return heapq.merge(*self.runs, key=_edit_start)
+
+    def __len__(self) -> int:
+        """The number of edits."""
+        return sum(len(run) for run in self.runs)
+
+    def spliced(self) -> str:
+        """The new text."""
+        return splice_in_order(self.text, self.edits())
+
+    def blocks(self, encoding: str, block: int = 1 << 20) -> Iterator[bytes]:
+        """The new text's bytes in ``encoding``, about ``block`` characters at a time."""
+        parts, size = [], 0
+        for piece in _spliced_pieces(self.text, self.edits()):
+            parts.append(piece)
+            size += len(piece)
+            if size >= block:
+                yield "".join(parts).encode(encoding)
+                parts, size = [], 0
+        if parts:
+            yield "".join(parts).encode(encoding)
+
+    def encode(self, encoding: str) -> bytes:
+        """The new text's bytes in ``encoding``."""
+        return b"".join(self.blocks(encoding))
+
+
+def _spliced_pieces(text: str, edits: Iterable[Edit]) -> Iterator[str]:
+    """The pieces of the spliced text in order: kept text, replacement, kept text, ...
+    (``text`` alone without edits); raises DataError on overlapping or outside edits."""
     pos = 0
     n = len(text)
     for start, end, rep in edits:
@@ -46,13 +112,10 @@ def splice_in_order(text: str, edits: Iterable[Edit]) -> str:
                             f"ends at {pos})")
         if end < start or end > n:
             raise DataError(f"edit {start}..{end} outside the text (length {n})")
-        parts.append(text[pos:start])
-        parts.append(rep)
+        yield text[pos:start]
+        yield rep
         pos = end
-    if not parts:
-        return text
-    parts.append(text[pos:])
-    return "".join(parts)
+    yield text[pos:] if pos else text
 
 
 def _edit_start(e: Edit) -> int:
