@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from olp_compensate.kinematics.model import build_model, fixed_chain, forward, joint_frames
+from olp_compensate.kinematics.model import (build_model, fixed_chain, forward, joint_frames,
+                                             spread_joints)
 from olp_compensate.kinematics.robot import bundled_robot_names, load_robot
 from olp_compensate.calibration.simulate import random_joints
 from urdf_factory import IRB2400_DH, dh_urdf
@@ -161,6 +162,18 @@ def test_fixed_chain_is_the_model_at_fixed_values(name):
         np.testing.assert_allclose(frames, joint_frames(model, values, np.zeros(6)), atol=1e-12)
         np.testing.assert_allclose(flange, forward(model, values, np.zeros((1, 6))).flange[0],
                                    atol=1e-12)
+
+
+def test_spread_joints_cover_every_axis_and_depend_only_on_the_seed():
+    """The configurations that check a fixed chain and a fitted IK family reach near both
+    ends of [-pi, pi] on every axis, in every third of it, and are distinct per seed."""
+    q = spread_joints(50, 6)
+    assert q.shape == (50, 6) and np.all(np.abs(q) <= np.pi)
+    np.testing.assert_array_equal(q, spread_joints(50, 6, 0))
+    assert q.min(axis=0).max() < -0.9 * np.pi and q.max(axis=0).min() > 0.9 * np.pi
+    for lo, hi in ((-np.pi, -np.pi / 3), (-np.pi / 3, np.pi / 3), (np.pi / 3, np.pi)):
+        assert np.all(np.sum((q >= lo) & (q < hi), axis=0) >= 5)
+    assert not np.any(np.isclose(q[:, None, :], spread_joints(50, 6, 1)[None]).all(axis=2))
 
 
 def test_a_reusable_array_is_never_handed_out_while_something_refers_to_it():

@@ -12,6 +12,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ...errors import ModelError
+from ...kinematics.model import spread_joints
 from ...kinematics.conventions import (invert_pose, pose_from_rotation_translation, rot_y, rot_z,
                                        rotvec_from_rotation)
 from .families import OPWParameters, URParameters
@@ -308,15 +309,16 @@ def fit_family(flange_pose: Callable[[np.ndarray], np.ndarray], n_joints: int = 
     ``flange_pose(q (m, n_joints) rad) -> base_T_flange (m, 4, 4)`` (m). The joint axes are
     read at q = 0 from finite rotations of each joint, the OPW or UR geometry is fitted to
     them, and the fit is accepted only if the family's forward kinematics matches
-    ``flange_pose`` at 50 random configurations (uniform in [-pi, pi], ``seed``) within
-    1e-9 m and 1e-9 rad. Returns None for any other robot.
+    ``flange_pose`` at 50 configurations spread over [-pi, pi] on every axis
+    (:func:`spread_joints`, ``seed``) within 1e-9 m and 1e-9 rad. Returns None for any
+    other robot.
     """
     if n_joints != 6:
         return None
     axes = _read_axes(flange_pose, n_joints)
     if axes is None:
         return None
-    q = np.random.default_rng(seed).uniform(-np.pi, np.pi, (50, 6))
+    q = spread_joints(50, 6, seed)
     expected = as_poses(flange_pose(q), "flange_pose(q)")
     for fit, forward in ((_fit_opw, opw_forward), (_fit_ur, ur_forward)):
         try:
@@ -330,3 +332,4 @@ def fit_family(flange_pose: Callable[[np.ndarray], np.ndarray], n_joints: int = 
                 and np.max(np.linalg.norm(err[:, 3:], axis=1)) <= _VERIFY_TOL):
             return params
     return None
+
