@@ -4,7 +4,9 @@ Generates a module of N robtargets (default 100,000) for an ABB IRB 2400 (random
 joints away from singularities, a tool and a work object, confdata of the nominal
 solution), calibrates a virtual robot, and times ``olp-fix`` as a user runs it (a new
 process: start-up, reading calib.json, parsing, resolving, IK on the calibrated model,
-splicing, writing the program and the report). Prints targets/s (target: >= 20,000/s). The IK comparison with roboticstoolbox's
+splicing, writing the program and the report), by default (the module's chunks of targets
+shared with a forked process where there are two cores or more) and with ``-j 1`` (one
+process). Prints targets/s (target: >= 20,000/s). The IK comparison with roboticstoolbox's
 ``ik_LM`` is ``benchmarks/ik_peer.py`` (run it too; it uses the same IK entry point).
 
 The command runs once untimed (so the module file is in the OS cache, lark's grammar
@@ -20,8 +22,10 @@ same module in a new process (read the file, replace the position of every robta
 literal with that of a fixed 0.1 mm shift by one regular expression, write the file);
 printed with the ratio of olp-fix to it (target: at most 3x). And olp-fix's peak memory
 above the interpreter's: ``ru_maxrss`` of ``getrusage(RUSAGE_CHILDREN)`` in a new process
-that ran olp-fix, minus that of one that ran ``python -c "import numpy"``, per target
-(target: at most 1 KB per target).
+that ran ``olp-fix -j 1``, minus that of one that ran ``python -c "import numpy"``, per
+target (target: at most 1 KB per target); for the default run, whose second process
+``ru_maxrss`` would not add, the peak of the processes' proportional set sizes summed
+(a page they share counts once), sampled every 10 ms.
 
 Run: ``python benchmarks/compensate.py [--targets N] [--repeat K]``. Exit code 0.
 """
@@ -129,11 +133,49 @@ def peak_rss_kb(command: list[str], env: dict | None = None) -> int:
     return int(done.stdout.split()[-1])
 
 
+def tree_peak_kb(command: list[str], env: dict | None = None) -> int:
+    """Peak of the summed resident memory (KB) of ``command`` and its child processes,
+    sampled every 10 ms from /proc (Linux): their proportional set sizes (a page two
+    processes share counts half in each)."""
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    peak = 0
+    while process.poll() is None:
+        peak = max(peak, sum(_pss_kb(pid) for pid in _tree(process.pid)))
+        time.sleep(0.01)
+    return peak
+
+
+def _tree(pid: int) -> list[int]:
+    """``pid`` and its descendants."""
+    found, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        found.append(p)
+        try:
+            for task in os.listdir(f"/proc/{p}/task"):
+                with open(f"/proc/{p}/task/{task}/children") as f:
+                    todo += [int(c) for c in f.read().split()]
+        except OSError:
+            pass
+    return found
+
+
+def _pss_kb(pid: int) -> int:
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as f:
+            for line in f:
+                if line.startswith("Pss:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
 def lane_stages(module: Path, cal) -> dict[str, float]:
     """Seconds of each stage of olp-fix's column path on ``module`` (in this process, the
     garbage collector off as in the command)."""
     import gc
-    import heapq
 
     from olp_compensate.compensation import module_columns as mc
     from olp_compensate.programs.rapid import parse_rapid_columns
@@ -164,9 +206,7 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         others = sorted(rows + table.others, key=mc.LINE_COLUMN)
         report = mc.CompensationReport(file=str(module), rows=table.rows(others),
                                        n_joints=comp.robot.n_joints)
-        new = mc.splice_in_order(text, heapq.merge(
-            edits, *(zip(*columns) for columns in table.edits), key=mc._START))
-        new = new.encode("latin-1")
+        new = sum(map(len, mc.SplicedText(text, [edits, *table.edits]).blocks("latin-1")))
         stages["splice and encode the program"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         csv_bytes = sum(len(piece.encode()) for piece in report.csv_chunks())
@@ -197,47 +237,57 @@ def main() -> int:
         print(f"generated {args.targets} targets and a calibration in "
               f"{time.perf_counter() - t0:.1f} s")
 
-        # as a user runs it, summary on the terminal included
+        # as a user runs it, summary on the terminal included: by default (the chunks of
+        # the module on two processes where there are two cores) and with -j 1
         command = [sys.executable, "-m", "olp_compensate.cli.fix", str(module), "--model",
                    str(model), "--report", str(folder / "report.csv")]
+        commands = {"olp-fix": command, "olp-fix -j 1": [*command, "-j", "1"],
+                    "floor": [sys.executable, "-c", FLOOR, str(module),
+                              str(folder / "floor.mod")]}
         env = dict(os.environ, PYTHONPYCACHEPREFIX=str(folder / "bytecode"))
         env.pop("PYTHONDONTWRITEBYTECODE", None)
-        floor_command = [sys.executable, "-c", FLOOR, str(module), str(folder / "floor.mod")]
-        times, floor_times = [], []
+        times: dict[str, list[float]] = {name: [] for name in commands}
         for run in range(1 + args.repeat):   # the first run is the untimed warm-up
-            t0 = time.perf_counter()
-            done = subprocess.run(command, capture_output=True, text=True, env=env)
-            if run:
-                times.append(time.perf_counter() - t0)
-            if done.returncode not in (0, 2):
-                print(done.stderr)
-                return 1
-            t0 = time.perf_counter()
-            floor = subprocess.run(floor_command, capture_output=True, text=True, env=env,
-                                   check=True)
-            if run:
-                floor_times.append(time.perf_counter() - t0)
-            if int(floor.stdout) != args.targets:
-                print(f"the floor rewrote {floor.stdout.strip()} literals, not {args.targets}")
-                return 1
+            names = list(commands) if run % 2 else list(commands)[::-1]   # interleaved
+            for name in names:
+                t0 = time.perf_counter()
+                done = subprocess.run(commands[name], capture_output=True, text=True, env=env)
+                if run:
+                    times[name].append(time.perf_counter() - t0)
+                if done.returncode not in (0, 2):
+                    print(done.stderr)
+                    return 1
+                if name == "floor" and int(done.stdout) != args.targets:
+                    print(f"the floor rewrote {done.stdout.strip()} literals, not "
+                          f"{args.targets}")
+                    return 1
         statuses = [ln.split(",")[4] for ln in (folder / "report.csv").read_text().splitlines()[1:]]
         ok = sum(s in ("ok", "singular") for s in statuses)
-        best, median = min(times), statistics.median(times)
-        print(f"olp-fix, whole command (new process, best of {len(times)}): {best:.2f} s, "
-              f"{args.targets / best:,.0f} targets/s (target >= 20,000/s); median "
-              f"{median:.2f} s, {args.targets / median:,.0f}/s; {ok}/{len(statuses)} "
-              f"compensated")
-        floor_best, floor_median = min(floor_times), statistics.median(floor_times)
-        print(f"floor, plain Python re rewrite of the same module (new process, interleaved, "
-              f"best of {len(floor_times)}): {floor_best:.2f} s, median {floor_median:.2f} s; "
-              f"olp-fix / floor: {best / floor_best:.2f}x best, {median / floor_median:.2f}x "
-              f"median (target <= 3x)")
-        fix_kb = min(peak_rss_kb(command, env) for _ in range(2))
+        floor_best, floor_median = min(times["floor"]), statistics.median(times["floor"])
+        print(f"floor, plain Python re rewrite of the same module (new process, best of "
+              f"{args.repeat}): {floor_best:.2f} s, median {floor_median:.2f} s")
+        for name in ("olp-fix", "olp-fix -j 1"):
+            best, median = min(times[name]), statistics.median(times[name])
+            print(f"{name + ',':<14} whole command (new process, interleaved, best of "
+                  f"{args.repeat}): {best:.2f} s, {args.targets / best:,.0f} targets/s (target "
+                  f">= 20,000/s), median {median:.2f} s; / floor: {best / floor_best:.2f}x "
+                  f"best, {median / floor_median:.2f}x median (target <= 3x)")
+        print(f"  default / -j 1: {min(times['olp-fix']) / min(times['olp-fix -j 1']):.2f}x "
+              f"best, {statistics.median(times['olp-fix']) / statistics.median(times['olp-fix -j 1']):.2f}x "
+              f"median ({len(os.sched_getaffinity(0))} cores); {ok}/{len(statuses)} compensated")
         numpy_kb = min(peak_rss_kb([sys.executable, "-c", "import numpy"], env)
                        for _ in range(2))
-        print(f"peak memory (ru_maxrss of a new process): olp-fix {fix_kb / 1024:.0f} MB, "
+        fix_kb = min(peak_rss_kb(commands["olp-fix -j 1"], env) for _ in range(2))
+        print(f"peak memory, olp-fix -j 1 (ru_maxrss of a new process): {fix_kb / 1024:.0f} MB, "
               f"python -c 'import numpy' {numpy_kb / 1024:.0f} MB; olp-fix above it "
               f"{(fix_kb - numpy_kb) / args.targets:.2f} KB per target (target <= 1 KB)")
+        tree_kb = {name: max(tree_peak_kb(commands[name], env) for _ in range(2))
+                   for name in ("olp-fix", "olp-fix -j 1")}
+        print(f"peak memory, proportional set sizes of the command's processes summed, sampled "
+              f"every 10 ms: olp-fix {tree_kb['olp-fix'] / 1024:.0f} MB, olp-fix -j 1 "
+              f"{tree_kb['olp-fix -j 1'] / 1024:.0f} MB; the second process adds "
+              f"{(tree_kb['olp-fix'] - tree_kb['olp-fix -j 1']) / args.targets:.2f} KB per "
+              f"target")
 
         # where the time goes, in-process, stage by stage as olp-fix runs them
         stages = lane_stages(module, cal)

@@ -89,6 +89,39 @@ def test_all_compensated_exits_zero(calibrations, tmp_path):
     assert "CONST jointtarget p1" in text and "MoveAbsJ p1" in text
 
 
+def test_one_big_module_on_two_processes_writes_what_one_process_writes(
+        calibrations, tmp_path, monkeypatch):
+    """-j 2 on one module shares its chunks of targets with a forked process (chunks of
+    8 targets and no size floor here); the program and report are -j 1's byte for byte."""
+    from olp_compensate.compensation import forked, module_columns
+
+    _, _, identified, _ = calibrations
+    rng = np.random.default_rng(3)
+    decls, moves = [], []
+    for k, (x, y, z) in enumerate(rng.uniform([800, -300, 700], [1100, 300, 1200], (40, 3))):
+        decls.append(f"  CONST robtarget p{k}:=[[{x:.2f},{y:.2f},{z:.2f}],[0,0,1,0],"
+                     f"[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+        moves.append(f"    MoveL p{k},v100,fine,tool0;")
+    program = tmp_path / "big.mod"
+    program.write_text("\n".join(["MODULE Big", *decls, "  PROC main()", *moves, "  ENDPROC",
+                                  "ENDMODULE", ""]))
+    monkeypatch.setattr(module_columns, "PARALLEL_MIN", 0)
+    monkeypatch.setitem(module_columns.compensate_rapid_task.__kwdefaults__, "chunk", 8)
+    forks = []
+    start = forked.ForkedItems.__init__
+    monkeypatch.setattr(forked.ForkedItems, "__init__",
+                        lambda self, *args: forks.append(args) or start(self, *args))
+    outputs = {}
+    for jobs in ("1", "2"):
+        out, report = tmp_path / f"j{jobs}.mod", tmp_path / f"j{jobs}.csv"
+        assert fix([str(program), "--model", str(identified), "-q", "-j", jobs, "-o", str(out),
+                    "--report", str(report)]) == 0
+        outputs[jobs] = out.read_bytes(), report.read_bytes()
+    assert len(forks) == forked.can_fork()
+    assert outputs["2"] == outputs["1"]
+    assert outputs["1"][0] != program.read_bytes()
+
+
 def test_refuses_to_overwrite_the_input(calibrations, tmp_path, capsys):
     _, nominal, _, _ = calibrations
     program = tmp_path / "cell.mod"

@@ -168,6 +168,48 @@ def test_chunked_column_path_reaches_the_targets_on_the_virtual_robot():
     assert max(errors) < TOLERANCE_M, np.array(errors) / MM
 
 
+def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatch):
+    """With jobs=2 the second half of the chunks is solved in a forked process: the text,
+    CSV, counts and warnings are one process's exactly, with targets out of reach, bad
+    and unused rows in both halves (their retries gathered across the processes)."""
+    from olp_compensate.compensation import forked, module_columns
+
+    world = _world("abb_irb2400")
+    program_tool, wobj, tool_rot, _ = _frames(world, 3)
+    numbers = written_targets(world, world.program_joints(30, seed=5), program_tool, wobj)
+    numbers[3] = (numbers[3][0] + 5000.0, *numbers[3][1:])       # out of reach, first half
+    numbers[26] = (numbers[26][0] + 5000.0, *numbers[26][1:])     # and second half
+    numbers[24] = (numbers[24][0], np.zeros(4), numbers[24][2])   # zero quaternion
+    text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
+                        wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
+    text = text.replace("    MoveL p29,", "    ! MoveL p29,")                   # unused
+    assert _taken(text)
+    comp = Compensator(world.calibration)
+    monkeypatch.setattr(module_columns, "PARALLEL_MIN", 0)
+    forks = []
+    monkeypatch.setattr(forked.ForkedItems, "__init__", _counted(forked.ForkedItems.__init__,
+                                                                forks))
+    one, one_report = module_columns.compensate_rapid_task([text], ["loop.mod"], comp,
+                                                           chunk=4, jobs=1)
+    assert not forks
+    two, two_report = module_columns.compensate_rapid_task([text], ["loop.mod"], comp,
+                                                           chunk=4, jobs=2)
+    assert len(forks) == forked.can_fork()
+    assert two[0].encode("latin-1") == one[0].encode("latin-1")
+    assert "".join(two_report.csv_chunks()) == "".join(one_report.csv_chunks())
+    assert two_report.counts() == one_report.counts()
+    assert {"unreachable", "bad_target", "unused", "ok"} <= set(one_report.counts())
+    assert two_report.warnings == one_report.warnings
+    assert two_report.edits == one_report.edits
+
+
+def _counted(function, calls: list):
+    def counted(*args, **kwargs):
+        calls.append(args)
+        return function(*args, **kwargs)
+    return counted
+
+
 def test_report_rows_read_like_a_tuple(comp):
     report = _both(SPECIAL, "special.mod", comp, "skip")
     rows = list(report.rows)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import gc
+import os
 import re
 import sys
 import time
@@ -74,7 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "calibration has regions (olp-cal identify --per-region)")
     p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
                    help="programs compensated in N processes (default: the number of cores; "
-                        "one program runs in this process)")
+                        "one program runs in this process, the targets of a big RAPID "
+                        "module in two when N > 1)")
     p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
                    help="targets never moved to in this file: leave them ('skip', default) "
                         "or compensate them with tool0/wobj0 ('tool0')")
@@ -197,7 +199,7 @@ def _run_one(args, unit, retain: list | None) -> int:
         result = compensate_files(
             ProgramFiles(dialect=unit.dialect, paths=unit.paths, names=unit.names),
             make_compensator(calibration, args.region), emit=args.emit, unused=args.unused, taught_on=taught_on,
-            frames_path=args.config)
+            frames_path=args.config, jobs=args.jobs or os.cpu_count() or 1)
     except OlpError as exc:
         if getattr(exc, "context", None):
             print(exc.context, file=sys.stderr)

@@ -90,7 +90,7 @@ def _read(path: Path) -> str:
 def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator, *,
                      emit: str = "pose", unused: str = "skip",
                      taught_on: Calibration | Compensator | None = None,
-                     frames_path: str | Path | None = None) -> FilesResult:
+                     frames_path: str | Path | None = None, jobs: int = 1) -> FilesResult:
     """Compensate the files of ``files`` (see the module docstring).
 
     emit, unused : as :func:`.program.compensate_program` (RAPID and V+ only).
@@ -98,6 +98,8 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
         is where that robot's real tool went (robot-to-robot transfer).
     frames_path : KRL ``$config.dat`` with ``TOOL_DATA`` and ``BASE_DATA``; FANUC
         ``SYSFRAME.VA`` (or ``SYSTEM.VA``) with ``$MNUFRAME`` and ``$MNUTOOL``.
+    jobs : processes a big RAPID module's targets may be shared among (at most two, see
+        :func:`~.module_columns.compensate_rapid_task`); the result is the same.
     """
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     texts = [_read(p) for p in files.paths]
@@ -108,7 +110,7 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
 
         check_options(emit, unused)
         new, report = compensate_rapid_task(texts, list(files.names), comp, unused=unused,
-                                            teacher=_teacher(taught_on, comp))
+                                            teacher=_teacher(taught_on, comp), jobs=jobs)
         return FilesResult(new=tuple(new), report=report)
     if files.dialect in TEXT_DIALECTS:
         from ..programs import loads

@@ -1,0 +1,95 @@
+"""Items made in a forked child process while this process goes on with other work.
+
+A big module's chunks are compensated on two cores this way: the child inherits the
+parsed module, the plan and the compensator by ``fork`` (nothing is sent to it), makes
+its share chunk by chunk and writes each chunk's results, pickled, to an unlinked
+temporary file as soon as they are made; the parent reads them back one at a time when
+its own share is done. Neither process ever holds the child's results twice (a pipe
+would block the child until the parent reads, and one message of everything would be
+held pickled and unpickled at once). Linux and macOS only (``fork``): see
+:func:`can_fork`.
+
+The child ignores SIGINT (Ctrl-C in a terminal reaches the whole process group: the parent
+handles it and ends the child) and dies on SIGTERM without a traceback. An exception in the
+child is raised again in the parent by :meth:`ForkedItems.items`.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import pickle
+import signal
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
+
+__all__ = ["ForkedItems", "can_fork"]
+
+_DONE = "done"
+_ITEM = "item"
+_ERROR = "error"
+
+
+def can_fork() -> bool:
+    """Whether this process can fork a child that inherits its memory: the platform forks
+    and this is not a daemonic process (a multiprocessing.Pool worker may not have
+    children)."""
+    return ("fork" in multiprocessing.get_all_start_methods()
+            and not multiprocessing.current_process().daemon)
+
+
+class ForkedItems:
+    """The items of ``function(*args)`` (an iterable) made in a forked child;
+    :meth:`items` waits for the child and gives them in order. As a context manager, the
+    child is ended on leaving the block if it still runs (an error or interruption in
+    the parent)."""
+
+    def __init__(self, function: Callable[..., Iterable], *args):
+        self._file = tempfile.TemporaryFile()
+        context = multiprocessing.get_context("fork")
+        self._process = context.Process(target=_child, args=(self._file, function, args),
+                                        daemon=True)
+        self._process.start()
+
+    def items(self) -> Iterator:
+        """The function's items in order, read one at a time once the child has ended
+        (raises what the function raised, or RuntimeError when the child died before it
+        was done)."""
+        self._process.join()
+        self._file.seek(0)
+        while True:
+            try:
+                kind, value = pickle.load(self._file)
+            except EOFError:
+                raise RuntimeError(f"a worker process ended before its work was done "
+                                   f"(exit code {self._process.exitcode})") from None
+            if kind == _DONE:
+                return
+            if kind == _ERROR:
+                raise value
+            yield value
+
+    def __enter__(self) -> ForkedItems:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._process.is_alive():
+            self._process.kill()
+        self._process.join()
+        self._file.close()
+
+
+def _child(file, function, args) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        for item in function(*args):
+            file.write(pickle.dumps((_ITEM, item), pickle.HIGHEST_PROTOCOL))
+        file.write(pickle.dumps((_DONE, None)))
+    except BaseException as exc:   # noqa: BLE001 - every failure goes back to the parent
+        try:
+            answer = pickle.dumps((_ERROR, exc), pickle.HIGHEST_PROTOCOL)
+        except Exception as failure:   # an exception that cannot be pickled
+            answer = pickle.dumps((_ERROR, RuntimeError(f"a worker process failed: {exc!r} "
+                                                        f"({failure})")))
+        file.write(answer)
+    file.flush()
