@@ -7,10 +7,14 @@ from __future__ import annotations
 import random
 import re
 
+import pytest
+
 from olp_compensate.errors import ParseError
 from olp_compensate.programs import loads, rapid_fast
 from olp_compensate.programs.grammar import LineIndex
 from olp_compensate.programs.literals import NUMBER_RE
+from olp_compensate.programs.rapid import parse_rapid_columns
+from olp_compensate.programs.rapid_columns import with_objects
 
 LITERAL = "[[1.5,-2,3E2],[1,0,0,0],[0,-1,2,1],[9E9,9E9,9E9,9E9,9E9,9E9]]"
 SPACED = "[ [1.5, -2,3E2],[1,0,0,0] ,[0,-1,2,1],\r\n  [9E9,9E9,9E9,9E9,9E9,9E9] ]"
@@ -92,14 +96,27 @@ def test_fast_targets_and_motions_are_where_the_text_says():
             assert u.source == ("m.mod", *_reference(text, u.target_span[0])), u
 
 
+def _general_only(rows: bool):
+    """robtarget_regexes with the general regex in place of the tight one."""
+    general = _GENERAL(rows)[1]
+    return general, general
+
+
+_GENERAL = rapid_fast.robtarget_regexes
+TIGHT, FAST = _GENERAL(rows=False)
+
+
 def test_the_tight_robtarget_regex_changes_nothing(monkeypatch):
-    assert rapid_fast._TIGHT_ROBTARGET.pattern != rapid_fast._FAST_ROBTARGET.pattern
-    assert rapid_fast._TIGHT_ROBTARGET.groups == rapid_fast._FAST_ROBTARGET.groups
+    assert TIGHT.pattern != FAST.pattern
+    assert TIGHT.groups == FAST.groups
     texts = [_module(seed) for seed in range(8, 14)]
     tight = [loads(text, "rapid", "m.mod") for text in texts]
-    monkeypatch.setattr(rapid_fast, "_TIGHT_ROBTARGET", rapid_fast._FAST_ROBTARGET)
+    columns = [with_objects(*parse_rapid_columns(text, "m.mod")) for text in texts]
+    monkeypatch.setattr(rapid_fast, "robtarget_regexes", _general_only)
     general = [loads(text, "rapid", "m.mod") for text in texts]
     assert tight == general
+    assert columns == general
+    assert [with_objects(*parse_rapid_columns(text, "m.mod")) for text in texts] == general
 
 
 # ---- the ASCII tight regex and unusual numbers ------------------------------------------
@@ -138,7 +155,7 @@ def test_unusual_numbers_in_a_run_are_read_as_the_strict_pattern_says(monkeypatc
     cases = [(token, slot) for token in VALID_UNUSUAL + MALFORMED + NOT_ONE_ITEM + NON_ASCII
              for slot in SLOTS]
     with monkeypatch.context() as patch:
-        patch.setattr(rapid_fast, "_TIGHT_ROBTARGET", rapid_fast._FAST_ROBTARGET)
+        patch.setattr(rapid_fast, "robtarget_regexes", _general_only)
         general = {case: _outcome(_with_number(*case)) for case in cases}
     for token, slot in cases:
         text = _with_number(token, slot)
@@ -188,8 +205,8 @@ def test_the_ascii_tight_regex_matches_as_the_general_one():
     tight_hits = 0
     for seed in range(5):
         for text in _declarations(seed):
-            tight = rapid_fast._TIGHT_ROBTARGET.match(text)
-            general = rapid_fast._FAST_ROBTARGET.match(text)
+            tight = TIGHT.match(text)
+            general = FAST.match(text)
             if tight is not None:
                 tight_hits += 1
                 assert general is not None and tight.regs == general.regs, text
@@ -197,3 +214,21 @@ def test_the_ascii_tight_regex_matches_as_the_general_one():
                 literal = general.group(4)
                 assert not text.isascii() or any(c in literal for c in " \t\n"), text
     assert tight_hits > 100
+
+
+@pytest.mark.parametrize("which", [0, 1], ids=["tight", "general"])
+def test_the_column_parse_regexes_match_what_the_full_ones_match(which):
+    """The column parse's regexes capture only the x and q4 numbers: they match exactly
+    the texts the full ones match, with the same name, literal and number spans."""
+    row, full = _GENERAL(rows=True)[which], _GENERAL(rows=False)[which]
+    assert (row.groups, full.groups) == (6, 21)
+    hits = 0
+    for seed in range(5):
+        for text in _declarations(seed):
+            got, expected = row.match(text), full.match(text)
+            assert (got is None) == (expected is None), text
+            if got is not None:
+                hits += 1
+                assert got.regs[:5] == expected.regs[:5], text
+                assert (got.regs[5], got.regs[6]) == (expected.regs[5], expected.regs[11])
+    assert hits > 100

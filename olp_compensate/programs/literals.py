@@ -17,7 +17,9 @@ from .targets import Number
 
 NUMBER_PATTERN = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 NUMBER_RE = re.compile(NUMBER_PATTERN)
-_N = r"([-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+)"  # NUMBER_PATTERN, possessive
+NUMBER_GROUP = r"([-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+)"
+"""NUMBER_PATTERN, possessive, as one capturing group (a number of a record literal)."""
+_N = NUMBER_GROUP
 _S = r"[ \t\r\n\f]*+"
 _make_number = Number._make
 _first = operator.itemgetter(0)

@@ -56,8 +56,9 @@ class TargetTable:
         return len(self.names)
 
     def append(self, name: str, storage: str, regs) -> None:
-        """Add a row from the ``regs`` of a declaration match (see rapid_fast.py: group 3
-        the name, 2 the type word, 4 the literal, 5-21 its numbers)."""
+        """Add a row from the ``regs`` of a declaration match (see rapid_fast.py
+        ``_row_pattern``: group 3 the name, 2 the type word, 4 the literal, 5 its first
+        number, 6 its seventh)."""
         self.names.append(name)
         word = self._words.get(storage)
         if word is None:
@@ -65,7 +66,7 @@ class TargetTable:
         self.storage.append(word)
         literal, kind = regs[4], regs[2]
         self.offsets.append(regs[3][0])
-        self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[11][1]))
+        self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
