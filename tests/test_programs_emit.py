@@ -290,3 +290,16 @@ def test_batch_edits_agree_with_target_edits_across_span_forms():
             assert splice(program.text, [next(batch)]) == splice(program.text, single), \
                 t.display_name
     assert next(batch, None) is None
+
+
+def test_edit_columns_one_after_the_other_are_one_run():
+    from array import array
+
+    runs = [EditColumns(array("q", [0, 5]), array("q", [1, 6]), ["a", "b"]),
+            EditColumns(array("q", []), array("q", []), []),
+            EditColumns(array("q", [9]), array("q", [12]), ["c"])]
+    joined = EditColumns.concatenate(runs)
+    assert list(joined) == [(0, 1, "a"), (5, 6, "b"), (9, 12, "c")]
+    assert list(runs[0]) == [(0, 1, "a"), (5, 6, "b")]    # the runs are left as they were
+    assert EditColumns.concatenate(runs[:1]) is runs[0]
+    assert SplicedText("0123456789abcdef", [joined]).spliced() == "a" "1234" "b" "678" "c" "cdef"

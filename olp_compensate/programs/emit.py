@@ -58,6 +58,19 @@ class EditColumns:
     def __iter__(self) -> Iterator[tuple[int, int, str]]:
         return zip(self.starts, self.ends, self.replacements)
 
+    @classmethod
+    def concatenate(cls, runs: Sequence[EditColumns]) -> EditColumns:
+        """The edits of ``runs`` one after the other (each run ending before the next
+        starts); the columns of one run are kept as they are."""
+        if len(runs) == 1:
+            return runs[0]
+        starts, ends, replacements = runs[0].starts[:0], runs[0].ends[:0], []
+        for run in runs:
+            starts += run.starts
+            ends += run.ends
+            replacements += run.replacements
+        return cls(starts, ends, replacements)
+
 
 class SplicedText:
     """``text`` with edits, spliced when read: :meth:`blocks` gives the new text's bytes a
