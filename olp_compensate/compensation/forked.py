@@ -59,7 +59,7 @@ class ForkedItems:
         while True:
             try:
                 kind, value = pickle.load(self._file)
-            except EOFError:
+            except (EOFError, pickle.UnpicklingError):   # ended in the middle of an item
                 raise RuntimeError(f"a worker process ended before its work was done "
                                    f"(exit code {self._process.exitcode})") from None
             if kind == _DONE:
