@@ -169,9 +169,10 @@ def test_chunked_column_path_reaches_the_targets_on_the_virtual_robot():
 
 
 def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatch):
-    """With jobs=2 the second half of the chunks is solved in a forked process: the text,
-    CSV, counts and warnings are one process's exactly, with targets out of reach, bad
-    and unused rows in both halves (their retries gathered across the processes)."""
+    """With jobs=2 the second half of the chunks, then of the retries' batches, is solved
+    in a forked process: the text, CSV, counts and warnings are one process's exactly,
+    with targets out of reach, bad and unused rows in both halves (their retries gathered
+    across the processes)."""
     from olp_compensate.compensation import forked, module_columns
 
     world = _world("abb_irb2400")
@@ -186,6 +187,7 @@ def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatc
     assert _taken(text)
     comp = Compensator(world.calibration)
     monkeypatch.setattr(module_columns, "PARALLEL_MIN", 0)
+    monkeypatch.setattr(module_columns, "RETRY_CHUNK", 1)   # the retries shared too
     forks = []
     monkeypatch.setattr(forked.ForkedItems, "__init__", _counted(forked.ForkedItems.__init__,
                                                                 forks))
@@ -194,7 +196,7 @@ def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatc
     assert not forks
     two, two_report = module_columns.compensate_rapid_task([text], ["loop.mod"], comp,
                                                            chunk=4, jobs=2)
-    assert len(forks) == forked.can_fork()
+    assert len(forks) == 2 * forked.can_fork()      # the chunks, then the retries
     assert two[0].encode("latin-1") == one[0].encode("latin-1")
     assert "".join(two_report.csv_chunks()) == "".join(one_report.csv_chunks())
     assert two_report.counts() == one_report.counts()

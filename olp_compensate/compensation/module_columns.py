@@ -268,41 +268,49 @@ class _TablePart:
     def compensate_all(self, chunk: int, jobs: int = 1) -> None:
         """Every row, ``chunk`` at a time, then :meth:`retry_failed`. With ``jobs`` > 1
         and :data:`PARALLEL_MIN` rows or more, the second half of the chunks is
-        compensated in a forked process at the same time as the first half here; its
-        results are appended in chunk order, so that everything after (retries, rows,
-        edits) is what one process gives."""
+        compensated in a forked process at the same time as the first half here (see
+        :meth:`_shared`), so that everything after (retries, rows, edits) is what one
+        process gives."""
         n = len(self.table)
         bounds = [(a, min(a + chunk, n)) for a in range(0, n, chunk)]
+        self._shared(bounds, self.compensate, jobs if n >= PARALLEL_MIN else 1)
+        # the chunks' edits follow one another in the text: one run (writing a million
+        # targets' module merged 130 runs in 0.68 s, now 8 in 0.54 s)
+        self.edits = [EditColumns.concatenate(self.edits)] if self.edits else []
+        self.retry_failed(jobs=jobs)
+
+    def _shared(self, bounds: list[tuple[int, int]], run, jobs: int) -> None:
+        """``run(a, b)`` for each of ``bounds`` in order. With ``jobs`` > 1 and two bounds
+        or more (where the platform forks), the second half runs in a forked process at
+        the same time as the first half here; its rows, edits and gathered failures are
+        appended after this process's, in order: the lists are those of one process."""
         mine, theirs = bounds, []
-        if jobs > 1 and len(bounds) > 1 and n >= PARALLEL_MIN:
+        if jobs > 1 and len(bounds) > 1:
             from .forked import ForkedItems, can_fork
 
             if can_fork():
                 mine, theirs = bounds[:len(bounds) // 2], bounds[len(bounds) // 2:]
         if not theirs:
             for a, b in mine:
-                self.compensate(a, b)
-        else:
-            with ForkedItems(self._compensated, theirs) as child:
-                for a, b in mine:
-                    self.compensate(a, b)
-                for parts, others, edits, failed in child.items():
-                    self.parts += parts
-                    self.others += others
-                    self.edits += edits
-                    self.failed += failed
-        # the chunks' edits follow one another in the text: one run (writing a million
-        # targets' module merged 130 runs in 0.68 s, now 8 in 0.54 s)
-        self.edits = [EditColumns.concatenate(self.edits)] if self.edits else []
-        self.retry_failed()
+                run(a, b)
+            return
+        with ForkedItems(self._results_of, run, theirs) as child:
+            for a, b in mine:
+                run(a, b)
+            for parts, others, edits, failed in child.items():
+                self.parts += parts
+                self.others += others
+                self.edits += edits
+                self.failed += failed
 
-    def _compensated(self, bounds: list[tuple[int, int]]) -> Iterator[tuple]:
-        """(parts, others, edits, failed) of each chunk ``bounds`` in turn, none kept (in
-        a forked process)."""
+    def _results_of(self, run, bounds: list[tuple[int, int]]) -> Iterator[tuple]:
+        """(parts, others, edits, failed) of ``run(a, b)`` for each of ``bounds`` in turn,
+        without what the lists held before, none kept (in a forked process: the parent
+        has the lists as they were)."""
         for a, b in bounds:
-            self.compensate(a, b)
-            yield self.parts, self.others, self.edits, self.failed
             self.parts, self.others, self.edits, self.failed = [], [], [], []
+            run(a, b)
+            yield self.parts, self.others, self.edits, self.failed
 
     def compensate(self, a: int, b: int) -> None:
         """Rows ``a:b`` of the table: their report rows and edits kept, the targets not
@@ -339,21 +347,28 @@ class _TablePart:
             self.failed.append((j + a, values[j], written[j], flange[j], poses[j], pair[j]))
         self._rows_solved(job + a, solved, values[job], failures=not self.defer)
 
-    def retry_failed(self, chunk: int = RETRY_CHUNK) -> None:
-        """Solve the gathered targets again, all stages, ``chunk`` at a time (the
-        multi-start solves eight starts per target at once)."""
+    def retry_failed(self, chunk: int | None = None, jobs: int = 1) -> None:
+        """Solve the gathered targets again, all stages, ``chunk`` at a time (default
+        :data:`RETRY_CHUNK`; the multi-start solves eight starts per target at once); with
+        ``jobs`` > 1 and two batches or more, the second half of the batches in a forked
+        process (the same batches as one process: the same digits)."""
         if not self.failed:
             return
-        rows, values, written, flange, poses, pair = (np.concatenate(c) for c in
-                                                      zip(*self.failed))
+        chunk = RETRY_CHUNK if chunk is None else chunk
+        self._retried = tuple(np.concatenate(c) for c in zip(*self.failed))
         self.failed = []
-        for a in range(0, len(rows), chunk):
-            b = slice(a, a + chunk)
-            batch = _Chunk(written=written[b], base_T_flange=flange[b],
-                           wobj_T_target=poses[b], entry_pairs=pair[b], pairs=self.plan.pairs)
-            solved = solve_entries(self.comp, batch, list(range(len(rows[b]))), False,
-                                   self.teacher)
-            self._rows_solved(rows[b], solved, values[b], failures=True)
+        n = len(self._retried[0])
+        self._shared([(a, min(a + chunk, n)) for a in range(0, n, chunk)],
+                     self._retry_batch, jobs)
+        del self._retried
+
+    def _retry_batch(self, a: int, b: int) -> None:
+        """Rows ``a:b`` of the gathered targets solved again, their rows and edits kept."""
+        rows, values, written, flange, poses, pair = (c[a:b] for c in self._retried)
+        batch = _Chunk(written=written, base_T_flange=flange, wobj_T_target=poses,
+                       entry_pairs=pair, pairs=self.plan.pairs)
+        solved = solve_entries(self.comp, batch, list(range(b - a)), False, self.teacher)
+        self._rows_solved(rows, solved, values, failures=True)
 
     def _rows_not_solved(self, a: int, bad: np.ndarray, known: np.ndarray) -> list[int]:
         """Rows for the chunk's targets decided without solving; returns the others (the
