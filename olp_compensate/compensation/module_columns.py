@@ -16,6 +16,10 @@ motions (no routine parameter, copy, assignment, run-time expression, routine ca
 other module's motion), every table motion naming a table target of its module without an
 index, each target moved to with one tool/work-object pair (tools and work objects may be
 declared in any module). Otherwise the module's targets are compensated as objects.
+
+With ``jobs`` > 1 a big module's chunks (and the retries' batches) are shared with a forked
+process (:mod:`.forked`); the batches are the same, so the result is one process's, byte
+for byte.
 """
 
 from __future__ import annotations
@@ -80,7 +84,8 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
     them), the rest as objects. The new modules are spliced when read (a big one is
     written without its new text ever held whole). ``jobs`` > 1: a module of
     :data:`PARALLEL_MIN` table targets or more has half its chunks compensated in a
-    forked process (where the platform forks), with the same result."""
+    forked process (where the platform forks), and half its retry batches where there
+    are two or more, with the same result."""
     from .task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
 
     parsed = [parse_rapid_columns(text, file) for text, file in zip(texts, files)]
@@ -234,7 +239,9 @@ class _Chunk:
 class _TablePart:
     """The table targets compensated chunk by chunk: their rows as columns (compensated)
     or objects (the others), and their edits (``edits``: :class:`EditColumns` in offset
-    order, one per chunk; about half the memory of Edit records).
+    order, one per chunk, then one run for all chunks and one per retry batch; about
+    half the memory of Edit records). With ``jobs`` > 1, half the chunks and half the
+    retry batches are solved in a forked process (:meth:`_shared`).
 
     With a plain :class:`Compensator` the solver's retries of targets it did not reach at
     once (and the account of how close the arm comes) are left out of the chunks: the
