@@ -196,8 +196,7 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         table = mc._TablePart(program, columns.targets, plan, comp, "skip", None)
         stages["resolve the rest, plan the columns"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        for start in range(0, len(columns.targets), mc.CHUNK):
-            table.compensate(start, min(start + mc.CHUNK, len(columns.targets)))
+        table.compensate_chunks(mc.CHUNK)
         stages["chunks: values, IK, rows, edits"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         table.retry_failed()

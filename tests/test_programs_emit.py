@@ -13,8 +13,8 @@ from olp_compensate.errors import DataError
 from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like,
                                      joint_emit_edits, joint_target_edits, load, loads,
                                      splice, target_edits, tool_edits)
-from olp_compensate.programs.emit import (EditColumns, SplicedText, aligned_quaternion,
-                                          nearest_euler_zyz_deg)
+from olp_compensate.programs.emit import (EditColumns, EditsInTurn, SplicedText,
+                                          aligned_quaternion, nearest_euler_zyz_deg)
 from olp_compensate.programs.semantics import written_values
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -292,14 +292,13 @@ def test_batch_edits_agree_with_target_edits_across_span_forms():
     assert next(batch, None) is None
 
 
-def test_edit_columns_one_after_the_other_are_one_run():
+def test_edit_runs_one_after_the_other_are_read_as_one_run():
     from array import array
 
     runs = [EditColumns(array("q", [0, 5]), array("q", [1, 6]), ["a", "b"]),
             EditColumns(array("q", []), array("q", []), []),
-            EditColumns(array("q", [9]), array("q", [12]), ["c"])]
-    joined = EditColumns.concatenate(runs)
-    assert list(joined) == [(0, 1, "a"), (5, 6, "b"), (9, 12, "c")]
-    assert list(runs[0]) == [(0, 1, "a"), (5, 6, "b")]    # the runs are left as they were
-    assert EditColumns.concatenate(runs[:1]) is runs[0]
+            [Edit(9, 12, "c")]]
+    joined = EditsInTurn(runs)
+    assert list(joined) == list(joined) == [(0, 1, "a"), (5, 6, "b"), (9, 12, "c")]
+    assert len(joined) == 3
     assert SplicedText("0123456789abcdef", [joined]).spliced() == "a" "1234" "b" "678" "c" "cdef"

@@ -10,6 +10,7 @@ the splice and the edits of one target, tool or joint target.
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 from collections.abc import Iterable, Iterator, Sequence
 
@@ -19,7 +20,7 @@ from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_qu
                             nearest_euler_zyz_deg)
 from .targets import QUAT_WXYZ, CartesianTarget, Edit, JointTarget, ToolData
 
-__all__ = ["splice", "splice_in_order", "SplicedText", "EditColumns", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
+__all__ = ["splice", "splice_in_order", "SplicedText", "EditColumns", "EditsInTurn", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
            "joint_emit_edits", "format_like", "format_int_like", "aligned_quaternion",
            "nearest_euler_zyz_deg", "MM_DECIMALS", "QUAT_DECIMALS", "DEG_DECIMALS"]
 
@@ -58,18 +59,22 @@ class EditColumns:
     def __iter__(self) -> Iterator[tuple[int, int, str]]:
         return zip(self.starts, self.ends, self.replacements)
 
-    @classmethod
-    def concatenate(cls, runs: Sequence[EditColumns]) -> EditColumns:
-        """The edits of ``runs`` one after the other (each run ending before the next
-        starts); the columns of one run are kept as they are."""
-        if len(runs) == 1:
-            return runs[0]
-        starts, ends, replacements = runs[0].starts[:0], runs[0].ends[:0], []
-        for run in runs:
-            starts += run.starts
-            ends += run.ends
-            replacements += run.replacements
-        return cls(starts, ends, replacements)
+
+
+class EditsInTurn:
+    """Runs of edits that follow one another in the text (each run ending before the next
+    starts), read as one run without copying them; iterable again."""
+
+    __slots__ = ("runs",)
+
+    def __init__(self, runs: Sequence[Iterable[Edit]]):
+        self.runs = tuple(runs)
+
+    def __len__(self) -> int:
+        return sum(map(len, self.runs))
+
+    def __iter__(self) -> Iterator[Edit]:
+        return itertools.chain.from_iterable(self.runs)
 
 
 class SplicedText:
