@@ -205,6 +205,30 @@ def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatc
     assert two_report.edits == one_report.edits
 
 
+def test_without_a_process_to_fork_everything_runs_in_this_one(monkeypatch):
+    """A fork or temporary file refused (a process limit, a full disk) is no error: the
+    module is compensated in this process, with the same result."""
+    from olp_compensate.compensation import forked, module_columns
+
+    world = _world("abb_irb2400")
+    program_tool, wobj, tool_rot, _ = _frames(world, 3)
+    numbers = written_targets(world, world.program_joints(12, seed=6), program_tool, wobj)
+    text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
+                        wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
+    comp = Compensator(world.calibration)
+    monkeypatch.setattr(module_columns, "PARALLEL_MIN", 0)
+    (one,), one_report = module_columns.compensate_rapid_task([text], ["m.mod"], comp, chunk=4)
+
+    def refused(self, *args):
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(forked.ForkedItems, "__init__", refused)
+    (two,), two_report = module_columns.compensate_rapid_task([text], ["m.mod"], comp,
+                                                              chunk=4, jobs=2)
+    assert two.spliced() == one.spliced() != text
+    assert "".join(two_report.csv_chunks()) == "".join(one_report.csv_chunks())
+
+
 def _counted(function, calls: list):
     def counted(*args, **kwargs):
         calls.append(args)

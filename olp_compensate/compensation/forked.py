@@ -48,7 +48,11 @@ class ForkedItems:
         context = multiprocessing.get_context("fork")
         self._process = context.Process(target=_child, args=(self._file, function, args),
                                         daemon=True)
-        self._process.start()
+        try:
+            self._process.start()
+        except BaseException:   # no process to be had (OSError: a limit, memory)
+            self._file.close()
+            raise
 
     def items(self) -> Iterator:
         """The function's items in order, read one at a time once the child has ended

@@ -294,18 +294,22 @@ class _TablePart:
         """``run(a, b)`` for each of ``bounds`` in order. With ``jobs`` > 1 and two bounds
         or more (where the platform forks), the second half runs in a forked process at
         the same time as the first half here; its rows, edits and gathered failures are
-        appended after this process's, in order: the lists are those of one process."""
-        mine, theirs = bounds, []
+        appended after this process's, in order: the lists are those of one process.
+        Where no process or temporary file can be had, everything runs here."""
+        child = None
         if jobs > 1 and len(bounds) > 1:
             from .forked import ForkedItems, can_fork
 
-            if can_fork():
-                mine, theirs = bounds[:len(bounds) // 2], bounds[len(bounds) // 2:]
-        if not theirs:
-            for a, b in mine:
+            mine, theirs = bounds[:len(bounds) // 2], bounds[len(bounds) // 2:]
+            try:
+                child = ForkedItems(self._results_of, run, theirs) if can_fork() else None
+            except OSError:   # no process (a limit) or no temporary file (a full disk)
+                child = None
+        if child is None:
+            for a, b in bounds:
                 run(a, b)
             return
-        with ForkedItems(self._results_of, run, theirs) as child:
+        with child:
             for a, b in mine:
                 run(a, b)
             for parts, others, edits, failed in child.items():
