@@ -6,8 +6,7 @@ its share chunk by chunk and writes each chunk's results, pickled, to an unlinke
 temporary file as soon as they are made; the parent reads them back one at a time when
 its own share is done. Neither process ever holds the child's results twice (a pipe
 would block the child until the parent reads, and one message of everything would be
-held pickled and unpickled at once). Linux and macOS only (``fork``): see
-:func:`can_fork`.
+held pickled and unpickled at once). Linux only: see :func:`can_fork`.
 
 The child ignores SIGINT (Ctrl-C in a terminal reaches the whole process group: the parent
 handles it and ends the child) and dies on SIGTERM without a traceback. An exception in the
@@ -19,6 +18,7 @@ from __future__ import annotations
 import multiprocessing
 import pickle
 import signal
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 
@@ -30,10 +30,12 @@ _ERROR = "error"
 
 
 def can_fork() -> bool:
-    """Whether this process can fork a child that inherits its memory: the platform forks
-    and this is not a daemonic process (a multiprocessing.Pool worker may not have
-    children)."""
-    return ("fork" in multiprocessing.get_all_start_methods()
+    """Whether this process can fork a child that inherits its memory: Linux (macOS
+    forks too, but its system libraries, Accelerate's BLAS among them, are not safe in a
+    child forked without exec) and not a daemonic process (a multiprocessing.Pool worker
+    may not have children)."""
+    return (sys.platform.startswith("linux")
+            and "fork" in multiprocessing.get_all_start_methods()
             and not multiprocessing.current_process().daemon)
 
 
