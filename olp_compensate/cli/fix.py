@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
                    help="programs compensated in N processes (default: the number of cores; "
                         "one program runs in this process, the targets of a big RAPID "
-                        "module in two when N > 1)")
+                        "module in two when N > 1, on Linux)")
     p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
                    help="targets never moved to in this file: leave them ('skip', default) "
                         "or compensate them with tool0/wobj0 ('tool0')")
