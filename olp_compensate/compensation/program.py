@@ -363,7 +363,7 @@ def _regions(comp: Compensator, res, job: list[int], requested: np.ndarray):
     pair_index = res.entry_pairs[job]
     tcp = requested.copy()
     tool_keys = np.full(len(job), None, dtype=object)
-    for p in np.unique(pair_index).tolist():
+    for p in sorted(set(pair_index.tolist())):   # (np.unique imports numpy.ma: 7 ms)
         pair = res.pairs[p]
         members = np.flatnonzero(pair_index == p)
         if not pair.stationary_tool:
@@ -387,7 +387,7 @@ def _aim(comp: Compensator, res, job: list[int], requested: np.ndarray,
     desired = requested.copy()
     tool_note = [""] * n
     tool_change = None if teacher is None else np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for p in np.unique(pair_index).tolist():
+    for p in sorted(set(pair_index.tolist())):   # (np.unique imports numpy.ma: 7 ms)
         pair = res.pairs[p]
         members = np.flatnonzero(pair_index == p)
         if pair.stationary_tool:
