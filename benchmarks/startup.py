@@ -4,12 +4,17 @@ Prints, for ``olp-cal --help``, ``olp-fix --version`` and olp-fix on a one-targe
 module, the minimum and median wall time of new processes (``--runs``, default 7) and the
 ratio to importing numpy. DESIGN.md asks for each command within 2x of importing numpy.
 
+Every command runs once untimed first, which writes the package's bytecode (to a temporary
+folder, even where PYTHONDONTWRITEBYTECODE is set), as pip does on install: without it each
+run would compile the package from source (about 0.1 s more).
+
     python benchmarks/startup.py [--runs 7]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -26,13 +31,13 @@ ENDMODULE
 """
 
 
-def timed(argv: list[str], runs: int, cwd: str) -> tuple[float, float]:
+def timed(argv: list[str], runs: int, cwd: str, env: dict) -> tuple[float, float]:
     """(min, median) wall time of ``runs`` new processes, s; one untimed run first."""
-    subprocess.run(argv, cwd=cwd, capture_output=True)
+    subprocess.run(argv, cwd=cwd, capture_output=True, env=env)
     times = []
     for _ in range(runs):
         start = time.perf_counter()
-        subprocess.run(argv, cwd=cwd, capture_output=True)
+        subprocess.run(argv, cwd=cwd, capture_output=True, env=env)
         times.append(time.perf_counter() - start)
     return min(times), statistics.median(times)
 
@@ -53,7 +58,9 @@ def main() -> None:
             ("olp-fix one.mod (1 target)", [str(bin_dir / "olp-fix"), "one.mod", "--model",
                                             "c.json", "-q"]),
         ]
-        results = [(name, *timed(argv, max(args.runs, 5), folder)) for name, argv in cases]
+        env = dict(os.environ, PYTHONPYCACHEPREFIX=str(Path(folder, "bytecode")))
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        results = [(name, *timed(argv, max(args.runs, 5), folder, env)) for name, argv in cases]
     base_min, base_median = results[0][1], results[0][2]
     print(f"{'command':<30}{'min s':>8}{'median s':>10}{'x numpy (median)':>18}")
     for name, low, median in results:
