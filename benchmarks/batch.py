@@ -60,6 +60,7 @@ from olp_compensate.kinematics.robot import load_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from compensate import generate_module  # noqa: E402  (the RAPID module of compensate.py)
+from installed import installed_env  # noqa: E402
 
 KRL_TOOL_MM = (12.0, -5.0, 180.0, 0.0, 0.0, 0.0)
 CONFIG_DAT = (f"DEFDAT  $CONFIG\r\n;FOLD TOOL DATA\r\nDECL FRAME TOOL_DATA[16]\r\n"
@@ -187,12 +188,16 @@ def same_bytes(a: Path, b: Path) -> list[str]:
     return bad
 
 
+_ENV: dict[str, str] | None = None
+"""The commands' environment (installed.py), set by main() once its folder exists."""
+
+
 def _run(argv: list[str], cpu: list[float] | None = None) -> float:
     """Wall time of a new process, s; its CPU time (user + system, its workers included)
     appended to ``cpu``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run(argv, capture_output=True, text=True)
+    done = subprocess.run(argv, capture_output=True, text=True, env=_ENV)
     seconds = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode not in (0, 2):
@@ -298,7 +303,7 @@ def startup(folder: Path, runs: int) -> dict[str, float]:
                                             "--model", str(folder / "nominal.json"), "-q"]}
     out = {}
     for name, argv in cases.items():
-        subprocess.run(argv, capture_output=True)
+        subprocess.run(argv, capture_output=True, env=_ENV)
         out[name] = statistics.median(_run(argv) for _ in range(runs))
     return out
 
@@ -311,7 +316,9 @@ def main() -> int:
     args = parser.parse_args()
     pairs = max(args.pairs, 5)
     failed = False
+    global _ENV
     with tempfile.TemporaryDirectory() as tmp:
+        _ENV = installed_env(tmp)
         start = startup(Path(tmp), pairs)
         print("start-up of a new process (median): "
               + ", ".join(f"{k} {v:.3f} s" for k, v in start.items()))

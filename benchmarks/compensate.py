@@ -51,6 +51,9 @@ from olp_compensate.io.calibration_file import write_calibration
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from installed import installed_env  # noqa: E402
+
 TOOL = "[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],[2.5,[0,0,80],[1,0,0,0],0,0,0]]"
 WOBJ = "[FALSE,TRUE,\"\",[[700,-300,300],[1,0,0,0]],[[0,0,0],[1,0,0,0]]]"
 
@@ -243,8 +246,7 @@ def main() -> int:
         commands = {"olp-fix": command, "olp-fix -j 1": [*command, "-j", "1"],
                     "floor": [sys.executable, "-c", FLOOR, str(module),
                               str(folder / "floor.mod")]}
-        env = dict(os.environ, PYTHONPYCACHEPREFIX=str(folder / "bytecode"))
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env = installed_env(folder)
         times: dict[str, list[float]] = {name: [] for name in commands}
         for run in range(1 + args.repeat):   # the first run is the untimed warm-up
             names = list(commands) if run % 2 else list(commands)[::-1]   # interleaved

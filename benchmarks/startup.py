@@ -4,9 +4,8 @@ Prints, for ``olp-cal --help``, ``olp-fix --version`` and olp-fix on a one-targe
 module, the minimum and median wall time of new processes (``--runs``, default 7) and the
 ratio to importing numpy. DESIGN.md asks for each command within 2x of importing numpy.
 
-Every command runs once untimed first, which writes the package's bytecode (to a temporary
-folder, even where PYTHONDONTWRITEBYTECODE is set), as pip does on install: without it each
-run would compile the package from source (about 0.1 s more).
+Every command runs once untimed first, which writes the package's bytecode as pip does on
+install (see installed.py).
 
     python benchmarks/startup.py [--runs 7]
 """
@@ -14,13 +13,15 @@ run would compile the package from source (about 0.1 s more).
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from installed import installed_env  # noqa: E402
 
 ONE_TARGET = """MODULE one
   CONST robtarget p1 := [[940,0,1455],[0.70711,0,0.70711,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
@@ -58,8 +59,7 @@ def main() -> None:
             ("olp-fix one.mod (1 target)", [str(bin_dir / "olp-fix"), "one.mod", "--model",
                                             "c.json", "-q"]),
         ]
-        env = dict(os.environ, PYTHONPYCACHEPREFIX=str(Path(folder, "bytecode")))
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env = installed_env(folder)
         results = [(name, *timed(argv, max(args.runs, 5), folder, env)) for name, argv in cases]
     base_min, base_median = results[0][1], results[0][2]
     print(f"{'command':<30}{'min s':>8}{'median s':>10}{'x numpy (median)':>18}")
