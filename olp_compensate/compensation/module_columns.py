@@ -24,9 +24,10 @@ for byte.
 
 from __future__ import annotations
 
+import functools
 import operator
 from array import array
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -290,7 +291,8 @@ class _TablePart:
         # the module is written (a million targets: 130 runs merged in 0.68 s, 8 in 0.54)
         self.edits = [EditsInTurn(self.edits)] if self.edits else []
 
-    def _shared(self, bounds: list[tuple[int, int]], run, jobs: int) -> None:
+    def _shared(self, bounds: list[tuple[int, int]], run: Callable[[int, int], None],
+                jobs: int) -> None:
         """``run(a, b)`` for each of ``bounds`` in order. With ``jobs`` > 1 and two bounds
         or more (where the platform forks), the second half runs in a forked process at
         the same time as the first half here; its rows, edits and gathered failures are
@@ -318,7 +320,8 @@ class _TablePart:
                 self.edits += edits
                 self.failed += failed
 
-    def _results_of(self, run, bounds: list[tuple[int, int]]) -> Iterator[tuple]:
+    def _results_of(self, run: Callable[[int, int], None],
+                    bounds: list[tuple[int, int]]) -> Iterator[tuple]:
         """(parts, others, edits, failed) of ``run(a, b)`` for each of ``bounds`` in turn,
         without what the lists held before, none kept (in a forked process: the parent
         has the lists as they were)."""
@@ -370,16 +373,16 @@ class _TablePart:
         if not self.failed:
             return
         chunk = RETRY_CHUNK if chunk is None else chunk
-        self._retried = tuple(np.concatenate(c) for c in zip(*self.failed))
+        gathered = tuple(np.concatenate(c) for c in zip(*self.failed))
         self.failed = []
-        n = len(self._retried[0])
+        n = len(gathered[0])
         self._shared([(a, min(a + chunk, n)) for a in range(0, n, chunk)],
-                     self._retry_batch, jobs)
-        del self._retried
+                     functools.partial(self._retry_batch, gathered), jobs)
 
-    def _retry_batch(self, a: int, b: int) -> None:
-        """Rows ``a:b`` of the gathered targets solved again, their rows and edits kept."""
-        rows, values, written, flange, poses, pair = (c[a:b] for c in self._retried)
+    def _retry_batch(self, gathered: tuple, a: int, b: int) -> None:
+        """Rows ``a:b`` of the ``gathered`` targets (rows, values, written, flange, poses,
+        pair) solved again, their rows and edits kept."""
+        rows, values, written, flange, poses, pair = (c[a:b] for c in gathered)
         batch = _Chunk(written=written, base_T_flange=flange, wobj_T_target=poses,
                        entry_pairs=pair, pairs=self.plan.pairs)
         solved = solve_entries(self.comp, batch, list(range(b - a)), False, self.teacher)
