@@ -68,3 +68,40 @@ def test_leaving_the_block_early_ends_the_child():
             raise KeyboardInterrupt   # the parent interrupted while the child works
     assert not child._process.is_alive()
     assert time.perf_counter() - started < 30
+
+
+def test_a_child_does_not_outlive_a_parent_killed_by_sigkill(tmp_path):
+    """The parent killed with SIGKILL (no Python cleanup) takes its forked child along."""
+    import signal
+    import subprocess
+    import sys
+
+    script = tmp_path / "parent.py"
+    script.write_text(
+        "import os, signal, sys, time\n"
+        "from olp_compensate.compensation.forked import ForkedItems\n"
+        "def work():\n"
+        "    time.sleep(60)\n"
+        "    yield 1\n"
+        "child = ForkedItems(work)\n"
+        "print(child._process.pid, flush=True)\n"
+        "time.sleep(0.5)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=30)
+    assert done.returncode == -signal.SIGKILL
+    pid = int(done.stdout.split()[0])
+    for _ in range(100):     # the kernel delivers the child's SIGKILL at once; allow 5 s
+        if not _running(pid):
+            break
+        time.sleep(0.05)
+    assert not _running(pid)
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

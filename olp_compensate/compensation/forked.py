@@ -9,7 +9,8 @@ would block the child until the parent reads, and one message of everything woul
 held pickled and unpickled at once). Linux only: see :func:`can_fork`.
 
 The child ignores SIGINT (Ctrl-C in a terminal reaches the whole process group: the parent
-handles it and ends the child) and dies on SIGTERM without a traceback. An exception in the
+handles it and ends the child), dies on SIGTERM without a traceback, and is killed by the
+kernel if the parent dies first, even by SIGKILL. An exception in the
 child is raised again in the parent by :meth:`ForkedItems.items`.
 """
 
@@ -87,6 +88,7 @@ class ForkedItems:
 def _child(file, function, args) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _end_with_parent()
     try:
         for item in function(*args):
             file.write(pickle.dumps((_ITEM, item), pickle.HIGHEST_PROTOCOL))
@@ -99,3 +101,19 @@ def _child(file, function, args) -> None:
                                                         f"({failure})")))
         file.write(answer)
     file.flush()
+
+
+def _end_with_parent() -> None:
+    """Have the kernel kill this (child) process when its parent dies, even by SIGKILL
+    (Linux ``prctl(PR_SET_PDEATHSIG)``): a killed olp-fix leaves nothing running."""
+    import ctypes
+    import os
+
+    PR_SET_PDEATHSIG = 1
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):   # no prctl: the child ends when its work does
+        return
+    if os.getppid() == 1:               # the parent died before prctl took effect
+        os._exit(1)
