@@ -60,7 +60,6 @@ class EditColumns:
         return zip(self.starts, self.ends, self.replacements)
 
 
-
 class EditsInTurn:
     """Runs of edits that follow one another in the text (each run ending before the next
     starts), read as one run without copying them; iterable again."""
