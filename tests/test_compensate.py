@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.compensation.pose import Compensator, compensate_pose, compensate_poses
+from olp_compensate.compensation.pose import (Compensator, compensate_pose, compensate_poses,
+                                             explain_failures)
 from olp_compensate.kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
                                         pose_from_rotation_translation, quat_wxyz_from_matrix,
                                         rotation_angle_between, rotation_from_rotvec)
@@ -521,6 +522,58 @@ def test_stretched_targets_inside_and_beyond_the_real_arm(irb2400_world):
         assert np.linalg.norm(reached[:3, 3] - intended[:3, 3]) < TOLERANCE_M
     beyond = comp.solve_real(base_T_tcp[n:] @ invert_pose(real_cal), conf[n:])
     assert set(beyond.reason) == {"unreachable"} and beyond.iterations.max() <= 8
+
+
+def test_out_of_reach_as_asked_says_how_far_there_and_where_it_is_reached(irb2400_world):
+    """Poses the calibrated arm reaches in front with its elbow 30 mrad from stretched,
+    asked for on the configurations reaching over behind axis 1 (cfx 4 to 7: the shoulder
+    offset puts them 10 mm and more out of reach): the note gives how close the arm comes
+    on the configuration asked for, not the closest approach on any configuration (0 mm,
+    in front), and, where that approach converged, names a configuration on which the
+    pose is reached inside every range; a solve on that configuration reaches it."""
+    comp = Compensator(irb2400_world.calibration)
+    theta = np.zeros((1, 6))
+    theta[0, 2] = -np.arctan2(comp.family.a2, comp.family.c3)   # the nominal elbow straight
+    straight = comp.family.joint_angles(theta)[0, 2]
+    rng = np.random.default_rng(5)
+    n = 12
+    q = np.column_stack([rng.uniform(-1, 1, 3 * n), rng.uniform(-0.3, 0.6, 3 * n),
+                         np.full(3 * n, straight + 0.03), rng.uniform(-2, 2, 3 * n),
+                         rng.choice([-1.0, 1.0], 3 * n) * rng.uniform(0.4, 1.4, 3 * n),
+                         rng.uniform(-2, 2, 3 * n)])
+    q = q[comp.confdata(q)[:, 3] < 4][:n]                          # in front
+    assert len(q) == n
+    flange, _ = comp.real_flange_and_jacobian(q)
+    nominal = closed_form_inverse(comp.family, flange, clip=True)   # (n, 8, 6)
+    poses, asked = [], []
+    for i in range(n):
+        starts = nominal[i][np.all(np.isfinite(nominal[i]), axis=1)]
+        behind = comp.confdata(starts)
+        behind = behind[behind[:, 3] >= 4]
+        poses += [flange[i]] * len(behind)
+        asked += list(behind)
+    poses, asked = np.array(poses), np.array(asked)
+    _, _, solution, _ = comp.compensate_flanges(poses, None, asked)
+    failures = explain_failures(comp, solution, poses, asked)
+    rows = np.flatnonzero(solution.reason == "unreachable")
+    assert len(rows) >= n
+    note = re.compile(r"out of reach: the calibrated arm comes no closer than ([0-9.]+) mm and "
+                      r"[0-9.]+ deg on configuration \[([-0-9,]+)\](?:; reached inside the "
+                      r"ranges on configuration \[([-0-9,]+)\])?")
+    hints = 0
+    for row in rows.tolist():
+        found = note.fullmatch(failures[row].note)
+        assert found, failures[row].note
+        distance_mm, on, there = found.groups()
+        assert float(distance_mm) > 10
+        assert [int(c) for c in on.split(",")] == asked[row].tolist()
+        if there is None:     # the closest approach, from stretched starts, did not converge
+            continue
+        hints += 1
+        elsewhere = np.array([[int(c) for c in there.split(",")]])
+        reached = comp.solve_real(poses[row][None], elsewhere)
+        assert reached.success[0] and reached.position_error_m[0] < 1e-9
+    assert hints >= len(rows) // 2
 
 
 def test_real_arm_kinematics_are_the_calibrated_models(irb2400_world):

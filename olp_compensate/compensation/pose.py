@@ -401,8 +401,11 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
       on which the calibrated arm reaches the target inside every range, if one exists
       (the program's configuration is never changed: that is the user's call);
     - 'branch_changed': the configuration asked for and the one the solution has;
-    - 'unreachable' / 'not_converged': the closest approach of the calibrated arm found
-      by damped Newton from the nominal solutions, in mm and degrees.
+    - 'unreachable' / 'not_converged': how close the calibrated arm comes, in mm and
+      degrees: on the configuration asked for, the solver's best; with none asked (or
+      none found on it), the closest approach found by damped Newton from the nominal
+      solutions of every configuration; and, where that approach reaches the target on
+      another configuration, one on which it is reached inside every range.
     """
     robot = comp.robot
     failed = np.flatnonzero(~solution.success)
@@ -417,6 +420,9 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
         q_best[missing] = closest.q[missing]
     alternatives = _in_range_configurations(comp, desired_flange[failed],
                                             solution.reason[failed] == "joint_limit")
+    reached_elsewhere = ({} if closest is None or confdata is None else
+                         _reached_elsewhere(comp, closest, solution.reason[failed],
+                                            confdata[failed]))
     for i, row in enumerate(failed.tolist()):
         reason = str(solution.reason[row])
         q = q_best[i]
@@ -437,13 +443,26 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
             note = (f"asked for configuration {asked}, the calibrated arm reaches the target "
                     f"only on {found}")
         else:
-            dist_mm = float(closest.position_error_m[i] * 1e3) if closest is not None else np.nan
-            dist_deg = float(np.degrees(closest.rotation_error_rad[i])) if closest is not None else np.nan
             what = "out of reach" if reason == "unreachable" else "not solved"
-            note = (f"{what}: the calibrated arm comes no closer than {dist_mm:.2f} mm and "
-                    f"{dist_deg:.3f} deg")
-            if asked is not None:
+            # on the configuration asked for: how close the solver came on it (the closest
+            # approach is over every configuration, and may be on another one)
+            own = (float(solution.position_error_m[row]), float(solution.rotation_error_rad[row]))
+            on_asked = asked is not None and all(np.isfinite(own))
+            if on_asked:
+                dist_m, dist_rad = own
+            elif closest is not None:
+                dist_m, dist_rad = closest.position_error_m[i], closest.rotation_error_rad[i]
+            else:
+                dist_m = dist_rad = np.nan
+            note = (f"{what}: the calibrated arm comes no closer than {dist_m * 1e3:.2f} mm "
+                    f"and {np.degrees(dist_rad):.3f} deg")
+            if on_asked:
                 note += f" on configuration {asked}"
+            elif asked is not None:
+                note += f" on any configuration (none found on {asked})"
+            alt = reached_elsewhere.get(i)
+            if alt is not None:
+                note += f"; reached inside the ranges on configuration {_config_words(alt)}"
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config)
     return out
 
@@ -467,6 +486,24 @@ def _closest_approach(comp: Compensator, desired_flange: np.ndarray) -> IKSoluti
                       reason=result.reason[pick], iterations=result.iterations[pick],
                       position_error_m=result.position_error_m[pick],
                       rotation_error_rad=result.rotation_error_rad[pick])
+
+
+def _reached_elsewhere(comp: Compensator, closest: IKSolution, reasons: np.ndarray,
+                       confdata: np.ndarray) -> dict[int, tuple[int, int, int, int]]:
+    """For the rows out of reach (or not solved) on the configuration asked for,
+    ``confdata (k, 4)``, whose ``closest`` approach reaches the target on another one
+    inside every axis range and joint limit: row -> that configuration."""
+    rows = np.flatnonzero(closest.success & np.isin(reasons, ("unreachable", "not_converged")))
+    if not len(rows):
+        return {}
+    found = comp.check_axis_ranges(IKSolution(
+        q=closest.q[rows].copy(), success=closest.success[rows].copy(),
+        reason=closest.reason[rows].copy(), iterations=closest.iterations[rows],
+        position_error_m=closest.position_error_m[rows],
+        rotation_error_rad=closest.rotation_error_rad[rows]))
+    config = comp.confdata(found.q)
+    other = found.success & np.any(config != confdata[rows], axis=1)
+    return {int(rows[j]): tuple(int(c) for c in config[j]) for j in np.flatnonzero(other)}
 
 
 def _in_range_configurations(comp: Compensator, desired_flange: np.ndarray,
