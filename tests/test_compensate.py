@@ -576,6 +576,25 @@ def test_out_of_reach_as_asked_says_how_far_there_and_where_it_is_reached(irb240
     assert hints >= len(rows) // 2
 
 
+def test_a_target_not_solved_is_not_said_to_be_out_of_reach(irb2400_world):
+    """A solve that ran out of steps 2 um from a pose the arm reaches gives no bound: the
+    note says where the solver stopped, not that the arm comes no closer, and that the
+    search from every configuration's start reaches the pose on the one asked for."""
+    from olp_compensate.compensation.ik import IKSolution
+
+    comp = Compensator(irb2400_world.calibration)
+    q = np.array([[0.3, 0.2, 0.1, 0.5, 0.8, -0.4]])
+    flange, _ = comp.real_flange_and_jacobian(q)
+    stopped = IKSolution(q=q + 1e-6, success=np.array([False]),
+                         reason=np.array(["not_converged"]), iterations=np.array([50]),
+                         position_error_m=np.array([2e-6]), rotation_error_rad=np.array([0.0]))
+    (failure,) = explain_failures(comp, stopped, flange, comp.confdata(q))
+    assert failure.note == (f"not solved: the solver stopped short by 0.00 mm and 0.000 deg "
+                            f"on configuration [{','.join(map(str, comp.confdata(q)[0]))}]; "
+                            f"a search from every configuration's start reaches it on this "
+                            f"one, inside the ranges")
+
+
 def test_real_arm_kinematics_are_the_calibrated_models(irb2400_world):
     """The compensator's own pass over the calibrated chain (poses and joint Jacobian) is
     the model's, to rounding, for the calibrated and the data-sheet parameters."""

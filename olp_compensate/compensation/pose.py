@@ -416,13 +416,13 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
     missing = ~np.all(np.isfinite(q_best), axis=1)
     closest = None
     if np.any(missing) or np.any(np.isin(solution.reason[failed], ("unreachable", "not_converged"))):
-        closest = _closest_approach(comp, desired_flange[failed])
+        closest = _closest_approach(comp, desired_flange[failed],
+                                    None if confdata is None else confdata[failed])
         q_best[missing] = closest.q[missing]
     alternatives = _in_range_configurations(comp, desired_flange[failed],
                                             solution.reason[failed] == "joint_limit")
-    reached_elsewhere = ({} if closest is None or confdata is None else
-                         _reached_elsewhere(comp, closest, solution.reason[failed],
-                                            confdata[failed]))
+    reached_by_search = ({} if closest is None else
+                         _reached_by_search(comp, closest, solution.reason[failed]))
     for i, row in enumerate(failed.tolist()):
         reason = str(solution.reason[row])
         q = q_best[i]
@@ -454,23 +454,30 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
                 dist_m, dist_rad = closest.position_error_m[i], closest.rotation_error_rad[i]
             else:
                 dist_m = dist_rad = np.nan
-            note = (f"{what}: the calibrated arm comes no closer than {dist_m * 1e3:.2f} mm "
-                    f"and {np.degrees(dist_rad):.3f} deg")
+            how_close = ("the calibrated arm comes no closer than" if reason == "unreachable"
+                         else "the solver stopped short by")   # not converged: no bound
+            note = (f"{what}: {how_close} {dist_m * 1e3:.2f} mm and "
+                    f"{np.degrees(dist_rad):.3f} deg")
             if on_asked:
                 note += f" on configuration {asked}"
             elif asked is not None:
                 note += f" on any configuration (none found on {asked})"
-            alt = reached_elsewhere.get(i)
-            if alt is not None:
+            alt = reached_by_search.get(i)
+            if alt is not None and asked is not None and _config_words(alt) == asked:
+                note += ("; a search from every configuration's start reaches it on this "
+                         "one, inside the ranges")
+            elif alt is not None:
                 note += f"; reached inside the ranges on configuration {_config_words(alt)}"
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config)
     return out
 
 
-def _closest_approach(comp: Compensator, desired_flange: np.ndarray) -> IKSolution:
+def _closest_approach(comp: Compensator, desired_flange: np.ndarray,
+                      confdata: np.ndarray | None = None) -> IKSolution:
     """Damped Newton of the calibrated arm towards ``desired_flange (k, 4, 4)`` from the
     nominal closed form of every branch (stretched where out of reach); for each row the
-    start that ends closest (position error in m, then rotation)."""
+    start that ends closest (position error in m, then rotation), or, with ``confdata
+    (k, 4)``, the first that reaches the pose on that configuration where one does."""
     from .ik import refine  # noqa: PLC0415 (used only for failures)
 
     k = len(desired_flange)
@@ -481,18 +488,26 @@ def _closest_approach(comp: Compensator, desired_flange: np.ndarray) -> IKSoluti
     result = refine(comp.real_flange_and_jacobian, starts, targets, None, 1e-9, 1e-9, 60)
     score = (result.position_error_m + 0.1 * result.rotation_error_rad).reshape(k, branches)
     score = np.where(np.isfinite(score), score, np.inf)
-    pick = np.argmin(score, axis=1) + np.arange(k) * branches
+    pick = np.argmin(score, axis=1)
+    if confdata is not None:
+        as_asked = result.success.copy()
+        as_asked[as_asked] = np.all(comp.confdata(result.q[as_asked])
+                                    == np.repeat(confdata, branches, axis=0)[as_asked], axis=1)
+        as_asked = as_asked.reshape(k, branches)
+        found = np.any(as_asked, axis=1)
+        pick[found] = np.argmax(as_asked[found], axis=1)
+    pick += np.arange(k) * branches
     return IKSolution(q=result.q[pick], success=result.success[pick],
                       reason=result.reason[pick], iterations=result.iterations[pick],
                       position_error_m=result.position_error_m[pick],
                       rotation_error_rad=result.rotation_error_rad[pick])
 
 
-def _reached_elsewhere(comp: Compensator, closest: IKSolution, reasons: np.ndarray,
-                       confdata: np.ndarray) -> dict[int, tuple[int, int, int, int]]:
-    """For the rows out of reach (or not solved) on the configuration asked for,
-    ``confdata (k, 4)``, whose ``closest`` approach reaches the target on another one
-    inside every axis range and joint limit: row -> that configuration."""
+def _reached_by_search(comp: Compensator, closest: IKSolution, reasons: np.ndarray
+                       ) -> dict[int, tuple[int, int, int, int]]:
+    """For the rows out of reach (or not solved) whose ``closest`` approach reaches the
+    target inside every axis range and joint limit: row -> the configuration it is
+    reached on."""
     rows = np.flatnonzero(closest.success & np.isin(reasons, ("unreachable", "not_converged")))
     if not len(rows):
         return {}
@@ -502,8 +517,8 @@ def _reached_elsewhere(comp: Compensator, closest: IKSolution, reasons: np.ndarr
         position_error_m=closest.position_error_m[rows],
         rotation_error_rad=closest.rotation_error_rad[rows]))
     config = comp.confdata(found.q)
-    other = found.success & np.any(config != confdata[rows], axis=1)
-    return {int(rows[j]): tuple(int(c) for c in config[j]) for j in np.flatnonzero(other)}
+    return {int(rows[j]): tuple(int(c) for c in config[j])
+            for j in np.flatnonzero(found.success)}
 
 
 def _in_range_configurations(comp: Compensator, desired_flange: np.ndarray,
