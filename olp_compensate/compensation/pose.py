@@ -401,11 +401,12 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
       on which the calibrated arm reaches the target inside every range, if one exists
       (the program's configuration is never changed: that is the user's call);
     - 'branch_changed': the configuration asked for and the one the solution has;
-    - 'unreachable' / 'not_converged': how close the calibrated arm comes, in mm and
-      degrees: on the configuration asked for, the solver's best; with none asked (or
-      none found on it), the closest approach found by damped Newton from the nominal
-      solutions of every configuration; and, where that approach reaches the target on
-      another configuration, one on which it is reached inside every range.
+    - 'unreachable' / 'not_converged': how close the calibrated arm comes (out of
+      reach) or where the solver stopped (not converged), in mm and degrees: on the
+      configuration asked for, the solver's best; with none asked (or none found on it),
+      the closest approach found by damped Newton from the nominal solutions of every
+      configuration; and, where that search reaches the target inside every range, the
+      configuration it reaches it on (the one asked for, where it does).
     """
     robot = comp.robot
     failed = np.flatnonzero(~solution.success)
