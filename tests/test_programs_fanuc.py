@@ -21,7 +21,7 @@ from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
-from virtual_world import identified_world, nominal_arm
+from virtual_world import assert_the_gap_closed, identified_world, misses_mm, nominal_arm
 
 ROBOT = load_robot("fanuc_r2000ic_165f")
 TOOL_MM = (12.0, -5.0, 380.0, 0.0, 0.0, 0.0)
@@ -269,24 +269,18 @@ def test_compensated_fanuc_reaches_its_targets_on_the_virtual_robot(fanuc_world)
     texts, report = compensate_pose_program(program, FANUC_TP, cal)
     assert report.exit_code == 0, [(r.target, r.status, r.note) for r in report.rows]
     again = {t.name: t for t in parse_fanuc_tp(texts["CELL.ls"], "CELL.ls").targets}
-    before_mm, after_mm = [], []
+    meant, before, after = [], [], []
     for k, (values, letters, turns) in enumerate(written, 1):
         values = np.array([float(_f(v)) for v in values])          # as written in the file
-        meant = (cal.device_T_base @ FANUC_TP.convention.pose(values))[:3, 3]
-        before = controller.joints(FANUC_TP.convention.pose(values) @ invert_pose(tool),
-                                   letters, turns)
+        meant.append((cal.device_T_base @ FANUC_TP.convention.pose(values))[:3, 3])
+        before.append(controller.joints(FANUC_TP.convention.pose(values) @ invert_pose(tool),
+                                        letters, turns))
         target = again[f"P[{k}]"]
         new_values = np.array([n.value for n in target.numbers])
         new_config = [n.text for n in target.config]
-        after = controller.joints(FANUC_TP.convention.pose(new_values) @ invert_pose(tool),
-                                  new_config[:3], [int(t) for t in new_config[3:]])
-        reached = virtual.true_frames(np.array([before, after]), ["tcp", "tcp"])[:, :3, 3]
-        before_mm.append(np.linalg.norm(reached[0] - meant) * 1e3)
-        after_mm.append(np.linalg.norm(reached[1] - meant) * 1e3)
-    print(f"FANUC R-2000iC/165F: untouched program misses by {min(before_mm):.2f}.."
-          f"{max(before_mm):.2f} mm, compensated by at most {max(after_mm):.4f} mm")
-    assert max(after_mm) < 0.05, after_mm
-    assert min(before_mm) > 0.5, before_mm
+        after.append(controller.joints(FANUC_TP.convention.pose(new_values) @ invert_pose(tool),
+                                       new_config[:3], [int(t) for t in new_config[3:]]))
+    assert_the_gap_closed("FANUC R-2000iC/165F", *misses_mm(virtual, meant, before, after))
     # only the /POS numbers of P[1..10] changed; the /MN and header are untouched
     old_lines, new_lines = text.split("\r\n"), texts["CELL.ls"].split("\r\n")
     assert len(old_lines) == len(new_lines)
@@ -525,21 +519,19 @@ def _reach_mm(cell, new_text):
     tool = FANUC_TP.convention.pose(np.array(cell["tool_mm"]))
     uf = FANUC_TP.convention.pose(np.array(UF2_MM))
     again = {t.name: t for t in parse_fanuc_tp(new_text, "CELL.ls").targets}
-    before_mm, after_mm = [], []
+    meant, before, after = [], [], []
     for k, (values, letters, turns) in enumerate(cell["written"], 1):
         values = np.array([float(_f(v)) for v in values])          # as written in the file
-        meant = (cell["cal"].device_T_base @ uf @ FANUC_TP.convention.pose(values))[:3, 3]
-        before = controller.joints(uf @ FANUC_TP.convention.pose(values) @ invert_pose(tool),
-                                   letters, turns)
+        meant.append((cell["cal"].device_T_base @ uf @ FANUC_TP.convention.pose(values))[:3, 3])
+        before.append(controller.joints(
+            uf @ FANUC_TP.convention.pose(values) @ invert_pose(tool), letters, turns))
         target = again[f"P[{k}]"]
         new_values = np.array([n.value for n in target.numbers])
         new_config = [n.text for n in target.config]
-        after = controller.joints(uf @ FANUC_TP.convention.pose(new_values) @ invert_pose(tool),
-                                  new_config[:3], [int(t) for t in new_config[3:]])
-        reached = virtual.true_frames(np.array([before, after]), ["tcp", "tcp"])[:, :3, 3]
-        before_mm.append(np.linalg.norm(reached[0] - meant) * 1e3)
-        after_mm.append(np.linalg.norm(reached[1] - meant) * 1e3)
-    return before_mm, after_mm
+        after.append(controller.joints(
+            uf @ FANUC_TP.convention.pose(new_values) @ invert_pose(tool), new_config[:3],
+            [int(t) for t in new_config[3:]]))
+    return misses_mm(virtual, meant, before, after)
 
 
 def _files(tmp_path, cell, va=None):
@@ -563,11 +555,7 @@ def test_frames_from_sysframe_va_compensate_a_program_in_uf2_ut3(uf2_cell, tmp_p
     assert len(rows) == 8 and all(r.wobj == "UF2" and r.tool == "UT3" for r in rows)
     assert all("real TCP of UT3 from the calibration" in r.note for r in rows)
     new_text = result.data[0].decode("latin-1")
-    before_mm, after_mm = _reach_mm(uf2_cell, new_text)
-    print(f"FANUC UF2/UT3 from SYSFRAME.VA: untouched misses by {min(before_mm):.2f}.."
-          f"{max(before_mm):.2f} mm, compensated by at most {max(after_mm):.4f} mm")
-    assert max(after_mm) < 0.05, after_mm
-    assert min(before_mm) > 0.5, before_mm
+    assert_the_gap_closed("FANUC UF2/UT3 from SYSFRAME.VA", *_reach_mm(uf2_cell, new_text))
     assert new_text.split("/POS")[0] == uf2_cell["text"].split("/POS")[0]
 
 
@@ -654,8 +642,8 @@ def test_olp_fix_reads_the_frames_of_a_sysframe_va(uf2_cell, tmp_path, capsys):
     out, report = tmp_path / "out.ls", tmp_path / "report.csv"
     assert main([str(prog), "--config", str(config), "--model", str(model), "-o", str(out),
                  "--report", str(report), "-q"]) == 0
-    before_mm, after_mm = _reach_mm(uf2_cell, out.read_bytes().decode("latin-1"))
-    assert max(after_mm) < 0.05 and min(before_mm) > 0.5
+    assert_the_gap_closed("FANUC, olp-fix --config SYSFRAME.VA",
+                          *_reach_mm(uf2_cell, out.read_bytes().decode("latin-1")))
     with open(report, newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["target"] not in ("P[99]",)]
     assert len(rows) == 8 and {r["wobj"] for r in rows} == {"UF2"}
