@@ -9,6 +9,7 @@ new bytes of each file and one report whose rows name the files as the user know
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,9 +61,9 @@ class FilesResult:
     new: tuple[bytes | SplicedText, ...]
     report: CompensationReport
 
-    @property
+    @functools.cached_property
     def data(self) -> tuple[bytes, ...]:
-        """The new bytes of each file."""
+        """The new bytes of each file (spliced on first access, then kept)."""
         return tuple(n if isinstance(n, bytes) else n.encode(ENCODING) for n in self.new)
 
     def pieces(self, i: int) -> bytes | Iterator[bytes]:
