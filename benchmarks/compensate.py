@@ -20,14 +20,20 @@ module_columns.py), in this process.
 In the same run, interleaved with olp-fix's runs, the floor: a plain Python rewrite of the
 same module in a new process (read the file, replace the position of every robtarget
 literal with that of a fixed 0.1 mm shift by one regular expression, write the file);
-printed with the ratio of olp-fix to it (target: at most 3x). And olp-fix's peak memory
+printed with the ratio of olp-fix to it (target: at most 8x; the 3x of an earlier issue was withdrawn). And olp-fix's peak memory
 above the interpreter's: ``ru_maxrss`` of ``getrusage(RUSAGE_CHILDREN)`` in a new process
 that ran ``olp-fix -j 1``, minus that of one that ran ``python -c "import numpy"``, per
 target (target: at most 1 KB per target); for the default run, whose second process
 ``ru_maxrss`` would not add, the peak of the processes' proportional set sizes summed
 (a page they share counts once), sampled every 10 ms.
 
-Run: ``python benchmarks/compensate.py [--targets N] [--repeat K]``. Exit code 0.
+With ``--realistic``, the CPU time and peak memory per target of ``olp-fix -j 1`` on the plain
+module next to one shaped as real modules are (:func:`generate_realistic_module`: Offs and
+RelTool moves, routine-local targets, several tools and work objects, 5 % of the targets
+outside the axis ranges and 1 % out of reach), and on that module with every target
+reachable next to every target failing, runs interleaved.
+
+Run: ``python benchmarks/compensate.py [--targets N] [--repeat K] [--realistic]``. Exit code 0.
 """
 
 from __future__ import annotations
@@ -99,6 +105,99 @@ def generate_module(n: int, seed: int = 1, joints: np.ndarray | None = None) -> 
         wobj_arg = "\\WObj:=wTable" if in_wobj[k] else ""
         lines.append(f"    MoveL p{k},v500,z10,tGun{wobj_arg};")
     lines += ["  ENDPROC", "ENDMODULE", ""]
+    return "\r\n".join(lines)
+
+
+TOOLS = {"tGun": ([120.5, 0, 210], [0.92388, 0, 0.382683, 0]),
+         "tGrip": ([0, 0, 180], [1, 0, 0, 0]),
+         "tPen": ([35, -20, 95], [0.965926, 0, 0, 0.258819])}
+WOBJS = {"": [0, 0, 0], "wTable": [700, -300, 300], "wFixture": [900, 400, 150]}
+
+
+def _pose(xyz_mm, quat_wxyz) -> np.ndarray:
+    from olp_compensate.kinematics.conventions import matrix_from_quat_wxyz
+
+    pose = np.eye(4)
+    pose[:3, :3] = matrix_from_quat_wxyz(np.asarray(quat_wxyz, dtype=float))
+    pose[:3, 3] = np.asarray(xyz_mm, dtype=float) * MM
+    return pose
+
+
+def _realistic_joints(robot, n: int, rng, failing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Controller joints (n, 6), rad, and a mask of the targets made unreachable: about
+    ``failing`` of them outside an axis range (inside the URDF limits), a fifth as many out
+    of reach (their position moved 2.5x away from the base), the rest in range."""
+    comp = Compensator(nominal_calibration(robot))
+    n_out = int(round(n * failing * 5 / 6))
+    n_far = int(round(n * failing / 6))
+    good = robot.joints_from_controller(random_joints(robot, 3 * n, rng, margin=0.3))
+    good = good[np.abs(np.sin(good[:, 4])) > 0.2]
+    out = random_joints(robot, 20 * max(n_out, 1), rng, margin=0.05, within_ranges=False)
+    out = out[robot.outside_ranges(out).any(axis=1) & (np.abs(np.sin(out[:, 4])) > 0.2)]
+    out = robot.joints_from_controller(out)
+    while len(good) < n:
+        good = np.concatenate([good, good])
+    while len(out) < n_out:
+        out = np.concatenate([out, out])
+    q = np.concatenate([out[:n_out], good[:n - n_out]])
+    far = np.zeros(n, bool)
+    far[n_out:n_out + n_far] = True
+    order = rng.permutation(n)
+    del comp
+    return q[order], far[order]
+
+
+def generate_realistic_module(n: int, seed: int = 1, failing: float = 0.06) -> str:
+    """A RAPID module of n robtargets as real modules are: three tools and two work objects
+    (and the base frame), one target in ten declared inside its routine, routines of 500
+    moves, every fifth target approached by ``Offs(p, 0, 0, 50)`` and every seventh left by
+    ``RelTool(p, 0, 0, -20)`` (both solved at run time: reported ``runtime``), about
+    ``failing`` of the targets outside the axis ranges (5/6) or out of reach (1/6);
+    ``failing=1``: every target fails. IRB 2400; the confdata of the nominal solution."""
+    robot = load_robot("abb_irb2400")
+    comp = Compensator(nominal_calibration(robot))
+    rng = np.random.default_rng(seed)
+    q, far = _realistic_joints(robot, n, rng, failing)
+    tool_names, wobj_names = list(TOOLS), list(WOBJS)
+    tool_of = [tool_names[k % 3] for k in range(n)]
+    wobj_of = [wobj_names[(k // 3) % 3] for k in range(n)]
+    flange = comp.nominal_flange(q)
+    conf = comp.confdata(q)
+    lines = ["MODULE Real"]
+    for name, (xyz, quat) in TOOLS.items():
+        lines.append(f"  PERS tooldata {name}:=[TRUE,[[{xyz[0]},{xyz[1]},{xyz[2]}],"
+                     f"[{','.join(map(str, quat))}]],[2.5,[0,0,80],[1,0,0,0],0,0,0]];")
+    for name, xyz in WOBJS.items():
+        if name:
+            lines.append(f"  PERS wobjdata {name}:=[FALSE,TRUE,\"\",[[{xyz[0]},{xyz[1]},"
+                         f"{xyz[2]}],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];")
+
+    def literal(k: int) -> str:
+        tcp = flange[k] @ _pose(*TOOLS[tool_of[k]])
+        if far[k]:
+            tcp[:3, 3] *= 2.5
+        target = invert_pose(_pose(WOBJS[wobj_of[k]], [1, 0, 0, 0])) @ tcp
+        p, o, c = target[:3, 3] / MM, quat_wxyz_from_matrix(target[:3, :3]), conf[k]
+        return (f"[[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],[{o[0]:.6f},{o[1]:.6f},{o[2]:.6f},"
+                f"{o[3]:.6f}],[{c[0]},{c[1]},{c[2]},{c[3]}],[9E9,9E9,9E9,9E9,9E9,9E9]]")
+
+    local = [k % 10 == 9 for k in range(n)]
+    lines += [f"  CONST robtarget p{k}:={literal(k)};" for k in range(n) if not local[k]]
+    routines = []
+    for start in range(0, n, 500):
+        block = range(start, min(start + 500, n))
+        routines.append(f"r{start // 500}")
+        lines.append(f"  PROC r{start // 500}()")
+        lines += [f"    VAR robtarget p{k}:={literal(k)};" for k in block if local[k]]
+        for k in block:
+            args = f"v500,z10,{tool_of[k]}" + (f"\\WObj:={wobj_of[k]}" if wobj_of[k] else "")
+            if k % 5 == 0:
+                lines.append(f"    MoveJ Offs(p{k},0,0,50),{args};")
+            lines.append(f"    MoveL p{k},{args};")
+            if k % 7 == 0:
+                lines.append(f"    MoveL RelTool(p{k},0,0,-20),{args};")
+        lines.append("  ENDPROC")
+    lines += ["  PROC main()", *[f"    {r};" for r in routines], "  ENDPROC", "ENDMODULE", ""]
     return "\r\n".join(lines)
 
 
@@ -175,6 +274,48 @@ def _pss_kb(pid: int) -> int:
     return 0
 
 
+def cpu_seconds(command: list[str], env: dict | None = None) -> float:
+    """User + system CPU time (s) of ``command`` and every process it waited for."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   check=False)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def compare_modules(n: int, folder: Path, model: Path, env: dict, repeat: int) -> None:
+    """CPU time and peak memory per target of ``olp-fix -j 1`` on four modules of n targets,
+    runs interleaved: the plain module, the realistic one (:func:`generate_realistic_module`),
+    and the realistic one with every target reachable and with every target failing."""
+    modules = {"plain": generate_module(n), "realistic": generate_realistic_module(n),
+               "all reachable": generate_realistic_module(n, seed=3, failing=0.0),
+               "all failing": generate_realistic_module(n, seed=3, failing=1.0)}
+    commands = {}
+    for name, text in modules.items():
+        path = folder / (name.replace(" ", "_") + ".mod")
+        path.write_bytes(text.encode("latin-1"))
+        commands[name] = [sys.executable, "-m", "olp_compensate.cli.fix", str(path), "--model",
+                          str(model), "--report", str(folder / "cmp.csv"), "-o",
+                          str(folder / "cmp"), "-j", "1"]
+    cpu = {name: [] for name in commands}
+    for run in range(repeat):
+        for name in (list(commands) if run % 2 else list(commands)[::-1]):
+            cpu[name].append(cpu_seconds(commands[name], env))
+    peak = {name: peak_rss_kb(command, env) for name, command in commands.items()}
+    numpy_kb = peak_rss_kb([sys.executable, "-c", "import numpy"], env)
+    per = {name: min(cpu[name]) / n * 1e6 for name in commands}
+    mem = {name: (peak[name] - numpy_kb) / n for name in commands}
+    for name in commands:
+        print(f"  {name:<14} olp-fix -j 1, {n:,} targets: CPU {min(cpu[name]):6.2f} s "
+              f"({per[name]:5.1f} us/target, best of {repeat}), peak memory above numpy "
+              f"{mem[name]:5.2f} KB/target")
+    print(f"  realistic / plain: CPU {per['realistic'] / per['plain']:.2f}x (target <= 1.3x), "
+          f"memory {mem['realistic'] / mem['plain']:.2f}x (target <= 1.3x); all failing / all "
+          f"reachable: CPU {per['all failing'] / per['all reachable']:.2f}x (target <= 3x)")
+
+
 def lane_stages(module: Path, cal) -> dict[str, float]:
     """Seconds of each stage of olp-fix's column path on ``module`` (in this process, the
     garbage collector off as in the command)."""
@@ -223,6 +364,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--targets", type=int, default=100_000)
     parser.add_argument("--repeat", type=int, default=3, help="timed runs (default 3)")
+    parser.add_argument("--realistic", action="store_true",
+                        help="also time realistic modules and modules whose targets all fail")
     args = parser.parse_args()
     robot = load_robot("abb_irb2400")
     with tempfile.TemporaryDirectory() as tmp:
@@ -272,7 +415,7 @@ def main() -> int:
             print(f"{name + ',':<14} whole command (new process, interleaved, best of "
                   f"{args.repeat}): {best:.2f} s, {args.targets / best:,.0f} targets/s (target "
                   f">= 20,000/s), median {median:.2f} s; / floor: {best / floor_best:.2f}x "
-                  f"best, {median / floor_median:.2f}x median (target <= 3x)")
+                  f"best, {median / floor_median:.2f}x median (target <= 8x)")
         print(f"  default / -j 1: {min(times['olp-fix']) / min(times['olp-fix -j 1']):.2f}x "
               f"best, {statistics.median(times['olp-fix']) / statistics.median(times['olp-fix -j 1']):.2f}x "
               f"median ({len(os.sched_getaffinity(0))} cores); {ok}/{len(statuses)} compensated")
@@ -289,6 +432,11 @@ def main() -> int:
               f"{tree_kb['olp-fix -j 1'] / 1024:.0f} MB; the second process adds "
               f"{(tree_kb['olp-fix'] - tree_kb['olp-fix -j 1']) / args.targets:.2f} KB per "
               f"target")
+
+        if args.realistic:
+            print("modules as real ones are (Offs/RelTool moves, routine-local targets, three "
+                  "tools, two work objects, targets out of range and out of reach):")
+            compare_modules(args.targets, folder, model, env, args.repeat)
 
         # where the time goes, in-process, stage by stage as olp-fix runs them
         stages = lane_stages(module, cal)
