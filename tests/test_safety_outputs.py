@@ -212,3 +212,20 @@ def test_a_numerical_failure_is_one_line(capsys):
     assert common.run_guarded(action, 0, "olp-cal") == 1
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "SVD did not converge" in err
+
+
+def test_clash_check_sees_hard_links_and_dotted_outputs(tmp_path):
+    """One file under two names (a hard link), and two not-yet-existing outputs spelled
+    differently, are each caught; distinct files pass."""
+    source = tmp_path / "in.mod"
+    source.write_text("MODULE m\nENDMODULE\n")
+    os.link(source, tmp_path / "hard.mod")
+    with pytest.raises(common.DataError, match="is an input"):
+        common.refuse_clashes([("program", source)], [("-o", tmp_path / "hard.mod")])
+    (tmp_path / "sub").mkdir()
+    with pytest.raises(common.DataError, match="named for both -o and --report"):
+        common.refuse_clashes([("program", source)],
+                              [("-o", tmp_path / "new.mod"),
+                               ("--report", tmp_path / "sub" / ".." / "new.mod")])
+    common.refuse_clashes([("program", source), ("--robot", "abb_irb2400")],
+                          [("-o", tmp_path / "out.mod"), ("--report", tmp_path / "r.csv")])

@@ -119,15 +119,14 @@ def run_guarded(action: Callable[[], int], verbosity: int, prog: str) -> int:
         return EXIT_BAD_INPUT
 
 
-def same_file(a: str | Path, b: str | Path) -> bool:
-    """Whether two paths name one file (through links, ``..`` and case-insensitive file
-    systems too)."""
+def _file_key(path: str | Path) -> tuple:
+    """What names one file: its device and inode where it exists (through links, ``..`` and
+    case-insensitive file systems), else its resolved path."""
     try:
-        if os.path.exists(a) and os.path.exists(b):
-            return os.path.samefile(a, b)
-    except OSError:
-        pass
-    return os.path.realpath(a) == os.path.realpath(b)
+        st = os.stat(path)
+        return ("file", st.st_dev, st.st_ino)
+    except (OSError, ValueError):
+        return ("path", os.path.realpath(path))
 
 
 def refuse_clashes(inputs: list[tuple[str, str | Path | None]],
@@ -136,19 +135,25 @@ def refuse_clashes(inputs: list[tuple[str, str | Path | None]],
 
     ``inputs`` and ``outputs``: (what the user calls it, e.g. ``'--model'``, path or None).
     An input that names no existing file (a bundled robot's name) is skipped. Called before
-    anything is read or written."""
-    given_inputs = [(label, p) for label, p in inputs
-                    if p is not None and os.path.isfile(p)]
-    given_outputs = [(label, p) for label, p in outputs if p is not None]
-    for k, (label, out) in enumerate(given_outputs):
-        for source_label, source in given_inputs:
-            if same_file(out, source):
-                raise DataError(f"{out}: {label} is an input ({source_label} {source}); "
-                                f"refusing to overwrite it, choose another output file")
-        for other_label, other in given_outputs[:k]:
-            if same_file(out, other):
-                raise DataError(f"{out}: named for both {other_label} and {label}; give each "
-                                f"output its own file")
+    anything is read or written; each path is resolved once, so a backup of thousands of
+    programs is checked in time linear in their number."""
+    sources: dict[tuple, tuple[str, str | Path]] = {}
+    for label, path in inputs:
+        if path is not None and os.path.isfile(path):
+            sources.setdefault(_file_key(path), (label, path))
+    written: dict[tuple, str] = {}
+    for label, out in outputs:
+        if out is None:
+            continue
+        key = _file_key(out)
+        if key in sources:
+            source_label, source = sources[key]
+            raise DataError(f"{out}: {label} is an input ({source_label} {source}); "
+                            f"refusing to overwrite it, choose another output file")
+        if key in written:
+            raise DataError(f"{out}: named for both {written[key]} and {label}; give each "
+                            f"output its own file")
+        written[key] = label
 
 
 def robot_input(robot: str | None) -> tuple[str, str | None]:
