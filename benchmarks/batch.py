@@ -25,7 +25,12 @@ numpy"``), the per-process set-up (reading calib.json, fitting the closed form: 
 -j 1, once per worker in -j 2), the programs' work (its sum and the best split on two
 workers) and the pickling of the workers' results (bytes and report objects).
 
-Run: ``python benchmarks/batch.py [--pairs 7] [--targets 300] [--only irb2400|kr16]``.
+With ``--plant N`` (for example 1000) it measures instead a plant's backup of N RAPID programs
+of 50-500 targets each, one robot folder each: CPU per target and peak memory of
+``olp-fix PLANT -j 1`` next to the plant's first 100 programs and its largest program alone.
+
+Run: ``python benchmarks/batch.py [--pairs 7] [--targets 300] [--only irb2400|kr16]
+[--plant N]``.
 Exit code 0, 1 when the two runs write different bytes or a run fails.
 """
 
@@ -308,17 +313,91 @@ def startup(folder: Path, runs: int) -> dict[str, float]:
     return out
 
 
+def write_plant(folder: Path, n_programs: int, pool: np.ndarray, seed: int = 7) -> list[int]:
+    """A plant's backup: ``n_programs`` RAPID modules of 50-500 targets each (drawn from
+    ``pool``, controller joints (m, 6), rad, of an IRB 2400), one per robot folder
+    ``folder/robotNNNN/cell.mod``; returns the number of targets of each."""
+    rng = np.random.default_rng(seed)
+    counts = [int(c) for c in rng.integers(50, 501, n_programs)]
+    for k, count in enumerate(counts):
+        path = folder / f"robot{k:04d}" / "cell.mod"
+        path.parent.mkdir(parents=True)
+        joints = pool[rng.choice(len(pool), count, replace=False)]
+        path.write_bytes(generate_module(count, joints=joints).encode("latin-1"))
+    return counts
+
+
+def _peak_and_cpu(argv: list[str]) -> tuple[float, float]:
+    """(peak resident memory, MB; CPU time, s) of ``argv`` run as the only child of a new
+    process (Linux ru_maxrss of its children)."""
+    probe = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], "
+             "stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL); "
+             "r = resource.getrusage(resource.RUSAGE_CHILDREN); "
+             "print(r.ru_maxrss, r.ru_utime + r.ru_stime)")
+    done = subprocess.run([sys.executable, "-c", probe, *argv], capture_output=True,
+                          text=True, env=_ENV, check=True)
+    kb, cpu = done.stdout.split()
+    return int(kb) / 1024, float(cpu)
+
+
+def plant_scaling(folder: Path, n_programs: int) -> None:
+    """CPU per target and peak memory of ``olp-fix PLANT -j 1`` on a plant of
+    ``n_programs`` programs, next to its first 100 programs and to its largest program
+    alone (the targets: CPU per target within 1.3x of the 100-program folder's, peak
+    memory within 1.5x of the largest program's)."""
+    robot = load_robot("abb_irb2400")
+    comp = Compensator(nominal_calibration(robot))
+    pool = _joints(robot, comp, 2000, 99)
+    plant = folder / "PLANT"
+    counts = write_plant(plant, n_programs, pool)
+    small = folder / "PLANT100"
+    for k in range(min(100, n_programs)):
+        shutil.copytree(plant / f"robot{k:04d}", small / f"robot{k:04d}")
+    largest = plant / f"robot{int(np.argmax(counts)):04d}" / "cell.mod"
+    model = folder / "calib.json"
+    write_model(robot.name, model)
+    olp_fix = str(Path(sys.executable).parent / "olp-fix")
+
+    def command(tree: Path, out: str) -> list[str]:
+        return [olp_fix, str(tree), "--model", str(model), "-o", str(folder / out),
+                "--report", str(folder / f"{out}.csv"), "-j", "1", "-q"]
+
+    runs = {"largest program alone": (command(largest, "one.mod"), max(counts)),
+            "first 100 programs": (command(small, "out100"), sum(counts[:100])),
+            f"{n_programs} programs": (command(plant, "outall"), sum(counts))}
+    figures = {}
+    for name, (argv, targets) in runs.items():
+        shutil.rmtree(folder / argv[5].rsplit("/", 1)[-1], ignore_errors=True)
+        _run(argv)   # untimed: OS cache, bytecode
+        best = min((_peak_and_cpu(argv) for _ in range(2)), key=lambda f: f[1])
+        figures[name] = (best[0], best[1] / targets * 1e6, targets)
+        print(f"  {name:<24} {targets:>9,} targets: CPU {best[1]:7.2f} s "
+              f"({best[1] / targets * 1e6:6.1f} us/target), peak memory {best[0]:6.0f} MB")
+    many, hundred, alone = (figures[k] for k in runs.__reversed__())
+    print(f"  CPU per target, {n_programs} / 100 programs: {many[1] / hundred[1]:.2f}x "
+          f"(target <= 1.3x); peak memory, {n_programs} programs / largest alone: "
+          f"{many[0] / alone[0]:.2f}x (target <= 1.5x)")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=7, help="timed -j1/-j2 pairs (>= 5)")
     parser.add_argument("--targets", type=int, default=300, help="targets per program")
     parser.add_argument("--only", choices=("irb2400", "kr16"), help="one backup only")
+    parser.add_argument("--plant", type=int, default=0, metavar="N",
+                        help="instead: a plant backup of N programs (e.g. 1000) against its "
+                             "first 100 and its largest program alone")
     args = parser.parse_args()
     pairs = max(args.pairs, 5)
     failed = False
     global _ENV
     with tempfile.TemporaryDirectory() as tmp:
         _ENV = installed_env(tmp)
+        if args.plant:
+            print(f"a plant's backup of {args.plant} RAPID programs, 50-500 targets each "
+                  f"(IRB 2400), olp-fix -j 1, best of 2 runs:")
+            plant_scaling(Path(tmp), args.plant)
+            return 0
         start = startup(Path(tmp), pairs)
         print("start-up of a new process (median): "
               + ", ".join(f"{k} {v:.3f} s" for k, v in start.items()))
