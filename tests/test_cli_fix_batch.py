@@ -218,3 +218,27 @@ def test_a_dump_without_location_data_is_written_as_it_is_and_system_lists_are_s
     (copy / "KRL" / "R1" / "$machine.dat").write_text("DEFDAT $MACHINE\nENDDAT\n")
     assert main([str(copy), "--model", str(model), "-o", str(tmp_path / "out"), "-q"]) == 2
     assert not (tmp_path / "out" / "KRL" / "R1" / "$machine.dat").exists()
+
+
+def test_a_folder_report_is_each_programs_report_in_input_order(backup, tmp_path):
+    """The folder run spools each program's rows as it finishes; the report it writes is
+    the programs' own reports, run one by one, joined in the order of the input tree."""
+    tree, model = backup
+    assert main([str(tree), "--model", str(model), "-o", str(tmp_path / "out"), "--report",
+                 str(tmp_path / "all.csv"), "-j", "2", "-q"]) == 2
+    from olp_compensate.cli.fix_inputs import plan_units
+    from olp_compensate.compensation.files import EXTENSIONS
+
+    alone = []
+    for k, unit in enumerate(plan_units([str(tree)], None, None, EXTENSIONS)):
+        program = unit.paths[0]     # a KRL .src brings its .dat
+        main([str(program), "--model", str(model), "-o", str(tmp_path / f"{k}{program.suffix}"),
+              "--report", str(tmp_path / f"{k}.csv"), "-q"])
+        alone += _rows(tmp_path / f"{k}.csv")
+    together = _rows(tmp_path / "all.csv")
+
+    def without_file(rows):
+        return [{k: v for k, v in r.items() if k != "file"} for r in rows]
+
+    assert len(together) == len(alone) > 10
+    assert without_file(together) == without_file(alone)

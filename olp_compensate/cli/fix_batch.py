@@ -109,65 +109,127 @@ def _warm(units, init) -> None:
         import_module(f"..compensation.{module}", __package__)
 
 
+@dataclass(frozen=True)
+class UnitSummary:
+    """What the table and the exit code need of one finished unit, once its outputs are
+    written and its rows spooled (the bytes and the rows themselves are not kept)."""
+
+    n_rows: int
+    n_fine: int
+    counts: dict
+    exit_code: int
+    problems: tuple = ()
+    error: str | None = None
+
+
+class ReportSpool:
+    """The rows of a folder run's report, kept on disk as each unit finishes (one CSV piece
+    per unit in a temporary folder) and joined in the units' input order at the end, so a
+    backup's report costs no more memory than its largest program's."""
+
+    def __init__(self):
+        import tempfile
+
+        self._folder = tempfile.TemporaryDirectory(prefix="olp-fix-report-")
+        self._header: str | None = None
+        self._indices: list[int] = []
+
+    def add(self, index: int, report) -> None:
+        chunks = report.csv_chunks()
+        header = next(chunks)
+        self._header = self._header or header
+        with open(Path(self._folder.name) / f"{index}.csv", "w", encoding="utf-8",
+                  newline="") as f:
+            f.writelines(chunks)
+        self._indices.append(index)
+
+    def pieces(self, n_joints: int):
+        """The report's bytes in pieces: the header, then each unit's rows in input order."""
+        from ..compensation.report import CompensationReport
+
+        header = self._header or next(CompensationReport(file="", rows=(),
+                                                         n_joints=n_joints).csv_chunks())
+        yield header.encode("utf-8")
+        for index in sorted(self._indices):
+            with open(Path(self._folder.name) / f"{index}.csv", "rb") as f:
+                while block := f.read(1 << 20):
+                    yield block
+
+    def close(self) -> None:
+        self._folder.cleanup()
+
+
+def _summary_of(outcome: UnitOutcome) -> UnitSummary:
+    if outcome.error is not None:
+        return UnitSummary(0, 0, {}, 1, error=outcome.error)
+    report = outcome.report
+    counts = report.counts()
+    problems = report.problem_rows()   # neither compensated nor needing no compensation
+    n_rows = sum(counts.values())
+    return UnitSummary(n_rows, n_rows - len(problems), counts, report.exit_code,
+                       tuple(problems[:SHOWN_PROBLEMS]))
+
+
 def run_batch(args, units) -> int:
     """Compensate ``units`` (:class:`~olp_compensate.cli.fix_inputs.Unit`); write each
-    unit's outputs as it completes and the one report at the end; print the table."""
-    from ..compensation.report import CompensationReport
-    from ..io.atomic import write_files_atomic, write_text_atomic
+    unit's outputs and spool its report rows as it completes (memory bounded by the largest
+    program, not the sum), then the one report in the input order; print the table."""
+    from ..io.atomic import write_files_atomic
     from .fix import load_calibrations, output_is_folder
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
-    outcomes: list[UnitOutcome | None] = [None] * len(units)
-    for outcome in _outcomes(args, units):
-        outcomes[outcome.index] = outcome
-        if outcome.error is None:
-            outputs = units[outcome.index].outputs
-            if output_is_folder(args):          # -o OUTDIR mirrors the input tree
-                for out in outputs:
-                    out.parent.mkdir(parents=True, exist_ok=True)
-            write_files_atomic(list(zip(outputs, outcome.data)))
-    rows = [r for o in outcomes if o.report is not None for r in o.report.rows]
-    n_joints = calibration.robot.n_joints
-    report = CompensationReport(file="(several)", rows=tuple(rows), n_joints=n_joints,
-                                warnings=tuple(w for o in outcomes if o.report is not None
-                                               for w in o.report.warnings))
-    if args.report:
-        write_text_atomic(args.report, report.to_csv())
-    failed = [o for o in outcomes if o.error is not None]
+    summaries: list[UnitSummary | None] = [None] * len(units)
+    spool = ReportSpool()
+    try:
+        for outcome in _outcomes(args, units):
+            if outcome.error is None:
+                outputs = units[outcome.index].outputs
+                if output_is_folder(args):          # -o OUTDIR mirrors the input tree
+                    for out in outputs:
+                        out.parent.mkdir(parents=True, exist_ok=True)
+                write_files_atomic(list(zip(outputs, outcome.data)))
+                if args.report:
+                    spool.add(outcome.index, outcome.report)
+            summaries[outcome.index] = _summary_of(outcome)
+            del outcome                              # its bytes and rows are done with
+        if args.report:
+            write_files_atomic([(Path(args.report), spool.pieces(calibration.robot.n_joints))])
+    finally:
+        spool.close()
+    failed = [s for s in summaries if s.error is not None]
     if not args.quiet:
-        _table(units, outcomes, report, calibration, args, time.perf_counter() - started)
-    for o in failed:
-        print(f"olp-fix: {o.error}", file=sys.stderr)
+        _table(units, summaries, calibration, args, time.perf_counter() - started)
+    for s in failed:
+        print(f"olp-fix: {s.error}", file=sys.stderr)
     if failed:
         return 1
-    return report.exit_code
+    return 2 if any(s.exit_code for s in summaries) else 0
 
 
-def _table(units, outcomes, report, calibration, args, seconds: float) -> None:
-    from ..compensation.program import KEPT
-
-    print(f"olp-fix: {len(units)} programs, {len(report.rows)} target uses in "
-          f"{seconds:.2f} s")
+def _table(units, summaries, calibration, args, seconds: float) -> None:
+    n_rows = sum(s.n_rows for s in summaries)
+    print(f"olp-fix: {len(units)} programs, {n_rows} target uses in {seconds:.2f} s")
     print(f"  robot {calibration.robot.name} (calibration {args.model})")
     width = max(len(" + ".join(u.names)) for u in units)
     print(f"  {'program':<{width}}  {'uses':>6}  {'ok':>6}  {'not':>6}  status")
-    for unit, outcome in zip(units, outcomes):
+    counts: dict[str, int] = {}
+    for unit, summary in zip(units, summaries):
         name = " + ".join(unit.names)
-        if outcome.error is not None:
-            print(f"  {name:<{width}}  {'':>6}  {'':>6}  {'':>6}  failed: {outcome.error}")
+        if summary.error is not None:
+            print(f"  {name:<{width}}  {'':>6}  {'':>6}  {'':>6}  failed: {summary.error}")
             continue
-        rows = outcome.report.rows
-        fine = sum(1 for r in rows if r.status in KEPT or r.compensated)
-        print(f"  {name:<{width}}  {len(rows):>6}  {fine:>6}  {len(rows) - fine:>6}  "
-              f"exit {outcome.report.exit_code}")
-    counts = report.counts()
+        for status, n in summary.counts.items():
+            counts[status] = counts.get(status, 0) + n
+        print(f"  {name:<{width}}  {summary.n_rows:>6}  {summary.n_fine:>6}  "
+              f"{summary.n_rows - summary.n_fine:>6}  exit {summary.exit_code}")
     print("  statuses: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
-    problems = [r for r in report.rows if not (r.status in KEPT or r.compensated)]
+    problems = [r for s in summaries for r in s.problems]
+    n_problems = sum(s.n_rows - s.n_fine for s in summaries)
     for r in problems[:SHOWN_PROBLEMS]:
         print(f"  {r.file}:{r.line}:{r.column}: {r.target}: {r.status}"
               + (f" ({r.note})" if r.note else ""))
-    if len(problems) > SHOWN_PROBLEMS:
-        print(f"  ... and {len(problems) - SHOWN_PROBLEMS} more (see --report)")
-    written = sum(len(u.outputs) for u, o in zip(units, outcomes) if o.error is None)
+    if n_problems > SHOWN_PROBLEMS:
+        print(f"  ... and {n_problems - SHOWN_PROBLEMS} more (see --report)")
+    written = sum(len(u.outputs) for u, s in zip(units, summaries) if s.error is None)
     print(f"  wrote {written} programs" + (f" and {args.report}" if args.report else ""))
