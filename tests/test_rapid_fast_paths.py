@@ -11,7 +11,7 @@ import pytest
 
 from olp_compensate.errors import ParseError
 from olp_compensate.programs import loads, rapid_fast
-from olp_compensate.programs.grammar import LineIndex
+from olp_compensate.programs.grammar import LineIndex, NewlineIndexedText
 from olp_compensate.programs.literals import NUMBER_RE
 from olp_compensate.programs.rapid import parse_rapid_columns
 from olp_compensate.programs.rapid_columns import with_objects
@@ -232,3 +232,35 @@ def test_the_column_parse_regexes_match_what_the_full_ones_match(which):
                 assert got.regs[:5] == expected.regs[:5], text
                 assert (got.regs[5], got.regs[6]) == (expected.regs[5], expected.regs[11])
     assert hits > 100
+
+
+def test_newline_indexed_text_answers_as_str_does():
+    """count and rindex of line breaks (what lark asks of a text slice) by bisection give
+    str's answers at random bounds, negative and past the end included."""
+    rng = random.Random(3)
+    text = "".join(rng.choice(["ab", "\n", "\r\n", " ", "\n\n"]) for _ in range(500))
+    indexed = NewlineIndexedText(text)
+    assert indexed == text and indexed.count("a") == text.count("a")
+    for _ in range(2000):
+        start = rng.randrange(-len(text) - 5, len(text) + 5)
+        end = rng.randrange(-len(text) - 5, len(text) + 5)
+        assert indexed.count("\n", start, end) == text.count("\n", start, end)
+        try:
+            expected = text.rindex("\n", start, end)
+        except ValueError:
+            with pytest.raises(ValueError):
+                indexed.rindex("\n", start, end)
+        else:
+            assert indexed.rindex("\n", start, end) == expected
+    assert indexed.count("\n") == text.count("\n") and indexed.rindex("\n") == text.rindex("\n")
+
+
+def test_calls_parsed_again_keep_their_lines_in_a_long_module():
+    """Calls the fast paths leave to the grammar (Offs, RelTool) deep in a module get the
+    line and column of their target as in a module where they come first."""
+    head = "MODULE m\n" + "".join(f"  CONST robtarget p{k}:={LITERAL};\n" for k in range(300))
+    body = "  PROC main()\n    MoveL Offs(p7,0,0,50),v500,z10,tool0;\n" \
+           "    MoveL RelTool(p8,0,0,-5),v500,fine,tool0;\n  ENDPROC\nENDMODULE\n"
+    program = loads(head + body, "rapid", "m.mod")
+    runtime = [u for u in program.motions if u.runtime is not None]
+    assert [u.source[1:] for u in runtime] == [(303, 11), (304, 11)]

@@ -65,6 +65,44 @@ def cache_file(key: str) -> str | None:
 current_sink: contextvars.ContextVar = contextvars.ContextVar("olp_program_sink")
 
 
+class NewlineIndexedText(str):
+    """A program text whose line breaks are listed once, so that ``count("\\n", start,
+    end)`` and ``rindex("\\n", start, end)`` bisect instead of scanning: lark counts
+    the lines before a :class:`~lark.utils.TextSlice` it is given from the start of the
+    text, each time (a module of 3,400 calls parsed again took 8.6 s of counting for a
+    1 MB text). Every answer is the one ``str`` gives."""
+
+    def _newlines(self) -> list[int]:
+        """Offsets of the line breaks, listed on first use (held by the instance)."""
+        breaks = self.__dict__.get("breaks")
+        if breaks is None:
+            breaks = self.__dict__["breaks"] = [m.start() for m in re.finditer("\n", self)]
+        return breaks
+
+    def _bounds(self, start, end) -> tuple[int, int]:
+        start, end, _ = slice(start, end).indices(len(self))
+        return start, end
+
+    def count(self, sub, start=None, end=None):
+        if sub != "\n":
+            return super().count(sub, start, end)
+        start, end = self._bounds(start, end)
+        if end <= start:
+            return 0
+        breaks = self._newlines()
+        return bisect.bisect_left(breaks, end) - bisect.bisect_left(breaks, start)
+
+    def rindex(self, sub, start=None, end=None):
+        if sub != "\n":
+            return super().rindex(sub, start, end)
+        start, end = self._bounds(start, end)
+        breaks = self._newlines()
+        k = bisect.bisect_left(breaks, end) - 1
+        if k < 0 or breaks[k] < start:
+            raise ValueError("substring not found")
+        return breaks[k]
+
+
 class LineIndex:
     """Offsets to 1-based (line, column).
 

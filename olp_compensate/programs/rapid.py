@@ -17,8 +17,8 @@ from lark import Token
 from lark.exceptions import UnexpectedInput
 from lark.utils import TextSlice
 
-from .grammar import (LineIndex, check_text, convert_lark_error, current_sink, error_at,
-                      newline_style, parser)
+from .grammar import (LineIndex, NewlineIndexedText, check_text, convert_lark_error,
+                      current_sink, error_at, newline_style, parser)
 from .rapid_accounting import unaccounted_literals
 from .rapid_build import TARGET_TYPES, Builder
 from .rapid_columns import ModuleColumns, MoveTable, TargetTable
@@ -199,8 +199,10 @@ def _reparse_call(text: str, file: str, start: int, end: int) -> None:
     sink = current_sink.get()
     sink.reparsing = True   # a run the lexer falls back to inside it is not parsed again
     try:
-        parser("rapid.lark", Callbacks, ("start", "call")).parse(TextSlice(text, start, end),
-                                                                 start="call")
+        if sink.indexed_text is None:
+            sink.indexed_text = NewlineIndexedText(text)
+        parser("rapid.lark", Callbacks, ("start", "call")).parse(
+            TextSlice(sink.indexed_text, start, end), start="call")
     except UnexpectedInput as exc:
         raise convert_lark_error(exc, text, file) from None
     finally:

@@ -111,7 +111,7 @@ class Sink:
 
     __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
                  "targets", "motions", "depth", "routine", "pending", "reparse", "reparsing",
-                 "types", "columns")
+                 "types", "columns", "indexed_text")
 
     def __init__(self, text: str, file: str, reparse, columns=None):
         self.text, self.file, self.reparse = text, file, reparse
@@ -130,6 +130,7 @@ class Sink:
         self.pending = 0
         self.reparsing = False   # inside a call parsed again by the grammar
         self.columns = columns   # a column parse: the fast paths' tables, else None
+        self.indexed_text = None   # the text with its line breaks listed, for reparses
 
 
 _TOKEN_KIND = {"NUM": "num", "STRING": "string", "AGGREGATE": "aggregate", "STAR": "star",
