@@ -37,7 +37,7 @@ from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
 from ..programs.emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..programs.emit_batch import edits_for_spans
 from ..programs.rapid import parse_rapid_columns
-from ..programs.rapid_columns import ModuleColumns, TargetTable, with_objects
+from ..programs.rapid_columns import ModuleColumns, TargetTable, split, with_objects
 from ..programs.semantics import Resolver, frame_pair, resolve_task
 from ..programs.target_values import bad_values, value_problem
 from ..programs.targets import MotionUse, Program
@@ -90,6 +90,7 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
     from .task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
 
     parsed = [parse_rapid_columns(text, file) for text, file in zip(texts, files)]
+    parsed = _plain_parts(parsed)
     plans = _task_plans([p for p, _ in parsed], [c for _, c in parsed])
     programs = [p if plan is not None else with_objects(p, c)
                 for (p, c), plan in zip(parsed, plans)]
@@ -122,6 +123,57 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
         file=files[0], rows=parts[0] if len(parts) == 1 else ChainedRows(parts),
         warnings=tuple(warnings), n_joints=comp.robot.n_joints, emit="pose", edits=count)
     return new_texts, report
+
+
+def _plain_parts(parsed: list[tuple[Program, ModuleColumns]]
+                 ) -> list[tuple[Program, ModuleColumns]]:
+    """Each module's column parse with the table rows whose meaning is not plain within the
+    module (:func:`_plain_rows`) made into objects: a run-time use, copy or routine
+    argument of one target sends that target and its motions to the object path, not the
+    whole module. Modules of a task whose tables share names are left whole (their plan
+    is decided for the module, :func:`_task_plans`)."""
+    if len(parsed) > 1:
+        shared = _modules_sharing_names([p for p, _ in parsed], [c for _, c in parsed])
+    else:
+        shared = set()
+    out = []
+    for m, (program, columns) in enumerate(parsed):
+        if m in shared or not len(columns.targets):
+            out.append((program, columns))
+            continue
+        out.append(split(program, columns, *_plain_rows(program, columns)))
+    return out
+
+
+def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, np.ndarray]:
+    """(targets (n,) bool, motions (k,) bool): the table rows whose meaning is plain
+    within the module. A target is not plain when its name is declared twice, named by
+    any of the module's objects (a run-time expression, routine argument, copy,
+    assignment, another declaration), moved to with an index, or moved to with several
+    tool/work-object pairs; a motion is not plain when its target is not a plain table
+    target (a routine-local target, a name the table does not declare). The rows that are
+    not plain go to the object path together with every table motion to them."""
+    table, moves = columns.targets, columns.moves
+    lower = [name if name.islower() else name.lower() for name in table.names]
+    row_of: dict[str, int] = {}
+    twice = set()
+    for k, name in enumerate(lower):
+        if row_of.setdefault(name, k) != k:
+            twice.add(name)
+    named = (twice | _named_elsewhere(program)) & row_of.keys()
+    keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
+    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
+                        for name in moves.target_names), np.intp, len(moves))
+    indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
+        np.zeros(0, bool)
+    keep_targets[rows[indexed & (rows >= 0)]] = False
+    pair_of = {}
+    for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
+        if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:
+            keep_targets[rows[k]] = False     # its first motion's pair is another
+    keep_moves = (rows >= 0) & ~indexed
+    keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
+    return keep_targets, keep_moves
 
 
 def _task_plans(programs: list[Program], columns: list[ModuleColumns]) -> list:

@@ -93,6 +93,18 @@ class TargetTable:
             raise AssertionError("robtarget literals do not hold 17 numbers each")
         return values.reshape(n, NUMBERS)
 
+    def subset(self, keep: np.ndarray) -> TargetTable:
+        """A table of the rows where ``keep`` (n,) bool is true, in order."""
+        out = TargetTable()
+        rows = np.flatnonzero(keep).tolist()
+        out.names = [self.names[k] for k in rows]
+        out.storage = [self.storage[k] for k in rows]
+        out.spans = array("q", self.span_columns()[keep].ravel().tolist())
+        out.offsets = array("q", [self.offsets[k] for k in rows])
+        out.line, out.column = self.line[keep], self.column[keep]
+        out._words = self._words
+        return out
+
     def target(self, i: int, text: str, file: str) -> CartesianTarget:
         """Row ``i`` as the :class:`CartesianTarget` the object parse makes."""
         s = self.spans[SPANS * i:SPANS * (i + 1)]
@@ -158,6 +170,21 @@ class MoveTable:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
         self.line, self.column = _lines_and_columns(self.spans[4::6], line_starts)
 
+    def subset(self, keep: np.ndarray) -> MoveTable:
+        """A table of the rows where ``keep`` (n,) bool is true, in order."""
+        out = MoveTable()
+        rows = np.flatnonzero(keep).tolist()
+        for name in ("instructions", "target_names", "tools", "wobjs", "routines"):
+            column = getattr(self, name)
+            setattr(out, name, [column[k] for k in rows])
+        out.indices = array("q", [self.indices[k] for k in rows])
+        spans = np.frombuffer(self.spans, np.int64).reshape(-1, 6) if len(self) else \
+            np.zeros((0, 6), np.int64)
+        out.spans = array("q", spans[keep].ravel().tolist())
+        out.line, out.column = self.line[keep], self.column[keep]
+        out._words = self._words
+        return out
+
     def use(self, i: int, file: str) -> MotionUse:
         """Row ``i`` as the :class:`MotionUse` the object parse makes."""
         s = self.spans[6 * i:6 * i + 6]
@@ -215,6 +242,25 @@ def with_objects(program: Program, columns: ModuleColumns) -> Program:
         program,
         targets=_merged(program.targets, targets, lambda t: t.span[0]),
         motions=_merged(program.motions, motions, lambda u: u.target_span or u.statement_span))
+
+
+def split(program: Program, columns: ModuleColumns, keep_targets: np.ndarray,
+          keep_moves: np.ndarray) -> tuple[Program, ModuleColumns]:
+    """``(program, columns)`` with the table rows not kept (``keep_targets`` (n,) and
+    ``keep_moves`` (k,) bool) made into objects of the program, merged in text order, and
+    the kept rows left in the tables: :func:`with_objects` of the result is that of the
+    input."""
+    if keep_targets.all() and keep_moves.all():
+        return program, columns
+    text, file = program.text, program.file
+    targets = [columns.targets.target(i, text, file) for i in np.flatnonzero(~keep_targets)]
+    motions = [columns.moves.use(i, file) for i in np.flatnonzero(~keep_moves)]
+    program = dataclasses.replace(
+        program,
+        targets=_merged(program.targets, targets, lambda t: t.span[0]),
+        motions=_merged(program.motions, motions, lambda u: u.target_span or u.statement_span))
+    return program, ModuleColumns(columns.targets.subset(keep_targets),
+                                  columns.moves.subset(keep_moves))
 
 
 def _merged(objects: tuple, rows: list, key) -> tuple:
