@@ -174,11 +174,11 @@ def urdf_from_record(record: RobotRecord) -> str:
     lines.append('  <link name="tool0"/>')
     for k in range(6):
         xyz, rpy = origins[k]
-        attrs = f'lower="{_num(limits[k, 0])}" upper="{_num(limits[k, 1])}"'
-        if record.effort_nm is not None:
-            attrs += f' effort="{_num(record.effort_nm[k])}"'
-        if record.max_speed_deg_s is not None:
-            attrs += f' velocity="{_num(math.radians(record.max_speed_deg_s[k]))}"'
+        # URDF requires effort and velocity; 0 says "not given in the record"
+        effort = 0 if record.effort_nm is None else record.effort_nm[k]
+        speed = 0 if record.max_speed_deg_s is None else math.radians(record.max_speed_deg_s[k])
+        attrs = (f'lower="{_num(limits[k, 0])}" upper="{_num(limits[k, 1])}" '
+                 f'effort="{_num(effort)}" velocity="{_num(speed)}"')
         lines += [f'  <joint name="joint_{k + 1}" type="revolute">',
                   f'    <parent link="{LINKS[k]}"/>', f'    <child link="{LINKS[k + 1]}"/>',
                   f'    <origin xyz="{_xyz(xyz)}" rpy="{_xyz(rpy)}"/>',
