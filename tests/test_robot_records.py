@@ -122,5 +122,5 @@ def test_a_record_that_is_not_json_names_line_and_column(tmp_path):
 def test_a_missing_record_and_an_unknown_name_are_clear(tmp_path):
     with pytest.raises(ModelError, match="no such robot record"):
         load_robot(str(tmp_path / "none.robot.json"))
-    with pytest.raises(ModelError, match="unknown robot 'abb_irb9999'.*olp-cal robots"):
+    with pytest.raises(ModelError, match="unknown robot .abb_irb9999.*olp-cal robots. lists"):
         load_robot("abb_irb9999")

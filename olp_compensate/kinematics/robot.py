@@ -8,6 +8,7 @@ radians); the calibration model (:mod:`olp_compensate.kinematics.model`) is buil
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -332,6 +333,11 @@ def bundled_record(name: str) -> RobotRecord | None:
     return record
 
 
+def library_records() -> list[RobotRecord]:
+    """The records of every bundled robot that is a record, sorted by name."""
+    return [r for r in (bundled_record(n) for n in bundled_robot_names()) if r is not None]
+
+
 def _load_urdf_file(path: Path, name_or_path: str) -> Robot:
     if not path.is_file():
         raise ModelError(f"{name_or_path}: no such URDF file")
@@ -358,9 +364,12 @@ def load_robot(name_or_path: str) -> Robot:
         return robot_from_record(record)
     resource = data_folder("robots") / f"{name_or_path}.urdf"
     if not resource.is_file():
-        names = ", ".join(bundled_robot_names()) or "none"
-        raise ModelError(f"unknown robot '{name_or_path}' (bundled: {names}; or give a path "
-                         "to a .urdf or a .robot.json; `olp-cal robots` lists them)")
+        names = bundled_robot_names()
+        close = ([n for n in names if name_or_path.lower() in n][:3]
+                 or difflib.get_close_matches(name_or_path, names, n=3, cutoff=0.6))
+        hint = f"did you mean {', '.join(close)}? " if close else ""
+        raise ModelError(f"unknown robot '{name_or_path}' ({hint}`olp-cal robots` lists the "
+                         "bundled robots; or give a path to a .robot.json or a .urdf)")
     sidecar = data_folder("robots") / f"{name_or_path}.controller.json"
     controller = read_controller_file(sidecar, f"robots/{name_or_path}.controller.json")
     return _with_controller(resource.read_text(encoding="utf-8"), name_or_path,
