@@ -19,7 +19,7 @@ import re
 
 from ..errors import DataError
 
-_NAME = r"([A-Za-z0-9][A-Za-z0-9_.\-]*)"
+_NAME = r"([A-Za-z0-9][A-Za-z0-9_.+\-]*)"
 _PATTERNS = (
     re.compile(r"^[ \t]*(?:!|;|//|#|--)[ \t]*olp-robot[ \t]*:[ \t]*" + _NAME, re.I | re.M),
     re.compile(r"^[ \t]*&PARAM[ \t]+OLP[_-]ROBOT[ \t]*=[ \t]*" + _NAME, re.I | re.M),
