@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 
 HELP = "list the bundled robots (--json), or show one robot's parameters and ranges (--show)"
 
