@@ -101,6 +101,9 @@ def test_a_record_given_by_path_is_a_robot(tmp_path):
     (lambda d: d.update(axis_ranges_deg=[[0, 1]] * 5), "'axis_ranges_deg' must be six"),
     (lambda d: d.update(axis_ranges_deg=[[10, -10]] * 6), "lower <= upper"),
     (lambda d: d.update(maker=""), "'maker' must be a non-empty string"),
+    (lambda d: d.update(name='x" y'), "'name' must be letters, digits"),
+    (lambda d: d.update(axis_ranges_deg="wide"), "'axis_ranges_deg' must be six"),
+    (lambda d: d.update(axis_ranges_deg=[[0, 1], [0]] * 3), "'axis_ranges_deg' must be six"),
     (lambda d: d.update(max_speed_deg_s=[1, 2]), "'max_speed_deg_s' must be 6 numbers"),
     (lambda d: d.update(links=[{}] * 7), "links/0: 'mass_kg' is missing"),
 ])
@@ -111,6 +114,14 @@ def test_a_bad_record_is_one_clear_error(tmp_path, change, message):
     with pytest.raises(ModelError, match=message) as info:
         load_robot(str(path))
     assert str(path) in str(info.value)
+
+
+def test_model_text_cannot_break_the_generated_urdf(tmp_path):
+    doc = _minimal()
+    doc["model"] = "IRB <120> -- & \"odd\""
+    robot = load_robot(str(_write(tmp_path, doc)))
+    assert robot.fingerprint == load_robot("abb_irb120_3_58").fingerprint
+    assert robot.pinocchio_model.nq == 6
 
 
 def test_a_record_that_is_not_json_names_line_and_column(tmp_path):

@@ -11,6 +11,7 @@ hand-written URDF gives the same numbers, and so the same kinematic fingerprint.
 from __future__ import annotations
 
 import math
+from xml.sax.saxutils import escape
 
 import numpy as np
 
@@ -161,8 +162,8 @@ def urdf_from_record(record: RobotRecord) -> str:
     limits = np.radians(joint_limits_deg(record))
     inertials = record.links or estimated_inertials(record, origins)
     lines = ['<?xml version="1.0"?>',
-             f"<!-- generated from robots/{record.name}.robot.json ({record.maker} "
-             f"{record.model}); do not edit -->",
+             f"<!-- generated from {record.name}.robot.json ("
+             + escape(f"{record.maker} {record.model}").replace("--", "- -") + "); do not edit -->",
              f'<robot name="{record.name}">']
     for name, link in zip(LINKS, inertials):
         lines += [f'  <link name="{name}">', "    <inertial>",

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -172,8 +173,14 @@ def record_from_dict(doc: dict, where: str) -> RobotRecord:
     for key in ("name", "maker", "model"):
         if not isinstance(doc.get(key), str) or not doc[key]:
             _fail(where, f"'{key}' must be a non-empty string")
-    ranges = np.array(doc.get("axis_ranges_deg"), dtype=float)
-    if ranges.shape != (6, 2) or np.any(ranges[:, 0] > ranges[:, 1]):
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.+\-]*", doc["name"]):
+        _fail(where, f"'name' must be letters, digits, '_', '.', '+' or '-', got {doc['name']!r}")
+    try:
+        ranges = np.array(doc.get("axis_ranges_deg"), dtype=float)
+    except (TypeError, ValueError):
+        ranges = np.empty(0)
+    if (ranges.shape != (6, 2) or not np.all(np.isfinite(ranges))
+            or np.any(ranges[:, 0] > ranges[:, 1])):
         _fail(where, "'axis_ranges_deg' must be six [lower, upper] pairs, lower <= upper")
     speeds = _numbers(doc, "max_speed_deg_s", where, 6, optional=True)
     efforts = _numbers(doc, "effort_nm", where, 6, optional=True)
