@@ -9,8 +9,9 @@ pendant shows it), rad (m for prismatic axes).
 
 Robot and model
     load_robot(name_or_path) -> Robot
-        A bundled robot (``"abb_irb2400"``) or any serial-arm URDF; its controller's axis
-        ranges come from ``NAME.controller.json``.
+        A bundled robot (``"abb_irb2400"``; ``olp-cal robots`` lists them), a robot record
+        (``*.robot.json``) or any serial-arm URDF (its controller's axis ranges from a
+        ``NAME.controller.json`` beside it).
     Robot
         The serial chain, joint limits (rad), ``controller_ranges`` (n, 2) rad.
 

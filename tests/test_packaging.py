@@ -31,7 +31,8 @@ def test_wheel_ships_robots_and_grammars(tmp_path):
     out = subprocess.run([str(python), "-c", probe], check=True, capture_output=True, text=True,
                          cwd=tmp_path).stdout
     assert out.startswith("6 ")
-    assert "abb_irb2400.urdf" in out and "ur5e.urdf" in out and "abb_irb2400.controller.json" in out
+    assert "abb_irb2400.robot.json" in out and "ur5e.robot.json" in out and "README.md" in out
+    assert ".urdf" not in out.split("] [")[0]   # robots are records; URDFs are generated
     assert "README.md" in out.split("] [")[-1]  # the grammars folder ships
 
 

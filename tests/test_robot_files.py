@@ -1,6 +1,7 @@
 """Checks of the bundled robot descriptions in ``robots/``.
 
-Every URDF is loaded with yourdfpy and with pinocchio. The pose of ``tool0`` computed by pinocchio
+The robots are records (``robots/NAME.robot.json``); the URDF checked here is the one generated
+from each record (:func:`olp_compensate.kinematics.robot.load_robot`). Every URDF is loaded with yourdfpy and with pinocchio. The pose of ``tool0`` computed by pinocchio
 is compared with an independent forward kinematics written here from the published numbers
 (data-sheet dimensions, standard Denavit-Hartenberg tables), at the zero configuration and at
 random configurations, to 1e-9 m.
@@ -30,6 +31,7 @@ URDF joint_3 (axis -y) is ``J2 + J3`` (ROS-Industrial fanuc_driver ``J23_factor 
 from __future__ import annotations
 
 import math
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,8 @@ import pytest
 
 pin = pytest.importorskip("pinocchio")
 yourdfpy = pytest.importorskip("yourdfpy")
+
+from olp_compensate.kinematics.robot import load_robot  # noqa: E402
 
 ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
 TOL = 1e-9
@@ -229,8 +233,15 @@ ALL = sorted(list(ABB) + list(DH) + list(OTHER))
 # --------------------------------------------------------------------------- helpers
 
 
+_GENERATED = tempfile.TemporaryDirectory(prefix="olp_robot_files_")
+
+
 def urdf_path(name: str) -> Path:
-    return ROBOTS_DIR / f"{name}.urdf"
+    """The URDF generated from ``robots/NAME.robot.json``, written to a temporary file."""
+    path = Path(_GENERATED.name) / f"{name}.urdf"
+    if not path.exists():
+        path.write_text(load_robot(name).urdf_text, encoding="utf-8")
+    return path
 
 
 def load_pinocchio(name: str):
@@ -258,7 +269,7 @@ def quat_wxyz(rotation) -> np.ndarray:
 
 
 def test_all_files_present():
-    present = sorted(p.stem for p in ROBOTS_DIR.glob("*.urdf"))
+    present = sorted(p.name[:-len(".robot.json")] for p in ROBOTS_DIR.glob("*.robot.json"))
     assert set(ALL) <= set(present)
     assert (ROBOTS_DIR / "README.md").is_file()
 
@@ -436,15 +447,16 @@ def test_other_random_configurations_against_dh(name):
 
 @pytest.mark.parametrize("name", sorted(OTHER))
 def test_other_controller_files(name):
-    """NAME.controller.json: the data-sheet axis ranges, a description, the coupling; the URDF
-    limits equal the ranges (uncoupled joints) or their envelope (FANUC joint_3)."""
+    """The record's controller part: the data-sheet axis ranges, sources, the coupling; the
+    URDF limits equal the ranges (uncoupled joints) or their envelope (FANUC joint_3)."""
     import json
 
-    doc = json.loads((ROBOTS_DIR / f"{name}.controller.json").read_text(encoding="utf-8"))
-    assert isinstance(doc.get("description"), str) and doc["description"]
+    doc = json.loads((ROBOTS_DIR / f"{name}.robot.json").read_text(encoding="utf-8"))
+    assert doc["sources"] and all(isinstance(s, str) and s for s in doc["sources"])
     arm = OTHER[name]
     np.testing.assert_array_equal(np.array(doc["axis_ranges_deg"], dtype=float) * DEG, arm.ranges)
-    coupling = np.array(doc.get("urdf_from_controller", np.eye(6)), dtype=float)
+    coupling = load_robot(name).urdf_from_controller
+    coupling = np.eye(6) if coupling is None else coupling
     np.testing.assert_array_equal(coupling, np.array(COUPLING.get(name, np.eye(6)), dtype=float))
     # the matrix is the reference model's map
     q = np.random.default_rng(5).uniform(-1, 1, 6)

@@ -42,6 +42,8 @@ COMMANDS = {
                                  "overall and per region"),
     "iso9283": ("cal_iso9283", "ISO 9283 pose accuracy and repeatability: write the test "
                                "program, or report AP and RP"),
+    "robots": ("cal_robots", "list the bundled robots (--json), or show one robot's parameters "
+                             "and ranges (--show NAME)"),
     "camera": ("cal_camera", "camera: make a dot board, calibrate a camera from views of it, "
                              "measure camera poses"),
 }

@@ -7,6 +7,8 @@ radians); the calibration model (:mod:`olp_compensate.kinematics.model`) is buil
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -17,6 +19,8 @@ import numpy as np
 
 from ..data import data_folder
 from ..errors import ModelError
+from .record_urdf import urdf_from_record
+from .records import RECORD_SUFFIX, RobotRecord, read_record
 from .urdf import read_urdf_chain
 
 FLANGE_LINK = "tool0"
@@ -65,6 +69,8 @@ class Robot:
     axis_ranges: np.ndarray | None = field(default=None, compare=False)
     """(n, 2) the controller's axis ranges (data sheet), rad or m, in controller axes; None:
     the URDF limits of the joints that are controller axes as they are."""
+    record: RobotRecord | None = field(default=None, compare=False, repr=False)
+    """The robot record the URDF was generated from (None for a URDF file)."""
 
     @property
     def n_joints(self) -> int:
@@ -295,28 +301,75 @@ def ranges_from_edge_units(robot: Robot, ranges) -> np.ndarray:
     return robot.to_radians_or_metres(ranges.T).T
 
 
+def robot_from_record(record: RobotRecord) -> Robot:
+    """The robot of a record: its generated URDF, coupling and controller axis ranges."""
+    text = urdf_from_record(record)
+    robot = robot_from_urdf_text(text, name=record.name, source=record.source,
+                                 urdf_from_controller=record.coupling)
+    return dataclasses.replace(robot, record=record,
+                               axis_ranges=ranges_from_edge_units(robot, record.axis_ranges_deg))
+
+
 def bundled_robot_names() -> list[str]:
-    """Names of the robots shipped in ``robots/``."""
-    folder = data_folder("robots")
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".urdf"))
+    """Names of the robots shipped in ``robots/`` (records ``NAME.robot.json``, and any
+    plain ``NAME.urdf``)."""
+    names = set()
+    for p in data_folder("robots").iterdir():
+        if p.name.endswith(RECORD_SUFFIX):
+            names.add(p.name[:-len(RECORD_SUFFIX)])
+        elif p.name.endswith(".urdf"):
+            names.add(p.name[:-5])
+    return sorted(names)
+
+
+def bundled_record(name: str) -> RobotRecord | None:
+    """The shipped record ``robots/NAME.robot.json``, or None when there is none."""
+    resource = data_folder("robots") / f"{name}{RECORD_SUFFIX}"
+    if not resource.is_file():
+        return None
+    record = read_record(resource, f"robots/{name}{RECORD_SUFFIX}")
+    if record.name != name:
+        raise ModelError(f"robots/{name}{RECORD_SUFFIX}: the record is named '{record.name}'")
+    return record
+
+
+def library_records() -> list[RobotRecord]:
+    """The records of every bundled robot that is a record, sorted by name."""
+    return [r for r in (bundled_record(n) for n in bundled_robot_names()) if r is not None]
+
+
+def _load_urdf_file(path: Path, name_or_path: str) -> Robot:
+    if not path.is_file():
+        raise ModelError(f"{name_or_path}: no such URDF file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{name_or_path}: cannot read URDF ({exc})") from None
+    sidecar = path.with_suffix(".controller.json")
+    return _with_controller(text, path.stem, str(path), read_controller_file(sidecar, str(sidecar)))
 
 
 def load_robot(name_or_path: str) -> Robot:
-    """A bundled robot by name (``abb_irb2400``) or any serial-arm URDF by path."""
+    """A bundled robot by name (``abb_irb2400``), a robot record by path (``*.robot.json``)
+    or any serial-arm URDF by path."""
     path = Path(name_or_path)
-    if path.suffix.lower() == ".urdf" or path.is_file():
+    if name_or_path.endswith(RECORD_SUFFIX):
         if not path.is_file():
-            raise ModelError(f"{name_or_path}: no such URDF file")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ModelError(f"{name_or_path}: cannot read URDF ({exc})") from None
-        sidecar = path.with_suffix(".controller.json")
-        return _with_controller(text, path.stem, str(path), read_controller_file(sidecar, str(sidecar)))
+            raise ModelError(f"{name_or_path}: no such robot record")
+        return robot_from_record(read_record(path))
+    if path.suffix.lower() == ".urdf" or path.is_file():
+        return _load_urdf_file(path, name_or_path)
+    record = bundled_record(name_or_path)
+    if record is not None:
+        return robot_from_record(record)
     resource = data_folder("robots") / f"{name_or_path}.urdf"
     if not resource.is_file():
-        names = ", ".join(bundled_robot_names()) or "none"
-        raise ModelError(f"unknown robot '{name_or_path}' (bundled: {names}; or give a path to a .urdf)")
+        names = bundled_robot_names()
+        close = ([n for n in names if name_or_path.lower() in n][:3]
+                 or difflib.get_close_matches(name_or_path, names, n=3, cutoff=0.6))
+        hint = f"did you mean {', '.join(close)}? " if close else ""
+        raise ModelError(f"unknown robot '{name_or_path}' ({hint}`olp-cal robots` lists the "
+                         "bundled robots; or give a path to a .robot.json or a .urdf)")
     sidecar = data_folder("robots") / f"{name_or_path}.controller.json"
     controller = read_controller_file(sidecar, f"robots/{name_or_path}.controller.json")
     return _with_controller(resource.read_text(encoding="utf-8"), name_or_path,
