@@ -42,6 +42,11 @@ COMMANDS = {
                                  "overall and per region"),
     "iso9283": ("cal_iso9283", "ISO 9283 pose accuracy and repeatability: write the test "
                                "program, or report AP and RP"),
+    "controller": ("cal_controller", "write the model the robot controller runs (UR "
+                                     "calibration.conf, .urp, ROS calibration .yaml, or a CSV "
+                                     "of the poses it reports) as a calib.json"),
+    "export": ("cal_export", "write a calibration in a maker's format: UR calibration.conf "
+                             "deltas (ur-calibration) or a D-H/MDH table CSV (dh-table)"),
     "camera": ("cal_camera", "camera: make a dot board, calibrate a camera from views of it, "
                              "measure camera poses"),
 }
