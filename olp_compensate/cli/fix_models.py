@@ -116,19 +116,33 @@ def _stated(args, dialect, paths, names):
 
 
 def with_load_notes(report, load, notes, sensitive: bool):
-    """The report with the load named in each compensated row's note (rows kept as
-    columns: in a warning) and the load notes among its warnings."""
-    from ..compensation.pose import COMPENSATED
-
+    """The report with the load named in each compensated row's note and the load
+    notes among its warnings."""
     warnings = (*report.warnings, *notes)
     if not sensitive:
         return dataclasses.replace(report, warnings=warnings)
     words = "compensated with no payload" if load is None else f"compensated under {load.words()}"
-    if isinstance(report.rows, tuple):
-        rows = tuple(dataclasses.replace(r, note=f"{r.note}; {words}" if r.note else words)
-                     if r.status in COMPENSATED else r for r in report.rows)
-        return dataclasses.replace(report, rows=rows, warnings=warnings)
-    return dataclasses.replace(report, warnings=(*warnings, f"every target {words}"))
+    return dataclasses.replace(report, rows=_noted(report.rows, words), warnings=warnings)
+
+
+def _noted(rows, words: str):
+    """``rows`` (a tuple of rows, or rows held as columns) with ``words`` added to the note
+    of every compensated row."""
+    from ..compensation.pose import COMPENSATED
+    from ..compensation.report import ChainedRows, ReportRows
+
+    def note(text: str) -> str:
+        return f"{text}; {words}" if text else words
+
+    if isinstance(rows, ReportRows):
+        columns = rows.columns
+        notes = [note(n) if s in COMPENSATED else n for n, s in zip(columns.note, columns.status)]
+        return ReportRows(dataclasses.replace(columns, note=notes),
+                          list(_noted(tuple(rows.others), words)), rows.order)
+    if isinstance(rows, ChainedRows):
+        return ChainedRows([_noted(part, words) for part in rows.parts])
+    return tuple(dataclasses.replace(r, note=note(r.note)) if r.status in COMPENSATED else r
+                 for r in rows)
 
 
 def warn_ur(dialect: str, controller) -> None:
