@@ -418,3 +418,27 @@ def test_ur_kinematics_dumps_conf_needs_nominal():
     kin = UrKinematics(form="conf", deltas=hidden_deltas(1))
     with pytest.raises(Exception):
         kin.chain()
+
+
+def test_rapid_controller_models_that_change_nothing(tmp_path):
+    """The data sheet as --controller gives the bytes of a run without it; the real arm as
+    its own controller needs no correction at all."""
+    robot = load_robot("abb_irb2400")
+    model = build_model(robot)
+    values = model.nominal + np.random.default_rng(51).normal(0, 5e-4, model.n_parameters)
+    real = Calibration(robot=robot, model=model, values=values,
+                       std=np.full(model.n_parameters, np.nan))
+    write_calibration(tmp_path / "real.json", real)
+    assert cal(["nominal", "--robot", "abb_irb2400", "-o", str(tmp_path / "nominal.json")]) == 0
+    sample = Path(__file__).resolve().parents[1] / "samples" / "cell_a.mod"
+    runs = {}
+    for label, extra in (("plain", []), ("nominal", ["--controller", str(tmp_path / "nominal.json")]),
+                         ("itself", ["--controller", str(tmp_path / "real.json")])):
+        out, report = tmp_path / f"{label}.mod", tmp_path / f"{label}.csv"
+        assert fix([str(sample), "--model", str(tmp_path / "real.json"), "-o", str(out),
+                    "--report", str(report), "-q", *extra]) == 2
+        runs[label] = (out.read_bytes(), list(csv.DictReader(open(report))))
+    assert runs["nominal"] == runs["plain"]
+    assert runs["itself"][0] == sample.read_bytes()
+    moved = [r for r in runs["itself"][1] if r["status"] == "ok"]
+    assert moved and all(abs(float(r[k])) < 1e-6 for r in moved for k in ("dx_mm", "dy_mm", "dz_mm"))

@@ -234,8 +234,8 @@ def _run_one(args, unit, retain: list | None) -> int:
                      f"{', '.join(unit.names)})")
             _summary(dataclasses.replace(report, file=label), unit.outputs, args.report,
                      time.perf_counter() - started,
-                     f"  robot {calibration.robot.name} (calibration {args.model}; "
-                     f"controller model {args.controller or 'the data sheet'})")
+                     f"  robot {calibration.robot.name} (calibration {args.model}"
+                     + (f"; controller model {args.controller})" if args.controller else ")"))
         except BrokenPipeError:   # `olp-fix ... | head`: the files are written all the same
             silence_stdout()
     return report.exit_code
