@@ -442,3 +442,21 @@ def test_rapid_controller_models_that_change_nothing(tmp_path):
     assert runs["itself"][0] == sample.read_bytes()
     moved = [r for r in runs["itself"][1] if r["status"] == "ok"]
     assert moved and all(abs(float(r[k])) < 1e-6 for r in moved for k in ("dx_mm", "dy_mm", "dz_mm"))
+
+
+def test_taught_on_the_same_arm_through_its_controller_changes_nothing(tmp_path,
+                                                                       controller_json):
+    """Targets taught on the pendant of this very robot: read through its controller's model
+    they are where its real tool went, and written back through it they come back as they
+    were (the reading and the writing use the one controller model)."""
+    controller_path, truth = controller_json
+    write_calibration(tmp_path / "real.json", real_arm(71))
+    tool = np.eye(4)
+    tool[:3, 3] = TCP[:3]
+    program = tmp_path / "cell.script"
+    program.write_text(ur_program(truth.flange(_path(71, 6)) @ tool))
+    common = [str(program), "--model", str(tmp_path / "real.json"), "--taught-on",
+              str(tmp_path / "real.json"), "-q"]
+    assert fix([*common, "-o", str(tmp_path / "a.script"), "--controller",
+                str(controller_path)]) == 0
+    assert (tmp_path / "a.script").read_text() == program.read_text()
