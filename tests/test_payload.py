@@ -202,3 +202,45 @@ def test_a_load_changed_at_run_time_is_stated(compliant_world, tmp_path, capsys)
                 str(tmp_path / "o.mod")]) == 0
     out = capsys.readouterr().out
     assert "GripLoad piece: the load changes here at run time" in out
+
+
+def test_urscript_set_payload_feeds_the_compliance_of_a_ur(tmp_path):
+    """A UR10e whose axes 2 and 3 yield (the calibration is the truth here), a URScript with
+    set_payload(8, [0, 0, 0.1]): the real TCP reaches the targets under that load."""
+    import test_controller_model as t
+    from olp_compensate.calibration.effects import Conditions
+
+    arm = t.real_arm(81)
+    effects = tuple(JointCompliance(joint=j).with_values(np.array([c]), np.array([0.0]))
+                    for j, c in ((1, 2e-5), (2, 3e-5)))
+    arm = dataclasses.replace(arm, effects=effects)
+    write_calibration(tmp_path / "real.json", arm)
+    tool = np.eye(4)
+    tool[:3, 3] = t.TCP[:3]
+    meant = t.NOMINAL.flange(t._path(81, 6)) @ tool
+    text = t.ur_program(meant).replace("  movej(", "  set_payload(8, [0, 0, 0.1])\n  movej(", 1)
+    (tmp_path / "cell.script").write_text(text)
+    misses = {}
+    for label, extra in (("under", []), ("without", ["--payload-kg", "0"])):
+        out, report = tmp_path / f"{label}.script", tmp_path / f"{label}.csv"
+        assert fix([str(tmp_path / "cell.script"), "--model", str(tmp_path / "real.json"),
+                    "-o", str(out), "--report", str(report), "-q", *extra]) == 0
+        rows = [r for r in csv.DictReader(open(report)) if r["status"] in ("ok", "singular")]
+        if label == "under":
+            assert all("load 8 kg at [0, 0, 100] mm (set_payload at" in r["note"] for r in rows)
+        written = [x for x in t.parse_urscript(out.read_text(), "o").targets if x.kind == "pose"]
+        chain = t.NOMINAL.chain()                   # the data-sheet controller
+        reached = []
+        for target, row in zip(written, rows):
+            values = np.array([n.value for n in target.numbers])
+            pose = np.eye(4)
+            pose[:3, :3], pose[:3, 3] = t.rotation_from_rotvec(values[3:]), values[:3]
+            start = np.radians([[float(row[f"q{k + 1}_deg"]) for k in range(6)]])
+            solution = refine(chain.flange_and_jacobian, start,
+                              (pose @ invert_pose(tool))[None], None, 1e-12, 1e-12, 50)
+            loaded = Conditions(payload_kg=np.array([8.0]),
+                                payload_point_m=np.array([[0.0, 0.0, 0.1]]))
+            reached.append(arm.flange_poses(solution.q, loaded)[0] @ tool)
+        misses[label] = np.linalg.norm(np.array(reached)[:, :3, 3] - meant[:, :3, 3], axis=1) * 1e3
+    assert misses["under"].max() < 0.05, misses
+    assert misses["without"].max() > 0.1, misses

@@ -89,7 +89,10 @@ class Compensator:
     """Joint solutions of the real (calibrated) arm and of the nominal controller.
 
     Internally joints are URDF axes (the closed forms are fitted on them); the public
-    methods that say so take and return controller axes.
+    methods that say so take and return controller axes. ``controller``: a calibration of
+    the model the robot's controller runs (None: the data sheet; see
+    :mod:`.controller`), through which targets are read and written; ``load``: the
+    :class:`~.controller.Load` the arm carries, fed to its load-dependent effects.
     """
 
     def __init__(self, calibration: Calibration, controller: Calibration | None = None,
