@@ -460,3 +460,35 @@ def test_taught_on_the_same_arm_through_its_controller_changes_nothing(tmp_path,
     assert fix([*common, "-o", str(tmp_path / "a.script"), "--controller",
                 str(controller_path)]) == 0
     assert (tmp_path / "a.script").read_text() == program.read_text()
+
+
+def test_the_three_ur_files_of_one_controller_give_one_model(tmp_path, capsys):
+    deltas = hidden_deltas(91)
+    deltas = DHTable(deltas.theta, deltas.d, np.r_[deltas.a[:5], 0.0],
+                     np.r_[deltas.alpha[:5], 0.0])         # the YAML form holds no a6, alpha6
+    table = NOMINAL.plus(deltas.theta, deltas.d, deltas.a, deltas.alpha)
+    (tmp_path / "calibration.conf").write_text(conf_text(deltas))
+    (tmp_path / "prog.urp").write_bytes(dumps_urp(UrKinematics(form="urp", table=table)))
+    (tmp_path / "cal.yaml").write_text(dumps_yaml(UrKinematics(
+        form="yaml", segments=segments_from_table(table))))
+    q = np.random.default_rng(91).uniform(-math.pi, math.pi, (500, 6))
+    for name in ("calibration.conf", "prog.urp", "cal.yaml"):
+        out = tmp_path / f"{name}.json"
+        assert cal(["controller", str(tmp_path / name), "--robot", NAME, "-o", str(out)]) == 0
+        chain = controller_chain(read_calibration(out))
+        assert np.abs(chain.flange(q) - table.flange(q)).max() < 1e-9, name
+    assert "ROS UR calibration YAML" in capsys.readouterr().out
+
+
+def test_urp_notes_uncalibrated_programs_and_foreign_waypoints():
+    nominal = ('<kinematics status="NOT_INITIALIZED"><deltaTheta value="0,0,0,0,0,0"/>'
+               '<a value="0,-0.6127,-0.57155,0,0,0"/><d value="0.1807,0,0,0.17415,0.11985,'
+               '0.11655"/><alpha value="1.5707963267948966,0,0,1.5707963267948966,'
+               '-1.5707963267948966,0"/></kinematics>')
+    waypoint = nominal.replace("kinematics", "Kinematics").replace('"0,0,0,0,0,0"',
+                                                                   '"0.001,0,0,0,0,0"')
+    text = f"<URProgram>{nominal}<children><Waypoint><position>{waypoint}</position>" \
+           f"</Waypoint></children></URProgram>"
+    notes = loads_urp(text.encode(), "p.urp").notes
+    assert any("NOT_INITIALIZED" in n for n in notes)
+    assert any("1 waypoint(s) carry other kinematics" in n for n in notes)

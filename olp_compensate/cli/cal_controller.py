@@ -62,6 +62,8 @@ def run(args) -> int:
                  "urp": "UR program kinematics (absolute D-H, deltaTheta on zero offsets)",
                  "yaml": "ROS UR calibration YAML (joint origins x y z roll pitch yaw)"}
         fit = fit_chain(robot, kin.chain(nominal), f"{words[kin.form]} {args.source}")
+        for note in kin.notes:
+            print(f"olp-cal controller: warning: {args.source}: {note}")
     write_calibration(args.output, fit.calibration)
     _print(fit, args)
     return 0

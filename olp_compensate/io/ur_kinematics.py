@@ -59,6 +59,9 @@ class UrKinematics:
     segments: np.ndarray | None = None
     extra: dict[str, str] = field(default_factory=dict)
     status: str = ""
+    notes: tuple[str, ...] = ()
+    """What the file says about its own values (a .urp saved uncalibrated, waypoints that
+    carry other kinematics)."""
 
     def chain(self, nominal: DHTable | None = None) -> FixedChain:
         """The controller's chain (base = UR base frame, flange = UR tool flange); the
@@ -230,8 +233,30 @@ def loads_urp(data: bytes, source: str = "<program.urp>") -> UrKinematics:
         values[key] = _numbers(element.attrib["value"], 6, source, line, None, key)
     table = DHTable(values["deltaTheta"], values["d"], values["a"], values["alpha"])
     extra = {e.tag: e.attrib.get("value", "") for e in kinematics if e.tag not in URP_KEYS}
-    return UrKinematics(form="urp", table=table, extra=extra,
-                        status=kinematics.attrib.get("status", ""))
+    status = kinematics.attrib.get("status", "")
+    return UrKinematics(form="urp", table=table, extra=extra, status=status,
+                        notes=_urp_notes(root, kinematics, status))
+
+
+def _urp_notes(root, kinematics, status: str) -> tuple[str, ...]:
+    """Warnings about a program's kinematics: not calibrated values; waypoints whose own
+    ``<Kinematics>`` differ from the program's (saved with another calibration)."""
+    notes = []
+    if status.upper() == "NOT_INITIALIZED":
+        notes.append("kinematics status NOT_INITIALIZED: the program was not saved on a "
+                     "calibrated controller; these are the data sheet's values")
+    mine = [kinematics.find(k).attrib.get("value", "").replace(" ", "") for k in URP_KEYS]
+    other = 0
+    for element in root.iter():
+        if element is kinematics or element.tag.lower() != "kinematics":
+            continue
+        theirs = [(element.find(k).attrib.get("value", "") if element.find(k) is not None
+                   else "").replace(" ", "") for k in URP_KEYS]
+        other += theirs != mine
+    if other:
+        notes.append(f"{other} waypoint(s) carry other kinematics than the program's (saved "
+                     f"with another calibration or robot): the program's are used")
+    return tuple(notes)
 
 
 def _line_of(text: str, needle: str) -> int | None:
