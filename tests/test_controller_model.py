@@ -492,3 +492,22 @@ def test_urp_notes_uncalibrated_programs_and_foreign_waypoints():
     notes = loads_urp(text.encode(), "p.urp").notes
     assert any("NOT_INITIALIZED" in n for n in notes)
     assert any("1 waypoint(s) carry other kinematics" in n for n in notes)
+
+
+def test_a_folder_with_controller_gives_the_bytes_of_each_program_alone(tmp_path,
+                                                                        controller_json):
+    controller_path, truth = controller_json
+    write_calibration(tmp_path / "real.json", real_arm(95))
+    tool = np.eye(4)
+    tool[:3, 3] = TCP[:3]
+    (tmp_path / "in").mkdir()
+    for k in range(3):
+        (tmp_path / "in" / f"p{k}.script").write_text(
+            ur_program(truth.flange(_path(95 + k, 3)) @ tool))
+    common = ["--model", str(tmp_path / "real.json"), "--controller", str(controller_path),
+              "-q"]
+    assert fix([str(tmp_path / "in"), "-o", str(tmp_path / "out"), "-j", "2", *common]) == 0
+    for k in range(3):
+        alone = tmp_path / f"alone{k}.script"
+        assert fix([str(tmp_path / "in" / f"p{k}.script"), "-o", str(alone), *common]) == 0
+        assert (tmp_path / "out" / f"p{k}.script").read_bytes() == alone.read_bytes()

@@ -186,7 +186,8 @@ def _table(units, outcomes, report, calibration, args, seconds: float) -> None:
 
     print(f"olp-fix: {len(units)} programs, {len(report.rows)} target uses in "
           f"{seconds:.2f} s")
-    print(f"  robot {calibration.robot.name} (calibration {args.model})")
+    print(f"  robot {calibration.robot.name} (calibration {args.model}"
+          + (f"; controller model {args.controller})" if args.controller else ")"))
     width = max(len(" + ".join(u.names)) for u in units)
     print(f"  {'program':<{width}}  {'uses':>6}  {'ok':>6}  {'not':>6}  status")
     for unit, outcome in zip(units, outcomes):
