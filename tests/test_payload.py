@@ -244,3 +244,14 @@ def test_urscript_set_payload_feeds_the_compliance_of_a_ur(tmp_path):
         misses[label] = np.linalg.norm(np.array(reached)[:, :3, 3] - meant[:, :3, 3], axis=1) * 1e3
     assert misses["under"].max() < 0.05, misses
     assert misses["without"].max() > 0.1, misses
+
+
+def test_rapid_task_tool_declared_in_another_module():
+    data = ("MODULE CalibData\n  PERS tooldata gun := [TRUE,[[0,0,300],[1,0,0,0]],"
+            "[60,[0,0,250],[1,0,0,0],0,0,0]];\nENDMODULE\n")
+    main = ("MODULE Main\n  CONST robtarget p1 := [[1000,0,1000],[0,0,1,0],[0,0,0,0],"
+            "[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()\n    MoveL p1, v100, fine, gun;\n"
+            "  ENDPROC\nENDMODULE\n")
+    programs = [loads(data, "rapid", "CalibData.mod"), loads(main, "rapid", "Main.mod")]
+    found = program_loads("rapid", {}, programs)
+    assert [(x.kg, x.source) for x in found.loads] == [(60.0, "tooldata gun")]

@@ -81,8 +81,9 @@ def _urscript(texts: dict[str, str]) -> ProgramLoads:
 
 def _rapid(programs) -> ProgramLoads:
     found, runtime = [], []
+    programs = list(programs)           # a task: tools declared in one module, used in another
+    used = {m.tool.lower() for program in programs for m in program.motions if m.tool}
     for program in programs:
-        used = {m.tool.lower() for m in program.motions if m.tool}
         for tool in program.tools:
             if tool.name is None or tool.name.lower() not in used or tool.robhold is False:
                 continue
