@@ -67,7 +67,7 @@ def export_dh(calibration: Calibration, reference: DHTable | None = None, poses:
     rng = np.random.default_rng(seed)
     table, fitted = exact.table, False
     if joint_effects(calibration.effects) or geometry_effects(calibration.effects):
-        q_fit = random_joints(robot, 400, rng)
+        q_fit = random_joints(robot, 250, rng)
         target = calibration.flange_poses(q_fit)
         q_urdf = robot.joints_from_controller(q_fit)
         x0 = np.concatenate([exact.table.theta, exact.table.d, exact.table.a,
