@@ -100,6 +100,9 @@ class Compensator:
         self.calibration = calibration
         self.robot = calibration.robot
         self.model = calibration.model
+        self.controller = controller
+        """The model the robot's controller runs (None: the data sheet): targets are read
+        and written through it (:mod:`.controller`)."""
         if self.robot.n_joints != 6:
             raise ModelError(f"{self.robot.name}: compensation needs a 6-axis arm, this one "
                              f"has {self.robot.n_joints} axes")
@@ -111,9 +114,6 @@ class Compensator:
                              f"or UR) fits this arm, so program configurations cannot be "
                              f"chosen")
         self.family: OPWParameters | URParameters = family
-        self.controller = controller
-        """The model the robot's controller runs (None: the data sheet): targets are read
-        and written through it (:mod:`.controller`)."""
         if controller is not None:    # the closed form stays the data sheet's (a start)
             self._nominal_chain = controller_model_chain(controller, calibration)
         self.load = load
@@ -130,8 +130,8 @@ class Compensator:
         """Flange poses (m, 4, 4) of the controller's model (the data-sheet arm by
         default), base frame, m."""
         q_urdf = np.asarray(q_urdf, dtype=float)
-        if self._nominal_chain is not None and q_urdf.ndim == 2:
-            return self._nominal_chain.flange(q_urdf)
+        if self._nominal_chain is not None and (q_urdf.ndim == 2 or self.controller is not None):
+            return self._nominal_chain.flange(np.atleast_2d(q_urdf))
         return forward(self.model, self.model.nominal, q_urdf).flange
 
     def real_flange_and_jacobian(self, q_urdf: np.ndarray):
