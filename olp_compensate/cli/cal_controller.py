@@ -9,6 +9,7 @@ calib.json (same robot, same format) says where it came from in its validation m
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..errors import DataError
@@ -74,16 +75,16 @@ def _print(fit, args) -> None:
     print(f"olp-cal controller: {cal.validation.method}")
     print(f"  model of {cal.robot.name} fitted to {fit.rows} poses in the controller's base "
           f"frame: residual {fit.position_rms_m * 1e3:.6f} mm RMS, "
-          f"{fit.position_max_m * 1e3:.6f} mm max; {fit.rotation_rms_rad * 57.29577951:.6f} "
-          f"deg RMS, {fit.rotation_max_rad * 57.29577951:.6f} deg max (condition number "
+          f"{fit.position_max_m * 1e3:.6f} mm max; {math.degrees(fit.rotation_rms_rad):.6f} "
+          f"deg RMS, {math.degrees(fit.rotation_max_rad):.6f} deg max (condition number "
           f"{cal.validation.condition_number:.1f})")
     if args.source.lower().endswith(".csv"):
         if fit.reproduces:
             print(f"  the model reproduces every row to its written precision "
-                  f"({fit.precision_m * 1e3:.6f} mm, {fit.precision_rad * 57.29577951:.6f} deg)")
+                  f"({fit.precision_m * 1e3:.6f} mm, {math.degrees(fit.precision_rad):.6f} deg)")
         else:
             print(f"  warning: the model does NOT reproduce the rows to their written precision "
-                  f"({fit.precision_m * 1e3:.6f} mm, {fit.precision_rad * 57.29577951:.6f} deg): "
+                  f"({fit.precision_m * 1e3:.6f} mm, {math.degrees(fit.precision_rad):.6f} deg): "
                   f"the controller runs something this model cannot hold (a load model, a "
                   f"base frame off axis 1, rows of different tools) or the rows are not what "
                   f"the controller computed")
