@@ -35,8 +35,15 @@ Measurements and identification
         calib.json (versioned, schema-checked, refused for another robot model).
 
 Compensation
-    Compensator(calibration)
-        Reusable solver of the real (calibrated) and nominal arms.
+    Compensator(calibration, controller=None, load=None)
+        Reusable solver of the real (calibrated) arm and of the controller's model (the
+        data sheet, or ``controller``: a calibration of the model the controller runs);
+        ``load`` a :class:`Load` for load-dependent effects (joint compliance).
+    Load(kg, cog_m, source="")
+        A payload: mass, kg, at its centre of gravity in the flange frame, m.
+    fit_controller(robot, q_ctrl, base_T_tool, origin=...) -> ControllerFit
+        The controller's own model fitted to the poses it reports (its base frame, m);
+        ``ControllerFit.calibration`` is a :class:`Calibration` to pass as ``controller``.
     compensate_pose(calibration_or_compensator, wobj_T_target, tool=flange_T_tool,
                     wobj=base_T_wobj, config=(cf1, cf4, cf6, cfx)) -> PoseCompensation
         The target to write so the nominal controller drives the real arm onto the pose
@@ -87,6 +94,8 @@ _WHERE = {
     "read_calibration": "io.calibration_file",
     "write_calibration": "io.calibration_file",
     "Compensator": "compensation.pose",
+    "Load": "compensation.controller",
+    "fit_controller": "calibration.controller_fit",
     "compensate_pose": "compensation.pose",
     "compensate_poses": "compensation.pose",
     "PoseCompensation": "compensation.pose",

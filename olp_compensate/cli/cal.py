@@ -44,6 +44,11 @@ COMMANDS = {
                                "program, or report AP and RP"),
     "robots": ("cal_robots", "list the bundled robots (--json), or show one robot's parameters "
                              "and ranges (--show NAME)"),
+    "controller": ("cal_controller", "write the model the robot controller runs (UR "
+                                     "calibration.conf, .urp, ROS calibration .yaml, or a CSV "
+                                     "of the poses it reports) as a calib.json"),
+    "export": ("cal_export", "write a calibration in a maker's format: UR calibration.conf "
+                             "deltas (ur-calibration) or a D-H/MDH table CSV (dh-table)"),
     "camera": ("cal_camera", "camera: make a dot board, calibrate a camera from views of it, "
                              "measure camera poses"),
 }

@@ -22,6 +22,7 @@ from .. import __version__
 from ..errors import DataError, ModelError, OlpError
 from .common import (THREADS_HELP, exit_now, no_gc, refuse_clashes, run_guarded,
                      silence_stdout)
+from .fix_models import add_options as add_model_options
 
 SHOWN_PROBLEMS = 20
 EMIT_MODES = ("pose", "joints")
@@ -65,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="calibration of the robot the targets were taught on (robot-to-robot "
                         "transfer: the real robot of --model reaches where that robot's real "
                         "tool went); both of the same robot model")
+    add_model_options(p)
     p.add_argument("--config", metavar="FRAMES",
                    help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]; "
                         "FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) with $MNUFRAME and "
@@ -127,7 +129,7 @@ def run(args, retain: list | None = None) -> int:
     units = plan_units(args.program, args.dialect, args.output, EXTENSIONS)
     refuse_clashes([*(("program", p) for u in units for p in u.paths), ("--model", args.model),
                     ("--robot", args.robot), ("--taught-on", args.taught_on),
-                    ("--config", args.config)],
+                    ("--config", args.config), ("--controller", args.controller)],
                    [*(("-o" if args.output else "the default output", o)
                       for u in units for o in u.outputs), ("--report", args.report)])
     # a short batch run over millions of small acyclic records: the cyclic collector's
@@ -175,16 +177,18 @@ def output_is_folder(args) -> bool:
     return bool(args.output) and not (len(args.program) == 1 and Path(args.program[0]).is_file())
 
 
-def make_compensator(calibration, region: str | None):
+def make_compensator(calibration, region: str | None, controller=None, load=None):
     """The compensator of a run: the regional one when the calibration has regions (or
-    ``--region`` forces one), else the plain one."""
+    ``--region`` forces one), else the plain one; ``controller``: the controller's model
+    (None: the data sheet), ``load``: the load carried (None: none)."""
     if calibration.regions or region is not None:
         from ..compensation.regions import RegionalCompensator
 
-        return RegionalCompensator(calibration, force=region)
+        return RegionalCompensator(calibration, force=region, controller=controller,
+                                   load=load)
     from ..compensation.pose import Compensator
 
-    return Compensator(calibration)
+    return Compensator(calibration, controller, load)
 
 
 def _run_one(args, unit, retain: list | None) -> int:
@@ -192,19 +196,25 @@ def _run_one(args, unit, retain: list | None) -> int:
     from ..compensation.files import ProgramFiles, compensate_files
     from ..io.atomic import write_files_atomic
 
+    from .fix_models import load_sensitive, read_controller, unit_load, warn_ur, with_load_notes
+
     calibration, taught_on = load_calibrations(args)
+    controller = read_controller(args, calibration)
     for path in unit.paths:
         check_robot(path, calibration, args.model)
+    warn_ur(unit.dialect, controller)
     try:
+        load, load_notes = unit_load(args, calibration, unit.dialect, unit.paths, unit.names)
         result = compensate_files(
             ProgramFiles(dialect=unit.dialect, paths=unit.paths, names=unit.names),
-            make_compensator(calibration, args.region), emit=args.emit, unused=args.unused, taught_on=taught_on,
+            make_compensator(calibration, args.region, controller, load), emit=args.emit,
+            unused=args.unused, taught_on=taught_on,
             frames_path=args.config, jobs=args.jobs or os.cpu_count() or 1)
     except OlpError as exc:
         if getattr(exc, "context", None):
             print(exc.context, file=sys.stderr)
         raise
-    report = result.report
+    report = with_load_notes(result.report, load, load_notes, load_sensitive(calibration))
     if retain is not None:
         retain += [result, report]
     if not report.rows:
@@ -224,7 +234,8 @@ def _run_one(args, unit, retain: list | None) -> int:
                      f"{', '.join(unit.names)})")
             _summary(dataclasses.replace(report, file=label), unit.outputs, args.report,
                      time.perf_counter() - started,
-                     f"  robot {calibration.robot.name} (calibration {args.model})")
+                     f"  robot {calibration.robot.name} (calibration {args.model}"
+                     + (f"; controller model {args.controller})" if args.controller else ")"))
         except BrokenPipeError:   # `olp-fix ... | head`: the files are written all the same
             silence_stdout()
     return report.exit_code

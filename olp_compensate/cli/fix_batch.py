@@ -34,41 +34,66 @@ def _start_worker(model: str, robot: str | None, taught_on: str | None, options:
     from ..io.calibration_file import read_calibration
     from ..kinematics.robot import load_robot
 
+    from .fix_models import read_controller
+
     calibration = read_calibration(model, load_robot(robot) if robot else None)
     teacher = None if taught_on is None else read_calibration(taught_on, calibration.robot)
-    _STATE.update(compensator=make_compensator(calibration, options["region"]),
-                  teacher=teacher, options=options,
-                  calibration=calibration, model=model)
+    controller = read_controller(options["args"], calibration)
+    _STATE.update(compensator=make_compensator(calibration, options["region"], controller),
+                  teacher=teacher, options=options, controller=controller,
+                  calibration=calibration, model=model, loaded={})
+
+
+def _compensator_for(dialect: str, paths, names):
+    """The worker's compensator, or one under the load this program states (or the
+    override) when the calibration holds load-dependent effects; and the load's notes."""
+    from .fix import make_compensator
+    from .fix_models import unit_load
+
+    args = _STATE["options"]["args"]
+    load, notes = unit_load(args, _STATE["calibration"], dialect, paths, names)
+    if load is None:
+        return _STATE["compensator"], load, notes
+    key = (load.kg, tuple(load.cog_m), load.source)
+    if key not in _STATE["loaded"]:
+        _STATE["loaded"][key] = make_compensator(_STATE["calibration"],
+                                                 _STATE["options"]["region"],
+                                                 _STATE["controller"], load)
+    return _STATE["loaded"][key], load, notes
 
 
 def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
     """Compensate one unit in this process (see :func:`_start_worker`)."""
     from ..compensation.files import ProgramFiles, compensate_files
     from .fix import check_not_cut_short, check_robot
+    from .fix_models import load_sensitive, with_load_notes
 
     started = time.perf_counter()
     options = _STATE["options"]
     try:
         for path in paths:
             check_robot(Path(path), _STATE["calibration"], _STATE["model"])
+        compensator, load, notes = _compensator_for(dialect, paths, names)
         result = compensate_files(ProgramFiles(dialect=dialect, paths=tuple(map(Path, paths)),
                                                names=names),
-                                  _STATE["compensator"], emit=options["emit"],
+                                  compensator, emit=options["emit"],
                                   unused=options["unused"], taught_on=_STATE["teacher"],
                                   frames_path=options["config"])
         if not result.report.rows:
             check_not_cut_short(dialect, paths, names)
+        report = with_load_notes(result.report, load, notes,
+                                 load_sensitive(_STATE["calibration"]))
     except OlpError as exc:
         return UnitOutcome(index=index, error=str(exc).splitlines()[0],
                            seconds=time.perf_counter() - started)
-    return UnitOutcome(index=index, data=result.data, report=result.report,
+    return UnitOutcome(index=index, data=result.data, report=report,
                        seconds=time.perf_counter() - started)
 
 
 def _outcomes(args, units):
     """Yield the :class:`UnitOutcome` of every unit as it completes."""
     options = {"emit": args.emit, "unused": args.unused, "config": args.config,
-               "region": args.region}
+               "region": args.region, "args": _model_args(args)}
     init = (args.model, args.robot, args.taught_on, options)
     jobs = min(args.jobs or os.cpu_count() or 1, len(units))
     if jobs == 1:
@@ -84,6 +109,14 @@ def _outcomes(args, units):
                                units[k].names) for k in order]
         for future in as_completed(futures):
             yield future.result()
+
+
+def _model_args(args):
+    """The options the controller model and the load read, as a picklable namespace."""
+    from argparse import Namespace
+
+    return Namespace(model=args.model, controller=args.controller, config=args.config,
+                     payload_kg=args.payload_kg, payload_cog_mm=args.payload_cog_mm)
 
 
 def _size(unit) -> int:
@@ -176,9 +209,12 @@ def run_batch(args, units) -> int:
     program, not the sum), then the one report in the input order; print the table."""
     from ..io.atomic import write_files_atomic
     from .fix import load_calibrations, output_is_folder
+    from .fix_models import read_controller, warn_ur
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
+    if any(u.dialect == "urscript" for u in units):
+        warn_ur("urscript", read_controller(args, calibration))
     summaries: list[UnitSummary | None] = [None] * len(units)
     spool = ReportSpool()
     try:
@@ -210,7 +246,8 @@ def run_batch(args, units) -> int:
 def _table(units, summaries, calibration, args, seconds: float) -> None:
     n_rows = sum(s.n_rows for s in summaries)
     print(f"olp-fix: {len(units)} programs, {n_rows} target uses in {seconds:.2f} s")
-    print(f"  robot {calibration.robot.name} (calibration {args.model})")
+    print(f"  robot {calibration.robot.name} (calibration {args.model}"
+          + (f"; controller model {args.controller})" if args.controller else ")"))
     width = max(len(" + ".join(u.names)) for u in units)
     print(f"  {'program':<{width}}  {'uses':>6}  {'ok':>6}  {'not':>6}  status")
     counts: dict[str, int] = {}

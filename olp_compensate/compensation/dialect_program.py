@@ -122,7 +122,7 @@ def compensate_pose_program(program: PoseProgram, rules: DialectRules,
     to robot transfer): the pose to reach is where that robot's real tool went."""
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     teacher = (None if taught_on is None else taught_on if isinstance(taught_on, Compensator)
-               else Compensator(taught_on))
+               else Compensator(taught_on, comp.controller))
     geometry = _geometry(comp)
     frames = FrameLookup(program, rules, comp.calibration)
     rows: list[TargetReport] = []
@@ -256,6 +256,7 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
     confdata = comp.confdata(q_nominal_urdf)
     meant = requested @ np.array([j.tool for j in jobs])                     # TCP poses
     if teacher is not None:                     # where the teaching robot's real tool went
+        q_nominal_urdf = comp.controller_joints(q_nominal_urdf, requested)
         taught_tool = np.array([FrameLookup(None, rules, teacher.calibration)  # type: ignore[arg-type]
                                 .real_tool(j.tool_key, j.tool)[0] for j in jobs])
         real_flange, _ = teacher.real_flange_and_jacobian(q_nominal_urdf)

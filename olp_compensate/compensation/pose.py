@@ -28,6 +28,7 @@ from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, branch_of,
                  closed_form_inverse, fit_family, nominal_joints_on_branch, solve,
                  solve_with_nominal)
 from ..kinematics.model import FixedChain, fixed_chain, forward
+from .controller import Load, controller_model_chain, refine_on_controller
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
            "compensate_poses", "COMPENSATED"]
@@ -88,13 +89,20 @@ class Compensator:
     """Joint solutions of the real (calibrated) arm and of the nominal controller.
 
     Internally joints are URDF axes (the closed forms are fitted on them); the public
-    methods that say so take and return controller axes.
+    methods that say so take and return controller axes. ``controller``: a calibration of
+    the model the robot's controller runs (None: the data sheet; see
+    :mod:`.controller`), through which targets are read and written; ``load``: the
+    :class:`~.controller.Load` the arm carries, fed to its load-dependent effects.
     """
 
-    def __init__(self, calibration: Calibration):
+    def __init__(self, calibration: Calibration, controller: Calibration | None = None,
+                 load: Load | None = None):
         self.calibration = calibration
         self.robot = calibration.robot
         self.model = calibration.model
+        self.controller = controller
+        """The model the robot's controller runs (None: the data sheet): targets are read
+        and written through it (:mod:`.controller`)."""
         if self.robot.n_joints != 6:
             raise ModelError(f"{self.robot.name}: compensation needs a 6-axis arm, this one "
                              f"has {self.robot.n_joints} axes")
@@ -106,6 +114,10 @@ class Compensator:
                              f"or UR) fits this arm, so program configurations cannot be "
                              f"chosen")
         self.family: OPWParameters | URParameters = family
+        if controller is not None:    # the closed form stays the data sheet's (a start)
+            self._nominal_chain = controller_model_chain(controller, calibration)
+        self.load = load
+        """The load the arm carries (None: none), fed to load-dependent effects."""
         self.limits = np.stack([self.robot.lower_limits, self.robot.upper_limits], 1)
         """(n, 2) URDF joint limits, rad: what the IK checks."""
         self.axis_ranges = self.robot.controller_ranges
@@ -115,17 +127,20 @@ class Compensator:
     # -- kinematics, URDF axes ------------------------------------------------------------
 
     def nominal_flange(self, q_urdf: np.ndarray) -> np.ndarray:
-        """Flange poses (m, 4, 4) of the data-sheet arm, base frame, m."""
+        """Flange poses (m, 4, 4) of the controller's model (the data-sheet arm by
+        default), base frame, m."""
         q_urdf = np.asarray(q_urdf, dtype=float)
-        if self._nominal_chain is not None and q_urdf.ndim == 2:
-            return self._nominal_chain.flange(q_urdf)
+        if self._nominal_chain is not None and (q_urdf.ndim == 2 or self.controller is not None):
+            return self._nominal_chain.flange(np.atleast_2d(q_urdf))
         return forward(self.model, self.model.nominal, q_urdf).flange
 
     def real_flange_and_jacobian(self, q_urdf: np.ndarray):
         """Flange poses (m, 4, 4) of the calibrated arm and its geometric Jacobian
         (m, 6, n) (flange-origin velocity, then angular velocity, base frame) with respect
         to the commanded joints, effects included."""
-        q_actual, dactual = self.calibration.actual_joints(q_urdf, jacobian=True)
+        q_actual, dactual = self.calibration.actual_joints(
+            q_urdf, jacobian=True, conditions=None if self.load is None
+            else self.load.conditions(len(np.atleast_2d(q_urdf))))
         if self._chain is not None and np.ndim(q_actual) == 2:
             flange, jac = self._chain.flange_and_jacobian(q_actual)
         else:
@@ -181,7 +196,21 @@ class Compensator:
 
     def solve_nominal(self, base_T_flange: np.ndarray, confdata: np.ndarray | None) -> np.ndarray:
         """Joints (m, n) (URDF axes) the nominal controller takes for ``base_T_flange``:
-        the closed form on the requested branch (NaN where unreachable)."""
+        the closed form on the requested branch (NaN where unreachable); with a
+        controller model, refined on it (:meth:`controller_joints`)."""
+        return self.controller_joints(self._solve_datasheet(base_T_flange, confdata),
+                                      base_T_flange)
+
+    def controller_joints(self, q_urdf: np.ndarray, base_T_flange: np.ndarray) -> np.ndarray:
+        """The joints (m, n) URDF axes, near ``q_urdf`` (the data sheet's), at which the
+        controller's model puts its flange on ``base_T_flange`` (m, 4, 4); ``q_urdf`` itself
+        without a controller model (NaN where it does not converge)."""
+        if self.controller is None:
+            return q_urdf
+        return refine_on_controller(self._nominal_chain, q_urdf, base_T_flange)
+
+    def _solve_datasheet(self, base_T_flange: np.ndarray, confdata: np.ndarray | None
+                         ) -> np.ndarray:
         if confdata is not None:
             confdata = np.asarray(confdata, dtype=int).reshape(-1, 4)
             return nominal_joints_on_branch(self.family, base_T_flange, confdata, self.limits)
@@ -225,6 +254,7 @@ class Compensator:
                 self.family, self.real_flange_and_jacobian, desired_real_flange, confdata,
                 self.limits, reach=self.reach, retries=retries)
             solution = self.check_axis_ranges(solution)
+            nominal = self.controller_joints(nominal, requested_flange)
         else:
             solution = self.solve_real(desired_real_flange, confdata, retries=retries)
             nominal = None

@@ -52,8 +52,8 @@ class RegionalCompensator(Compensator):
     """
 
     def __init__(self, calibration: Calibration, force: str | None = None,
-                 dispatch_point_m: np.ndarray | None = None):
-        super().__init__(calibration)
+                 dispatch_point_m: np.ndarray | None = None, controller=None, load=None):
+        super().__init__(calibration, controller, load)
         known = [r.name for r in calibration.regions]
         if force is not None and force != GLOBAL_MODEL and force not in known:
             listed = ", ".join(known) or "none"
@@ -83,7 +83,8 @@ class RegionalCompensator(Compensator):
         if name == GLOBAL_MODEL:
             return self
         if name not in self._compensators:
-            self._compensators[name] = Compensator(self.calibration_for(name))
+            self._compensators[name] = Compensator(self.calibration_for(name),
+                                                   self.controller, self.load)
         return self._compensators[name]
 
     def region_base_T_base(self, name: str) -> np.ndarray:

@@ -105,7 +105,8 @@ def _teacher(taught_on, comp: Compensator) -> Compensator | None:
     """The Compensator of the teaching robot, checked to be of the same robot model."""
     if taught_on is None:
         return None
-    teacher = taught_on if isinstance(taught_on, Compensator) else Compensator(taught_on)
+    teacher = (taught_on if isinstance(taught_on, Compensator)     # read through the same
+               else Compensator(taught_on, comp.controller))        # controller's model
     if teacher.robot.name != comp.robot.name:
         raise DataError(f"taught_on: a calibration of {teacher.robot.name}, but the program "
                         f"is compensated for {comp.robot.name}: transfer needs one robot "
