@@ -32,7 +32,7 @@ class FitVerdict:
 
 
 def judge_residual(what: str, residuals_m, names=None, max_rms_m: float = MAX_RMS_M,
-                   noise: str = "") -> FitVerdict:
+                   noise: str = "", rms_m: float | None = None) -> FitVerdict:
     """The verdict on a fit's residual distances ``residuals_m`` (k,), m, one per touch or
     row named by ``names`` (k,): rejected when the RMS exceeds ``max_rms_m`` or a residual
     is not finite. ``what`` starts the message ("tool t1: the touches do not fit one tool
@@ -42,7 +42,7 @@ def judge_residual(what: str, residuals_m, names=None, max_rms_m: float = MAX_RM
         return FitVerdict(False)
     if not np.all(np.isfinite(r)):
         return FitVerdict(True, f"{what}: the fit gave non-finite residuals")
-    rms = float(np.sqrt(np.mean(r ** 2)))
+    rms = float(np.sqrt(np.mean(r ** 2))) if rms_m is None else float(rms_m)
     if rms <= max_rms_m:
         return FitVerdict(False)
     worst = int(np.argmax(r))
