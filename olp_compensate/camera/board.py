@@ -25,6 +25,11 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 
 BOARD_KEYS = ("rows", "cols", "pitch_mm", "dot_diameter_mm", "marker_diameter_mm")
+MAX_DOTS_PER_SIDE = 100
+"""Most rows or columns of a board: 100 x 100 dots, far beyond any calibration board (a
+2000 x 2000 board took minutes into a memory error)."""
+MAX_SHEET_M = 3.0
+"""Largest sheet side, m (a board is printed and glued flat on a rigid plate)."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,9 @@ class Board:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
                     or value < 3:
                 raise DataError(f"board: {name} must be an integer >= 3, got {value!r}")
+            if value > MAX_DOTS_PER_SIDE:
+                raise DataError(f"board: {name} = {value}: at most {MAX_DOTS_PER_SIDE} dots "
+                                f"per side")
         for name in ("pitch_m", "dot_diameter_m", "marker_diameter_m"):
             value = getattr(self, name)
             if not isinstance(value, (int, float, np.floating, np.integer)) \
@@ -82,6 +90,11 @@ class Board:
                 f"board: dots overlap or nearly touch: pitch {self.pitch_m / MM:g} mm leaves "
                 f"{gap / MM:g} mm between the marker and its neighbour, need at least "
                 f"{self.dot_diameter_m / 2 / MM:g} mm")
+        sheet = self.sheet_extent()
+        if max(sheet.width, sheet.height) > MAX_SHEET_M:
+            raise DataError(f"board: the sheet would be {sheet.width / MM:.0f} x "
+                            f"{sheet.height / MM:.0f} mm; at most {MAX_SHEET_M / MM:.0f} mm "
+                            f"a side (fewer dots or a smaller pitch)")
 
     @property
     def count(self) -> int:

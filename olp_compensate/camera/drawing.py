@@ -24,6 +24,34 @@ SCALE_BAR_MM = 100.0
 """Length of the printed scale bar, mm."""
 
 _TEXT_MM = 3.0  # height of the small text, mm
+MAX_PNG_PIXELS = 60e6
+"""Largest PNG drawn, pixels (an A1 sheet at 300 dpi); the SVG has no such limit."""
+PAPER_MM = {"A4": (210.0, 297.0), "Letter": (215.9, 279.4)}
+"""Paper sizes, mm (ISO 216; ANSI letter)."""
+PRINTER_MARGIN_MM = 5.0
+"""Unprintable border of an office printer on each side, mm."""
+
+
+def fits_on(board: Board) -> list[str]:
+    """The paper sizes (of :data:`PAPER_MM`) whose printable area holds the sheet, in
+    either orientation."""
+    sheet = board.sheet_extent()
+    w, h = sorted((sheet.width / MM, sheet.height / MM))
+    return [name for name, (pw, ph) in PAPER_MM.items()
+            if w <= pw - 2 * PRINTER_MARGIN_MM and h <= ph - 2 * PRINTER_MARGIN_MM]
+
+
+def check_png_size(board: Board, dpi: float) -> None:
+    """:class:`DataError` when the PNG at ``dpi`` would exceed :data:`MAX_PNG_PIXELS` or the
+    dpi is outside 50-2400."""
+    if not np.isfinite(dpi) or not 50 <= dpi <= 2400:
+        raise DataError(f"board drawing: dpi must be 50-2400, got {dpi!r}")
+    sheet = board.sheet_extent()
+    pixels = (sheet.width / MM * dpi / 25.4) * (sheet.height / MM * dpi / 25.4)
+    if pixels > MAX_PNG_PIXELS:
+        raise DataError(f"board drawing: a {sheet.width / MM:.0f} x {sheet.height / MM:.0f} mm "
+                        f"sheet at {dpi:g} dpi is {pixels / 1e6:.0f} million pixels, above "
+                        f"{MAX_PNG_PIXELS / 1e6:.0f} million; lower --dpi or print the SVG")
 
 
 def _layout(board: Board) -> dict:
@@ -85,8 +113,7 @@ def board_image(board: Board, dpi: float = 300.0) -> np.ndarray:
     """The board as an 8-bit grey image (h, w) at ``dpi`` dots per inch (antialiased)."""
     import cv2
 
-    if not np.isfinite(dpi) or not 50 <= dpi <= 2400:
-        raise DataError(f"board drawing: dpi must be 50-2400, got {dpi!r}")
+    check_png_size(board, dpi)
     g = _layout(board)
     px = dpi / 25.4  # pixels per mm
     width, height = int(round(g["width"] * px)), int(round(g["height"] * px))

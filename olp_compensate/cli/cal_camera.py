@@ -31,7 +31,8 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.camera_file import read_camera, write_camera
 from ..io.images import image_paths, read_grey
-from ..io.measurements import FORMAT_LINE, read_csv_text
+from ..kinematics.conventions import MM
+from ..io.measurements import FORMAT_LINE, parse_cell_number, read_csv_text
 
 HELP = "camera: make a dot board, calibrate a camera from views of it, measure camera poses"
 
@@ -44,9 +45,10 @@ def add_arguments(p) -> None:
                        description="Write a dot board's description (board.json, mm) and "
                                    "optionally a drawing to print at scale.")
     b.add_argument("--rows", type=int, default=9, help="dot rows (default 9)")
-    b.add_argument("--cols", type=int, default=9, help="dot columns (default 9)")
-    b.add_argument("--pitch-mm", type=float, default=25.0,
-                   help="centre-to-centre distance of the dots, mm (default 25)")
+    b.add_argument("--cols", type=int, default=7, help="dot columns (default 7)")
+    b.add_argument("--pitch-mm", type=float, default=22.0,
+                   help="centre-to-centre distance of the dots, mm (default 22: the default "
+                        "sheet, 184 x 228 mm, prints on A4 and Letter)")
     b.add_argument("--dot-mm", type=float, default=5.0, help="dot diameter, mm (default 5)")
     b.add_argument("--marker-mm", type=float, default=8.0,
                    help="diameter of the marker dot (row 0, column 0), mm (default 8)")
@@ -151,16 +153,23 @@ def _detect(paths: list[Path], board: Board):
 # -- board ------------------------------------------------------------------------------------
 
 def _run_board(args) -> int:
-    from ..camera.drawing import write_board_png, write_board_svg
+    from ..camera.drawing import check_png_size, fits_on, write_board_png, write_board_svg
 
     board = Board(rows=args.rows, cols=args.cols, pitch_m=args.pitch_mm * 1e-3,
                   dot_diameter_m=args.dot_mm * 1e-3, marker_diameter_m=args.marker_mm * 1e-3)
     outputs = [Path(p) for p in (args.output, args.svg, args.png) if p]
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise DataError("-o, --svg and --png must name different files")
+    if args.png:
+        check_png_size(board, args.dpi)
     write_board(board, args.output)
+    sheet = board.sheet_extent()
+    papers = fits_on(board)
+    paper = (f"prints on {' and '.join(papers)}" if papers else
+             "larger than A4 and Letter: print it at a print shop, at 100 %")
     print(f"wrote {args.output} ({board.rows} x {board.cols} dots, pitch "
-          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, marker {args.marker_mm:g} mm)")
+          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, marker {args.marker_mm:g} mm; "
+          f"sheet {sheet.width / MM:.0f} x {sheet.height / MM:.0f} mm, {paper})")
     if args.svg:
         write_board_svg(board, args.svg)
         print(f"wrote {args.svg} (print at 100 %, then check the pitch with a rule)")
@@ -263,7 +272,10 @@ def _read_joints(path: Path) -> tuple[list[str], list[dict[str, str]], list[int]
         if len(record) != len(header):
             raise DataError(f"{path}:{line}: {len(record)} fields, the header has "
                             f"{len(header)}")
-        rows.append({h: c.strip() for h, c in zip(header, record)})
+        row = {h: c.strip() for h, c in zip(header, record)}
+        for column in joints:              # a finite, plausible number (NaN is refused)
+            parse_cell_number(row[column], str(path), line, column)
+        rows.append(row)
         where.append(line)
     if not rows:
         raise DataError(f"{path}: no data rows after the header")
