@@ -9,6 +9,10 @@ board.json (mm at the file edge)::
 
     {"rows": 9, "cols": 9, "pitch_mm": 25.0, "dot_diameter_mm": 5.0,
      "marker_diameter_mm": 8.0}
+
+plus, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
+:data:`SCALE_BAR_MM`; written only when it differs), which the user measures on the print
+to fix the board's scale (:mod:`.scale`).
 """
 
 from __future__ import annotations
@@ -25,6 +29,8 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 
 BOARD_KEYS = ("rows", "cols", "pitch_mm", "dot_diameter_mm", "marker_diameter_mm")
+SCALE_BAR_MM = 100.0
+"""Nominal length of the printed scale bar, mm (board.json's optional ``scale_bar_mm``)."""
 MAX_DOTS_PER_SIDE = 100
 """Most rows or columns of a board: 100 x 100 dots, far beyond any calibration board (a
 2000 x 2000 board took minutes into a memory error)."""
@@ -63,6 +69,7 @@ class Board:
     pitch_m: float
     dot_diameter_m: float
     marker_diameter_m: float
+    scale_bar_m: float = SCALE_BAR_MM * MM
 
     def __post_init__(self):
         for name in ("rows", "cols"):
@@ -73,7 +80,7 @@ class Board:
             if value > MAX_DOTS_PER_SIDE:
                 raise DataError(f"board: {name} = {value}: at most {MAX_DOTS_PER_SIDE} dots "
                                 f"per side")
-        for name in ("pitch_m", "dot_diameter_m", "marker_diameter_m"):
+        for name in ("pitch_m", "dot_diameter_m", "marker_diameter_m", "scale_bar_m"):
             value = getattr(self, name)
             if not isinstance(value, (int, float, np.floating, np.integer)) \
                     or not math.isfinite(value) or value <= 0:
@@ -138,19 +145,26 @@ def board_from_dict(data: dict, source: str = "<board>") -> Board:
     for key in BOARD_KEYS[2:]:
         if isinstance(data[key], bool) or not isinstance(data[key], (int, float)):
             raise DataError(f"{source}: '{key}' must be a number, got {data[key]!r}")
+    bar = data.get("scale_bar_mm", SCALE_BAR_MM)
+    if isinstance(bar, bool) or not isinstance(bar, (int, float)):
+        raise DataError(f"{source}: 'scale_bar_mm' must be a number, got {bar!r}")
     try:
         return Board(rows=data["rows"], cols=data["cols"], pitch_m=data["pitch_mm"] * MM,
                      dot_diameter_m=data["dot_diameter_mm"] * MM,
-                     marker_diameter_m=data["marker_diameter_mm"] * MM)
+                     marker_diameter_m=data["marker_diameter_mm"] * MM,
+                     scale_bar_m=bar * MM)
     except DataError as exc:
         raise DataError(f"{source}: {exc}") from None
 
 
 def board_to_dict(board: Board) -> dict:
     """The board.json mapping (mm) of ``board``."""
-    return {"rows": int(board.rows), "cols": int(board.cols),
-            "pitch_mm": _mm(board.pitch_m), "dot_diameter_mm": _mm(board.dot_diameter_m),
-            "marker_diameter_mm": _mm(board.marker_diameter_m)}
+    doc = {"rows": int(board.rows), "cols": int(board.cols),
+           "pitch_mm": _mm(board.pitch_m), "dot_diameter_mm": _mm(board.dot_diameter_m),
+           "marker_diameter_mm": _mm(board.marker_diameter_m)}
+    if _mm(board.scale_bar_m) != SCALE_BAR_MM:
+        doc["scale_bar_mm"] = _mm(board.scale_bar_m)
+    return doc
 
 
 def _mm(metres: float) -> float:

@@ -30,6 +30,7 @@ from ..errors import DataError
 from . import rac
 from .model import CameraIntrinsics, project_points
 from .refine import INTRINSIC_NAMES, refine
+from .scale import BoardScale
 
 MIN_VIEWS = 3
 """Fewest usable views for either method (see the module docstring)."""
@@ -94,7 +95,8 @@ class CameraCalibration:
     views : per used view. skipped : views not used. rms_px, max_px : over all dots.
     sigma_px : residual standard deviation sqrt(RSS / (m - n)) (NaN for rac-only).
     rac_excluded : views left out of the RAC stages, with reasons. bias_iterations : passes of
-    the circle-centre correction (0: detected centres used as they are).
+    the circle-centre correction (0: detected centres used as they are). scale : the board's
+    scale the views' poses were measured with (:class:`.scale.BoardScale`).
     """
 
     intrinsics: CameraIntrinsics
@@ -108,6 +110,7 @@ class CameraCalibration:
     sigma_px: float = float("nan")
     rac_excluded: tuple = ()
     bias_iterations: int = 0
+    scale: BoardScale = BoardScale()
 
 
 def tilt_deg(camera_T_board: np.ndarray) -> float:

@@ -17,6 +17,7 @@ Exit codes: 0 success; 1 bad input (one line on stderr).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import re
 from pathlib import Path
@@ -24,6 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from ..camera.board import Board, board_to_dict, read_board, write_board
+from ..camera.scale import (SCALE_LINE, BoardScale, from_scale_bar, read_reference,
+                            scaled_board, unverified_note)
 from ..camera.calibrate import METHODS, View, calibrate
 from ..camera.detect import circle_centre_bias, detect_dots
 from ..camera.measure import measure_pose
@@ -31,7 +34,7 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.camera_file import read_camera, write_camera
 from ..io.images import image_paths, read_grey
-from ..kinematics.conventions import MM
+from ..kinematics.conventions import MM, invert_pose
 from ..io.measurements import FORMAT_LINE, parse_cell_number, read_csv_text
 
 HELP = "camera: make a dot board, calibrate a camera from views of it, measure camera poses"
@@ -71,6 +74,7 @@ def add_arguments(p) -> None:
     c.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are (default: correct the "
                         "perspective bias of circle centres)")
+    add_scale_arguments(c)
     c.add_argument("--html", metavar="REPORT.html",
                    help="also write an HTML report: parameters, reprojection error per view, "
                         "each view with its dots and magnified residuals")
@@ -91,6 +95,7 @@ def add_arguments(p) -> None:
                    help="point name in the measurement CSV (default camera)")
     m.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are")
+    add_scale_arguments(m, inherit=True)
 
     from . import cal_camera_assess
     cal_camera_assess.add_arguments(sub.add_parser(
@@ -106,6 +111,36 @@ def run(args) -> int:
 
 
 # -- shared -----------------------------------------------------------------------------------
+
+def add_scale_arguments(p, inherit: bool = False) -> None:
+    """``--scale-bar-mm`` / ``--reference``: the board's length reference
+    (:mod:`olp_compensate.camera.scale`)."""
+    g = p.add_mutually_exclusive_group()
+    more = " (default: the scale camera.json records)" if inherit else ""
+    g.add_argument("--scale-bar-mm", type=float, metavar="L",
+                   help="the printed scale bar as measured with a caliper, mm (nominal: "
+                        "board.json's scale_bar_mm, 100)" + more)
+    g.add_argument("--reference", metavar="CSV",
+                   help="measured distances between dots: row_a, col_a, row_b, col_b, "
+                        "distance_mm" + more)
+
+
+def board_scale(args, board: Board, recorded: BoardScale | None = None) -> BoardScale:
+    """The scale the options give, else ``recorded`` (camera.json's) when verified, else
+    unverified."""
+    if args.scale_bar_mm is not None:
+        return from_scale_bar(args.scale_bar_mm, board.scale_bar_m / MM)
+    if args.reference:
+        return read_reference(args.reference, board)
+    return recorded if recorded is not None and recorded.verified else BoardScale()
+
+
+def print_scale(scale: BoardScale, distances_mm) -> None:
+    """The scale line, and once the unverified warning at the median working distance."""
+    print(f"board scale: {scale.summary()}")
+    if not scale.verified and len(distances_mm):
+        print(unverified_note(float(np.median(distances_mm))))
+
 
 def _same_file(a: Path, b: Path) -> bool:
     try:
@@ -198,6 +233,8 @@ def _run_calibrate(args) -> int:
             f"{name} {w}x{h}" for name, _, _, (w, h) in found[:len(sizes) + 1]) +
             "; calibrate one camera at one resolution")
     width, height = sizes.pop()
+    scale = board_scale(args, board)
+    nominal_board, board = board, scaled_board(board, scale)
     points = board.dot_positions()
     views = [View(name, pix, points) for name, pix, _, _ in found if pix is not None]
     not_found = [(name, reason) for name, pix, reason, _ in found if pix is None]
@@ -205,7 +242,8 @@ def _run_calibrate(args) -> int:
         print(f"skipped {name}: {reason}")
     bias = None if args.no_circle_correction else \
         (lambda k, T: circle_centre_bias(k, T, board))
-    cal = calibrate(views, width, height, method=args.method, centre_bias=bias)
+    cal = dataclasses.replace(calibrate(views, width, height, method=args.method,
+                                        centre_bias=bias), scale=scale)
     what = ("the seed's RAC, then the full refinement" if args.method == "rac"
             else "the seed's RAC estimates kept")
     corr = (f"circle-centre correction, {cal.bias_iterations} passes" if cal.bias_iterations
@@ -228,7 +266,10 @@ def _run_calibrate(args) -> int:
         sd = f"+/- {std:.{digits}f}" if np.isfinite(std) else "+/- n/a (RAC)"
         print(f"  {name:3s} {value:.{digits}f} {sd} {unit}".rstrip()
               + f"   (RAC {getattr(cal.rac, name):.{digits}f})")
-    write_camera(out, cal, board_to_dict(board))
+    centre = board.dot_positions().mean(axis=0)
+    print_scale(scale, [np.linalg.norm(invert_pose(v.camera_T_board)[:3, 3] - centre) / MM
+                        for v in cal.views])
+    write_camera(out, cal, board_to_dict(nominal_board))
     print(f"wrote {out}")
     if args.html:
         from ..report.camera_html import write_calibration_html
@@ -300,11 +341,13 @@ def _run_measure(args) -> int:
                                 f"the images given")
     _check_output(out, inputs)
     k = cal.intrinsics
+    scale = board_scale(args, board, cal.scale)
+    nominal_board, board = board, scaled_board(board, scale)
     bias = None if args.no_circle_correction else \
         (lambda intr, T: circle_centre_bias(intr, T, board))
     points = board.dot_positions()
     measured = {}
-    for name, pix, reason, (w, h) in _detect(paths, board):
+    for name, pix, reason, (w, h) in _detect(paths, nominal_board):
         if (w, h) != (k.width, k.height):
             raise DataError(f"{name}: image is {w} x {h} px, the camera was calibrated at "
                             f"{k.width} x {k.height} ({args.camera})")
@@ -316,7 +359,7 @@ def _run_measure(args) -> int:
         text = _poses_csv(measured)
         count = len(measured)
     else:
-        text, count = _measurements_csv(joints, measured, args.name, args.joints)
+        text, count = _measurements_csv(joints, measured, args.name, args.joints, scale)
         listed = {row["image"] for row in joints[1]}
         for name in measured:
             if name not in listed:
@@ -326,6 +369,9 @@ def _run_measure(args) -> int:
         print(f"  {m.name}: x {m.position_mm[0]:.3f} y {m.position_mm[1]:.3f} z "
               f"{m.position_mm[2]:.3f} mm, +/- {m.sigma_mm:.3f} mm, {m.sigma_deg:.4f} deg, "
               f"rms {m.rms_px:.3f} px")
+    centre = board.dot_positions().mean(axis=0)
+    print_scale(scale, [np.linalg.norm(m.board_T_camera[:3, 3] - centre) / MM
+                        for m in measured.values()])
     print(f"wrote {out} ({count} rows: the camera frame in the board frame, mm, quaternion "
           f"w first)")
     return 0
@@ -344,7 +390,8 @@ def _poses_csv(measured: dict) -> str:
     return buf.getvalue()
 
 
-def _measurements_csv(joints, measured: dict, point: str, source: str) -> tuple[str, int]:
+def _measurements_csv(joints, measured: dict, point: str, source: str,
+                      scale: BoardScale) -> tuple[str, int]:
     header, rows, _ = joints
     joint_cols = sorted((h for h in header if JOINT_RE.match(h)),
                         key=lambda h: int(JOINT_RE.match(h).group(1)))
@@ -353,7 +400,8 @@ def _measurements_csv(joints, measured: dict, point: str, source: str) -> tuple[
     extra = [h for h in header if h not in own and h not in joint_cols]
     buf = io.StringIO()
     buf.write(f"{FORMAT_LINE}\n# device: the board (frame of its dot (0, 0)); point "
-              f"{point}: the camera's optical centre and axes; from {source}\n")
+              f"{point}: the camera's optical centre and axes; from {source}\n"
+              f"{SCALE_LINE}{scale.summary()}\n")
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["image"] + joint_cols + ["pose", "point", "x_mm", "y_mm", "z_mm", "qw",
                                              "qx", "qy", "qz", "sigma_mm", "sigma_deg"]

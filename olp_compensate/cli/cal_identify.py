@@ -9,6 +9,7 @@ import numpy as np
 
 from ..calibration.identify import IdentificationOptions, identify
 from ..calibration.measurements import check_spread
+from ..camera.scale import unverified_rows
 from ..calibration.regions import (DEFAULT_MARGIN_M, check_margin, identify_regions,
                                    least_unknowns, region_column)
 from ..calibration.fit_check import MAX_RMS_M, FitVerdict, forced_warning, judge_residual
@@ -263,6 +264,11 @@ def run(args) -> int:
     result = identify(robot, meas, options)
     check_fit(result)
     print(report(result))
+    if unverified_rows(meas.metadata):
+        print("WARNING: these camera rows were measured with a board of unverified scale "
+              "(their '# board scale:' line): a 0.1-0.3 % print error scales the identified "
+              "lengths by as much, and neither the residual nor the held-out error shows it; "
+              "measure the printed scale bar and run 'camera measure --scale-bar-mm L'")
     verdict = judge_identification(result, meas, args.position_sigma_mm)
     if verdict.rejected:
         if not args.force:

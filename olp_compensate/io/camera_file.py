@@ -5,6 +5,9 @@ undistorted, see :mod:`olp_compensate.camera.model`) with their standard deviati
 where the method gives none: the RAC-only estimate), the RAC estimate beside the refined
 one, the fit's reprojection figures, each view's camera pose in the board frame (mm, w-first
 quaternion), the views skipped with their reasons, and the board it was calibrated on.
+``"scale"`` records where the board's scale came from (``source``: "unverified", "scale
+bar" or "reference"; ``factor`` printed / nominal; ``detail``; see
+:mod:`olp_compensate.camera.scale`); files without it have an unverified scale.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import numpy as np
 
 from ..camera.calibrate import CameraCalibration, Skipped, ViewResult
 from ..camera.model import CameraIntrinsics
+from ..camera.scale import BoardScale
 from ..errors import ModelError
 from ..kinematics.conventions import (invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, quat_wxyz_from_matrix)
@@ -66,6 +70,7 @@ def camera_to_dict(cal: CameraCalibration, board: dict | None = None) -> dict:
         "skipped": [{"image": s.name, "reason": s.reason} for s in cal.skipped],
         "rac_excluded": [{"image": s.name, "reason": s.reason} for s in cal.rac_excluded],
         "board": board,
+        "scale": cal.scale.to_dict(),
     }
 
 
@@ -109,7 +114,8 @@ def camera_from_dict(doc: dict, source: str = "<camera>") -> CameraCalibration:
         sigma_px=float("nan") if fit["sigma_px"] is None else fit["sigma_px"],
         rac_excluded=tuple(Skipped(s["image"], s["reason"])
                            for s in doc.get("rac_excluded", [])),
-        bias_iterations=fit["circle_bias_iterations"])
+        bias_iterations=fit["circle_bias_iterations"],
+        scale=BoardScale.from_dict(doc.get("scale")))
 
 
 def read_camera(path: str | Path) -> CameraCalibration:
