@@ -244,14 +244,17 @@ def _run_calibrate(args) -> int:
         (lambda k, T: circle_centre_bias(k, T, board))
     cal = dataclasses.replace(calibrate(views, width, height, method=args.method,
                                         centre_bias=bias), scale=scale)
-    what = ("the seed's RAC, then the full refinement" if args.method == "rac"
-            else "the seed's RAC estimates kept")
+    what = ("the seed's RAC estimates kept" if args.method == "rac-only" else
+            "the seed's RAC, then the full refinement" if cal.start == "rac" else
+            "too few views tilted for the RAC: homographies (Zhang), then the full refinement")
     corr = (f"circle-centre correction, {cal.bias_iterations} passes" if cal.bias_iterations
             else "detected centroids as they are")
     print(f"camera {width} x {height} px from {len(cal.views)} of {len(paths)} images "
           f"(method {args.method}: {what}; {corr})")
     for v in cal.views:
-        note = "" if v.in_rac else "  (not in the RAC: too close to parallel)"
+        note = {"rac": "", "rac-pose": "  (not in the RAC: too near face-on; started from the "
+                                       "RAC's intrinsics)",
+                "homography": "  (started from its homography)"}[v.stage]
         print(f"  {v.name}: rms {v.rms_px:.3f} px, max {v.max_px:.3f} px, board tilted "
               f"{v.tilt_deg:.0f} deg{note}")
     for s in cal.skipped:
@@ -260,12 +263,13 @@ def _run_calibrate(args) -> int:
     sigma = "" if not np.isfinite(cal.sigma_px) else f", sigma {cal.sigma_px:.3f} px"
     print(f"overall: rms {cal.rms_px:.3f} px, max {cal.max_px:.3f} px over {n_dots} dots"
           f"{sigma}")
-    print("parameters (value +/- one standard deviation; RAC estimate):")
+    label = "RAC" if cal.start == "rac" else "start"
+    print(f"parameters (value +/- one standard deviation; {label} estimate):")
     for name, (unit, digits) in _UNITS.items():
         value, std = getattr(cal.intrinsics, name), cal.std[name]
         sd = f"+/- {std:.{digits}f}" if np.isfinite(std) else "+/- n/a (RAC)"
         print(f"  {name:3s} {value:.{digits}f} {sd} {unit}".rstrip()
-              + f"   (RAC {getattr(cal.rac, name):.{digits}f})")
+              + f"   ({label} {getattr(cal.rac, name):.{digits}f})")
     centre = board.dot_positions().mean(axis=0)
     print_scale(scale, [np.linalg.norm(invert_pose(v.camera_T_board)[:3, 3] - centre) / MM
                         for v in cal.views])
