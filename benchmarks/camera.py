@@ -252,12 +252,19 @@ def robot_part(seed: int, candidates_per_pose: int = 1) -> None:
 
 
 def main() -> None:
+    global RENDER
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--skip-robot", action="store_true")
     parser.add_argument("--skip-camera", action="store_true")
     parser.add_argument("--candidates-per-pose", type=int, default=1)
+    parser.add_argument("--noise", type=float, default=RENDER.noise_sigma,
+                        help="image noise, grey levels (default 2)")
+    parser.add_argument("--blur", type=float, default=RENDER.blur_sigma_px,
+                        help="Gaussian blur, px (default 0.8)")
     args = parser.parse_args()
+    RENDER = replace(RENDER, noise_sigma=args.noise, blur_sigma_px=args.blur)
+    print(f"rendering: noise {RENDER.noise_sigma:g} grey levels, blur {RENDER.blur_sigma_px:g} px")
     if not args.skip_camera:
         camera_part(args.seed)
     if not args.skip_robot:

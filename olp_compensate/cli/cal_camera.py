@@ -207,7 +207,8 @@ def _run_board(args) -> int:
           f"sheet {sheet.width / MM:.0f} x {sheet.height / MM:.0f} mm, {paper})")
     if args.svg:
         write_board_svg(board, args.svg)
-        print(f"wrote {args.svg} (print at 100 %, then check the pitch with a rule)")
+        print(f"wrote {args.svg} (print at 100 %, then measure the printed scale bar, "
+              f"nominal {board.scale_bar_m / MM:g} mm, with a caliper: --scale-bar-mm)")
     if args.png:
         write_board_png(board, args.png, args.dpi)
         print(f"wrote {args.png} ({args.dpi:g} dpi)")

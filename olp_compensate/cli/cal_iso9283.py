@@ -183,9 +183,9 @@ def _run_report(args) -> int:
         source = out and _is_input(Path(out), [args.measurements])
         if source:
             raise DataError(f"{out}: is an input ({source}); choose another output file")
+    conditions = _conditions(args)
     poses, attained, commanded, quat, quat_c = read_iso_measurements(args.measurements)
     results = iso_results(poses, attained, commanded, quat, quat_c)
-    conditions = _conditions(args)
     for line in iso_summary(results, conditions):
         print(line)
     if args.json_out:
