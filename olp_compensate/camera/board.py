@@ -10,7 +10,13 @@ board.json (mm at the file edge)::
     {"rows": 9, "cols": 9, "pitch_mm": 25.0, "dot_diameter_mm": 5.0,
      "marker_diameter_mm": 8.0}
 
-plus, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
+plus, optionally, ``"kind"`` (:data:`KINDS`; default "olp-dots", this module's board):
+"opencv-circles" is OpenCV's symmetric circle grid (``rows`` x ``cols`` circles, ``pitch``
+apart, no marker; its orientation is ambiguous by a half turn, so it calibrates a camera but
+does not measure poses), "opencv-acircles" OpenCV's asymmetric grid (row r, column c at
+``((2 c + r % 2) pitch, r pitch)``, as OpenCV's samples lay it out; ``cols`` circles per
+row); both found by ``cv2.findCirclesGrid``; "charuco" is named but not read yet. And,
+optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
 :data:`SCALE_BAR_MM`; written only when it differs), which the user measures on the print
 to fix the board's scale (:mod:`.scale`).
 """
@@ -29,6 +35,9 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 
 BOARD_KEYS = ("rows", "cols", "pitch_mm", "dot_diameter_mm", "marker_diameter_mm")
+KINDS = ("olp-dots", "opencv-circles", "opencv-acircles", "charuco")
+"""Board kinds board.json may name (module docstring)."""
+READ_KINDS = KINDS[:3]
 SCALE_BAR_MM = 100.0
 """Nominal length of the printed scale bar, mm (board.json's optional ``scale_bar_mm``)."""
 MAX_DOTS_PER_SIDE = 100
@@ -70,8 +79,14 @@ class Board:
     dot_diameter_m: float
     marker_diameter_m: float
     scale_bar_m: float = SCALE_BAR_MM * MM
+    kind: str = "olp-dots"
 
     def __post_init__(self):
+        if self.kind not in READ_KINDS:
+            known = ", ".join(f'"{k}"' for k in READ_KINDS)
+            raise DataError(f"board: kind {self.kind!r} is not read yet (known: {known})"
+                            if self.kind in KINDS else
+                            f"board: unknown kind {self.kind!r} (known: {known})")
         for name in ("rows", "cols"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
@@ -85,13 +100,15 @@ class Board:
             if not isinstance(value, (int, float, np.floating, np.integer)) \
                     or not math.isfinite(value) or value <= 0:
                 raise DataError(f"board: {name} must be a positive number, got {value!r}")
-        if self.marker_diameter_m <= self.dot_diameter_m * 1.2:
+        if self.kind == "olp-dots" and self.marker_diameter_m <= self.dot_diameter_m * 1.2:
             raise DataError(
                 f"board: the marker diameter ({self.marker_diameter_m / MM:g} mm) must be at "
                 f"least 1.2 times the dot diameter ({self.dot_diameter_m / MM:g} mm) to be "
                 "told apart")
         # the marker and its neighbour must leave a gap of at least one dot radius
-        gap = self.pitch_m - (self.marker_diameter_m + self.dot_diameter_m) / 2
+        neighbour = self.pitch_m * (math.sqrt(2) if self.kind == "opencv-acircles" else 1.0)
+        largest = self.marker_diameter_m if self.kind == "olp-dots" else self.dot_diameter_m
+        gap = neighbour - (largest + self.dot_diameter_m) / 2
         if gap < self.dot_diameter_m / 2:
             raise DataError(
                 f"board: dots overlap or nearly touch: pitch {self.pitch_m / MM:g} mm leaves "
@@ -109,9 +126,34 @@ class Board:
         return self.rows * self.cols
 
     def dot_positions(self) -> np.ndarray:
-        """Dot centres, shape (rows*cols, 3), m, board frame, row-major (index r*cols + c)."""
+        """Dot centres, shape (rows*cols, 3), m, board frame, row-major (index r*cols + c);
+        an asymmetric grid's row r is shifted by ``r % 2`` pitches, its dots 2 pitches
+        apart."""
         r, c = np.divmod(np.arange(self.count), self.cols)
+        if self.kind == "opencv-acircles":
+            c = 2 * c + r % 2
         return np.stack([c * self.pitch_m, r * self.pitch_m, np.zeros(self.count)], -1)
+
+    def centre(self) -> np.ndarray:
+        """The middle of the dot grid's extent (3,), board frame, m."""
+        p = self.dot_positions()
+        return (p.min(axis=0) + p.max(axis=0)) / 2
+
+    def nearest_dot(self, x: np.ndarray, y: np.ndarray):
+        """(dot x, dot y, inside the grid, is the marker) of the dot nearest to board points
+        (x, y) (m) whenever they lie within half a pitch of one (arrays like ``x``)."""
+        p = self.pitch_m
+        r = np.rint(y / p)
+        if self.kind == "opencv-acircles":
+            shift = np.mod(r, 2)
+            j = np.rint((x / p - shift) / 2)
+            c, inside_c = 2 * j + shift, (j >= 0) & (j < self.cols)
+        else:
+            c = np.rint(x / p)
+            inside_c = (c >= 0) & (c < self.cols)
+        inside = inside_c & (r >= 0) & (r < self.rows)
+        marker = (c == 0) & (r == 0) if self.kind == "olp-dots" else np.zeros_like(inside)
+        return c * p, r * p, inside, marker
 
     def dot_grid(self) -> np.ndarray:
         """(row, column) of every dot, shape (rows*cols, 2), int, row-major."""
@@ -121,14 +163,15 @@ class Board:
     def dot_radii(self) -> np.ndarray:
         """Printed radius of every dot, shape (rows*cols,), m (index 0 is the marker)."""
         radii = np.full(self.count, self.dot_diameter_m / 2)
-        radii[0] = self.marker_diameter_m / 2
+        if self.kind == "olp-dots":
+            radii[0] = self.marker_diameter_m / 2
         return radii
 
     def sheet_extent(self) -> SheetExtent:
         """The light sheet the dots are printed on: one pitch beyond the outer dots' edges."""
-        margin = self.pitch_m + self.marker_diameter_m / 2
-        return SheetExtent(-margin, (self.cols - 1) * self.pitch_m + margin,
-                           -margin, (self.rows - 1) * self.pitch_m + margin)
+        margin = self.pitch_m + float(np.max(self.dot_radii()))
+        last = self.dot_positions().max(axis=0)
+        return SheetExtent(-margin, last[0] + margin, -margin, last[1] + margin)
 
 
 def board_from_dict(data: dict, source: str = "<board>") -> Board:
@@ -136,6 +179,11 @@ def board_from_dict(data: dict, source: str = "<board>") -> Board:
     if not isinstance(data, dict):
         raise DataError(f"{source}: expected a JSON object with keys {', '.join(BOARD_KEYS)}, "
                         f"got {type(data).__name__}")
+    kind = data.get("kind", "olp-dots")
+    if not isinstance(kind, str):
+        raise DataError(f"{source}: 'kind' must be a string, got {kind!r}")
+    if kind != "olp-dots" and "marker_diameter_mm" not in data:
+        data = {**data, "marker_diameter_mm": data.get("dot_diameter_mm")}
     for key in BOARD_KEYS:
         if key not in data:
             raise DataError(f"{source}: missing key '{key}'")
@@ -152,7 +200,7 @@ def board_from_dict(data: dict, source: str = "<board>") -> Board:
         return Board(rows=data["rows"], cols=data["cols"], pitch_m=data["pitch_mm"] * MM,
                      dot_diameter_m=data["dot_diameter_mm"] * MM,
                      marker_diameter_m=data["marker_diameter_mm"] * MM,
-                     scale_bar_m=bar * MM)
+                     scale_bar_m=bar * MM, kind=kind)
     except DataError as exc:
         raise DataError(f"{source}: {exc}") from None
 
@@ -164,6 +212,8 @@ def board_to_dict(board: Board) -> dict:
            "marker_diameter_mm": _mm(board.marker_diameter_m)}
     if _mm(board.scale_bar_m) != SCALE_BAR_MM:
         doc["scale_bar_mm"] = _mm(board.scale_bar_m)
+    if board.kind != "olp-dots":
+        doc["kind"] = board.kind
     return doc
 
 

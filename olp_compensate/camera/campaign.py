@@ -130,8 +130,7 @@ def camera_mount(rng: np.random.Generator, distance_m: tuple[float, float] = (0.
 
 def board_centre(board: Board) -> np.ndarray:
     """The centre of the dot grid in the board frame (3,), m."""
-    return np.array([(board.cols - 1) * board.pitch_m / 2, (board.rows - 1) * board.pitch_m / 2,
-                     0.0])
+    return board.centre()
 
 
 def default_board_pose(robot: Robot, board: Board, seed: int = 0) -> np.ndarray:

@@ -66,6 +66,9 @@ def _layout(board: Board) -> dict:
 
 
 def _parameters_text(board: Board) -> str:
+    if board.kind != "olp-dots":
+        return (f"{board.kind} {board.rows} x {board.cols}, pitch {board.pitch_m / MM:g} mm, "
+                f"dot {board.dot_diameter_m / MM:g} mm - print at 100 %")
     return (f"{board.rows} x {board.cols} dots, pitch {board.pitch_m / MM:g} mm, "
             f"dot {board.dot_diameter_m / MM:g} mm, marker (row 0, col 0) "
             f"{board.marker_diameter_m / MM:g} mm - print at 100 %")

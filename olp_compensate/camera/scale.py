@@ -124,8 +124,9 @@ def read_reference(path: str | Path, board: Board) -> BoardScale:
                 raise DataError(f"{source}:{line}: column '{column}': {cell[column].strip()} "
                                 f"is not a dot of the {board.rows} x {board.cols} board")
             dots.append(int(value))
-        a = np.array([dots[1], dots[0]]) * board.pitch_m
-        b = np.array([dots[3], dots[2]]) * board.pitch_m
+        positions = board.dot_positions()
+        a = positions[dots[0] * board.cols + dots[1], :2]
+        b = positions[dots[2] * board.cols + dots[3], :2]
         length = float(np.linalg.norm(a - b))
         if length == 0:
             raise DataError(f"{source}:{line}: the two dots are the same")

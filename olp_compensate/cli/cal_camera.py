@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera.board import Board, board_to_dict, read_board, write_board
+from ..camera.board import READ_KINDS, Board, board_to_dict, read_board, write_board
+from ..camera.detect_opencv import check_measurable
 from ..camera.scale import (SCALE_LINE, BoardScale, from_scale_bar, read_reference,
                             scaled_board, unverified_note)
 from ..camera.calibrate import METHODS, View, calibrate
@@ -55,6 +56,10 @@ def add_arguments(p) -> None:
     b.add_argument("--dot-mm", type=float, default=5.0, help="dot diameter, mm (default 5)")
     b.add_argument("--marker-mm", type=float, default=8.0,
                    help="diameter of the marker dot (row 0, column 0), mm (default 8)")
+    b.add_argument("--kind", choices=READ_KINDS, default="olp-dots",
+                   help="olp-dots (default: ours, with a marker dot); opencv-circles or "
+                        "opencv-acircles: OpenCV's symmetric or asymmetric circle grid "
+                        "(--cols circles per row; no marker)")
     b.add_argument("-o", "--output", required=True, help="board.json to write")
     b.add_argument("--svg", help="also write the board as SVG (print at 100 %%)")
     b.add_argument("--png", help="also write the board as PNG")
@@ -190,8 +195,10 @@ def _detect(paths: list[Path], board: Board):
 def _run_board(args) -> int:
     from ..camera.drawing import check_png_size, fits_on, write_board_png, write_board_svg
 
+    marker = args.marker_mm if args.kind == "olp-dots" else args.dot_mm
     board = Board(rows=args.rows, cols=args.cols, pitch_m=args.pitch_mm * 1e-3,
-                  dot_diameter_m=args.dot_mm * 1e-3, marker_diameter_m=args.marker_mm * 1e-3)
+                  dot_diameter_m=args.dot_mm * 1e-3, marker_diameter_m=marker * 1e-3,
+                  kind=args.kind)
     outputs = [Path(p) for p in (args.output, args.svg, args.png) if p]
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise DataError("-o, --svg and --png must name different files")
@@ -202,8 +209,9 @@ def _run_board(args) -> int:
     papers = fits_on(board)
     paper = (f"prints on {' and '.join(papers)}" if papers else
              "larger than A4 and Letter: print it at a print shop, at 100 %")
+    what = (f"marker {args.marker_mm:g} mm" if args.kind == "olp-dots" else args.kind)
     print(f"wrote {args.output} ({board.rows} x {board.cols} dots, pitch "
-          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, marker {args.marker_mm:g} mm; "
+          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, {what}; "
           f"sheet {sheet.width / MM:.0f} x {sheet.height / MM:.0f} mm, {paper})")
     if args.svg:
         write_board_svg(board, args.svg)
@@ -330,6 +338,7 @@ def _read_joints(path: Path) -> tuple[list[str], list[dict[str, str]], list[int]
 
 def _run_measure(args) -> int:
     board = read_board(args.board)
+    check_measurable(board)
     cal = read_camera(args.camera)
     paths = _expand(args.images)
     out = Path(args.output)

@@ -47,10 +47,12 @@ def run(args) -> int:
     from ..io.camera_file import read_camera
     from ..io.images import image_paths, read_grey
 
+    from ..camera.detect_opencv import check_measurable
     from ..camera.scale import scaled_board
     from .cal_camera import board_scale, print_scale
 
     board = read_board(args.board)
+    check_measurable(board)
     camera = read_camera(args.camera)
     intrinsics = camera.intrinsics
     scale = board_scale(args, board, camera.scale)
