@@ -213,28 +213,14 @@ def calibrate(views: Sequence[View], width: int, height: int, *, method: str = "
         s = rac.stage1(v.pixels, v.points, guess[0], guess[1], 1.0)
         tilts.append(float(np.degrees(np.arccos(np.clip(abs(s.rotation[2, 2]), 0, 1)))))
     tilted = [k for k, t in enumerate(tilts) if t >= MIN_TILT_DEG]
-    if len(tilted) >= MIN_VIEWS:
-        _check_spread(_stage1_normals(pixels, points, tilted, guess), advice)
-        found, poses = _rac_stage(pixels, points, width, height, tilted)
-        start, kind = found.intrinsics, "rac"
-        stages = ["rac" if k in tilted else "rac-pose" for k in range(len(usable))]
-        reason = "too close to parallel to the board for the RAC; pose from the RAC's intrinsics"
-    elif method == "rac-only":
-        raise DataError(f"calibrate: only {len(tilted)} of {len(usable)} views have the board "
-                        f"tilted by {MIN_TILT_DEG:.0f} degrees or more (the RAC is "
-                        f"ill-conditioned nearer to parallel; the seed asks for 30); "
-                        f"{MIN_VIEWS} are needed for rac-only (the default method starts "
-                        f"such views from their homographies): {advice}")
-    else:
-        start, poses = zhang_start(pixels, points, width, height)
-        _check_spread(poses[:, :3, 2] * np.sign(poses[:, 2:3, 2]), advice)
-        found, kind, tilted = None, "homography", []
-        stages = ["homography"] * len(usable)
-        reason = (f"fewer than {MIN_VIEWS} views tilted {MIN_TILT_DEG:.0f} deg or more: "
-                  f"every view started from its homography (Zhang)")
+    found, start, poses, stages, reason = _start(pixels, points, width, height, tilted,
+                                                 method, guess, advice)
+    if found is None:
+        tilted = []
     excluded = tuple(Skipped(usable[k].name, f"tilt {tilts[k]:.0f} deg < {MIN_TILT_DEG:.0f}: "
                                              f"{reason}")
                      for k in range(len(usable)) if k not in tilted)
+    kind = "rac" if found is not None else "homography"
     intrinsics, refined, passes = start, None, 0
     if method == "rac":
         refined = refine(pixels, points, intrinsics, poses)
@@ -264,6 +250,30 @@ def calibrate(views: Sequence[View], width: int, height: int, *, method: str = "
         method=method, views=results, skipped=tuple(skipped),
         rms_px=float(np.sqrt(np.mean(every ** 2))), max_px=float(np.max(every)),
         sigma_px=sigma, rac_excluded=excluded, bias_iterations=passes, start=kind)
+
+
+def _start(pixels, points, width, height, tilted, method, guess, advice):
+    """Where the refinement starts: (RAC result or None, intrinsics, poses (V, 4, 4), each
+    view's stage, why views were left out of the RAC). The RAC on the tilted views when
+    there are :data:`MIN_VIEWS`, else (method "rac") every view from its homography."""
+    n = len(pixels)
+    if len(tilted) >= MIN_VIEWS:
+        _check_spread(_stage1_normals(pixels, points, tilted, guess), advice)
+        found, poses = _rac_stage(pixels, points, width, height, tilted)
+        stages = ["rac" if k in tilted else "rac-pose" for k in range(n)]
+        return (found, found.intrinsics, poses, stages, "too close to parallel to the board "
+                "for the RAC; pose from the RAC's intrinsics")
+    if method == "rac-only":
+        raise DataError(f"calibrate: only {len(tilted)} of {n} views have the board "
+                        f"tilted by {MIN_TILT_DEG:.0f} degrees or more (the RAC is "
+                        f"ill-conditioned nearer to parallel; the seed asks for 30); "
+                        f"{MIN_VIEWS} are needed for rac-only (the default method starts "
+                        f"such views from their homographies): {advice}")
+    start, poses = zhang_start(pixels, points, width, height)
+    _check_spread(poses[:, :3, 2] * np.sign(poses[:, 2:3, 2]), advice)
+    return (None, start, poses, ["homography"] * n,
+            f"fewer than {MIN_VIEWS} views tilted {MIN_TILT_DEG:.0f} deg or more: every "
+            f"view started from its homography (Zhang)")
 
 
 def _stage1_normals(pixels, points, views, guess) -> np.ndarray:

@@ -46,13 +46,16 @@ def right_handed(board: Board, centres: np.ndarray) -> np.ndarray | None:
     (z < 0): board x and y turn the same way as image columns and rows (positive Jacobian
     determinant of board plane -> image at the grid's centre). A mirrored symmetric grid is
     put right by reversing each row; a mirrored asymmetric one gives None."""
-    from .detect import apply_homography, fit_homography
+    import cv2
 
     flat = board.dot_positions()[:, :2]
-    H = fit_homography(flat, centres)
+    H, _ = cv2.findHomography(flat, centres)
+    if H is None:
+        return None
     centre = board.centre()[:2]
     step = board.pitch_m
-    at = apply_homography(H, np.array([centre, centre + [step, 0.0], centre + [0.0, step]]))
+    corners = np.array([centre, centre + [step, 0.0], centre + [0.0, step]])
+    at = cv2.perspectiveTransform(corners[None], H)[0]
     du, dv = at[1] - at[0], at[2] - at[0]
     if du[0] * dv[1] - du[1] * dv[0] > 0:
         return centres
