@@ -18,7 +18,7 @@ import numpy as np
 from ..kinematics.conventions import MM
 from ..errors import DataError
 from ..io.atomic import write_bytes_atomic, write_text_atomic
-from .board import SCALE_BAR_MM, Board  # noqa: F401 (re-exported: the default length)
+from .board import Board
 
 
 _TEXT_MM = 3.0  # height of the small text, mm

@@ -8,11 +8,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..calibration.identify import IdentificationOptions, identify
+from ..calibration.fit_check import MAX_RMS_M, FitVerdict, forced_warning, judge_residual
 from ..calibration.measurements import check_spread
-from ..camera.scale import unverified_rows
 from ..calibration.regions import (DEFAULT_MARGIN_M, check_margin, identify_regions,
                                    least_unknowns, region_column)
-from ..calibration.fit_check import MAX_RMS_M, FitVerdict, forced_warning, judge_residual
+from ..camera.scale import unverified_rows
 from ..errors import DataError, OlpError
 from ..io.calibration_file import write_calibration
 from ..io.session import read_measurements_any
@@ -217,16 +217,15 @@ def judge_identification(result, meas, sigma_mm: float) -> FitVerdict:
     names = [f"line {int(line)}" for line in lines]
     noise = (f"{MAX_RMS_M * 1e3 / sigma_mm:.0f} times the stated noise of {sigma_mm:g} mm "
              f"(--position-sigma-mm)")
-    verdict = judge_residual(f"{meas.source}: the measurements do not fit robot "
-                             f"{cal.robot.name}", distances, names, noise=noise,
-                             rms_m=result.residual_rms)
-    return verdict
+    return judge_residual(f"{meas.source}: the measurements do not fit robot "
+                          f"{cal.robot.name}", distances, names, noise=noise,
+                          rms_m=result.residual_rms)
 
 
 def check_robot_line(meas, robot) -> None:
     """:class:`DataError` when the CSV's ``# robot: NAME`` line names another robot than
     ``--robot`` (same name, or a bundled robot of the same kinematic fingerprint, agree)."""
-    for k, line in enumerate(meas.metadata):
+    for line in meas.metadata:
         key, _, value = line.lstrip("#").partition(":")
         if key.strip().lower() != "robot" or not value.strip():
             continue

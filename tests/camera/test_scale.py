@@ -11,7 +11,6 @@ fit against hand-made distances.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import json
