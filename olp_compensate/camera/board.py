@@ -15,8 +15,12 @@ plus, optionally, ``"kind"`` (:data:`KINDS`; default "olp-dots", this module's b
 apart, no marker; its orientation is ambiguous by a half turn, so it calibrates a camera but
 does not measure poses), "opencv-acircles" OpenCV's asymmetric grid (row r, column c at
 ``((2 c + r % 2) pitch, r pitch)``, as OpenCV's samples lay it out; ``cols`` circles per
-row); both found by ``cv2.findCirclesGrid``; "charuco" is named but not read yet. And,
-optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
+row); both found by ``cv2.findCirclesGrid``; "charuco" is OpenCV's ChArUco board, ``cols`` x
+``rows`` squares of ``pitch_mm`` with ArUco markers of ``marker_mm`` from ``dictionary``
+(an OpenCV name, e.g. "DICT_4X4_50"), its "dots" the (rows - 1) x (cols - 1) inner chessboard
+corners at ``((c + 1) pitch, (r + 1) pitch)`` (OpenCV's board frame, origin at the board's
+corner), found by ``cv2.aruco.CharucoDetector``; it is not drawn or rendered here (OpenCV's
+``generateImage`` prints it). And, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
 :data:`SCALE_BAR_MM`; written only when it differs), which the user measures on the print
 to fix the board's scale (:mod:`.scale`).
 """
@@ -37,7 +41,7 @@ from ..io.atomic import write_text_atomic
 BOARD_KEYS = ("rows", "cols", "pitch_mm", "dot_diameter_mm", "marker_diameter_mm")
 KINDS = ("olp-dots", "opencv-circles", "opencv-acircles", "charuco")
 """Board kinds board.json may name (module docstring)."""
-READ_KINDS = KINDS[:3]
+READ_KINDS = KINDS
 SCALE_BAR_MM = 100.0
 """Nominal length of the printed scale bar, mm (board.json's optional ``scale_bar_mm``)."""
 MAX_DOTS_PER_SIDE = 100
@@ -80,6 +84,7 @@ class Board:
     marker_diameter_m: float
     scale_bar_m: float = SCALE_BAR_MM * MM
     kind: str = "olp-dots"
+    dictionary: str = ""
 
     def __post_init__(self):
         if self.kind not in READ_KINDS:
@@ -100,6 +105,9 @@ class Board:
             if not isinstance(value, (int, float, np.floating, np.integer)) \
                     or not math.isfinite(value) or value <= 0:
                 raise DataError(f"board: {name} must be a positive number, got {value!r}")
+        if self.kind == "charuco":
+            self._check_charuco()
+            return
         if self.kind == "olp-dots" and self.marker_diameter_m <= self.dot_diameter_m * 1.2:
             raise DataError(
                 f"board: the marker diameter ({self.marker_diameter_m / MM:g} mm) must be at "
@@ -120,18 +128,36 @@ class Board:
                             f"{sheet.height / MM:.0f} mm; at most {MAX_SHEET_M / MM:.0f} mm "
                             f"a side (fewer dots or a smaller pitch)")
 
+    def _check_charuco(self) -> None:
+        if not self.dictionary.startswith("DICT_"):
+            raise DataError(f"board: a charuco board names its ArUco dictionary as OpenCV "
+                            f"does (e.g. \"DICT_4X4_50\"), got {self.dictionary!r}")
+        if self.dot_diameter_m >= self.pitch_m:
+            raise DataError(f"board: the markers ({self.dot_diameter_m / MM:g} mm) must be "
+                            f"smaller than the squares ({self.pitch_m / MM:g} mm)")
+
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """(rows, columns) of the dots (a charuco board's inner corners)."""
+        if self.kind == "charuco":
+            return self.rows - 1, self.cols - 1
+        return self.rows, self.cols
+
     @property
     def count(self) -> int:
-        """Number of dots, rows * cols."""
-        return self.rows * self.cols
+        """Number of dots, rows * cols (a charuco board: its inner corners)."""
+        rows, cols = self.grid_shape
+        return rows * cols
 
     def dot_positions(self) -> np.ndarray:
         """Dot centres, shape (rows*cols, 3), m, board frame, row-major (index r*cols + c);
         an asymmetric grid's row r is shifted by ``r % 2`` pitches, its dots 2 pitches
         apart."""
-        r, c = np.divmod(np.arange(self.count), self.cols)
+        r, c = np.divmod(np.arange(self.count), self.grid_shape[1])
         if self.kind == "opencv-acircles":
             c = 2 * c + r % 2
+        elif self.kind == "charuco":
+            r, c = r + 1, c + 1
         return np.stack([c * self.pitch_m, r * self.pitch_m, np.zeros(self.count)], -1)
 
     def centre(self) -> np.ndarray:
@@ -157,18 +183,20 @@ class Board:
 
     def dot_grid(self) -> np.ndarray:
         """(row, column) of every dot, shape (rows*cols, 2), int, row-major."""
-        r, c = np.divmod(np.arange(self.count), self.cols)
+        r, c = np.divmod(np.arange(self.count), self.grid_shape[1])
         return np.stack([r, c], -1)
 
     def dot_radii(self) -> np.ndarray:
         """Printed radius of every dot, shape (rows*cols,), m (index 0 is the marker)."""
-        radii = np.full(self.count, self.dot_diameter_m / 2)
+        radii = np.full(self.count, 0.0 if self.kind == "charuco" else self.dot_diameter_m / 2)
         if self.kind == "olp-dots":
             radii[0] = self.marker_diameter_m / 2
         return radii
 
     def sheet_extent(self) -> SheetExtent:
         """The light sheet the dots are printed on: one pitch beyond the outer dots' edges."""
+        if self.kind == "charuco":
+            return SheetExtent(0.0, self.cols * self.pitch_m, 0.0, self.rows * self.pitch_m)
         margin = self.pitch_m + float(np.max(self.dot_radii()))
         last = self.dot_positions().max(axis=0)
         return SheetExtent(-margin, last[0] + margin, -margin, last[1] + margin)
@@ -182,6 +210,8 @@ def board_from_dict(data: dict, source: str = "<board>") -> Board:
     kind = data.get("kind", "olp-dots")
     if not isinstance(kind, str):
         raise DataError(f"{source}: 'kind' must be a string, got {kind!r}")
+    if kind == "charuco":
+        return _charuco_from_dict(data, source)
     if kind != "olp-dots" and "marker_diameter_mm" not in data:
         data = {**data, "marker_diameter_mm": data.get("dot_diameter_mm")}
     for key in BOARD_KEYS:
@@ -205,8 +235,31 @@ def board_from_dict(data: dict, source: str = "<board>") -> Board:
         raise DataError(f"{source}: {exc}") from None
 
 
+def _charuco_from_dict(data: dict, source: str) -> Board:
+    for key in ("rows", "cols", "pitch_mm", "marker_mm", "dictionary"):
+        if key not in data:
+            raise DataError(f"{source}: a charuco board needs '{key}' (rows, cols: squares; "
+                            f"pitch_mm: square side; marker_mm; dictionary)")
+    for key in ("pitch_mm", "marker_mm"):
+        if isinstance(data[key], bool) or not isinstance(data[key], (int, float)):
+            raise DataError(f"{source}: '{key}' must be a number, got {data[key]!r}")
+    if not isinstance(data["dictionary"], str):
+        raise DataError(f"{source}: 'dictionary' must be a string")
+    try:
+        return Board(rows=data["rows"], cols=data["cols"], pitch_m=data["pitch_mm"] * MM,
+                     dot_diameter_m=data["marker_mm"] * MM,
+                     marker_diameter_m=data["marker_mm"] * MM, kind="charuco",
+                     dictionary=data["dictionary"])
+    except DataError as exc:
+        raise DataError(f"{source}: {exc}") from None
+
+
 def board_to_dict(board: Board) -> dict:
     """The board.json mapping (mm) of ``board``."""
+    if board.kind == "charuco":
+        return {"kind": "charuco", "rows": int(board.rows), "cols": int(board.cols),
+                "pitch_mm": _mm(board.pitch_m), "marker_mm": _mm(board.dot_diameter_m),
+                "dictionary": board.dictionary}
     doc = {"rows": int(board.rows), "cols": int(board.cols),
            "pitch_mm": _mm(board.pitch_m), "dot_diameter_mm": _mm(board.dot_diameter_m),
            "marker_diameter_mm": _mm(board.marker_diameter_m)}

@@ -368,6 +368,14 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
     if method not in ("centroid", "ellipse"):
         raise DataError(f"detect: method must be 'centroid' or 'ellipse', got {method!r}")
     grey = _as_grey(image)
+    if board.kind == "charuco":
+        from .detect_opencv import find_charuco_corners
+
+        corners = find_charuco_corners(grey, board)
+        if isinstance(corners, str):
+            return DetectionFailure(name, corners)
+        return _detection(name, board, corners, np.full(board.count, np.nan),
+                          np.full(board.count, np.nan))
     if board.kind != "olp-dots":
         return _detect_opencv(grey, board, name)
     paper = paper_level(grey, board)
@@ -425,11 +433,16 @@ def _detect_opencv(grey: np.ndarray, board: Board, name: str) -> Detection | Det
     centres, contrast, inside = refine_centres(grey, blobs, indices)
     if not np.all(inside):
         return DetectionFailure(name, "board touches the image border")
+    return _detection(name, board, centres, blobs.areas[indices], contrast)
+
+
+def _detection(name, board, centres, area, contrast) -> Detection:
+    """A :class:`Detection` of ``centres`` (n, 2) px with the board's homography."""
     flat = board.dot_positions()[:, :2]
     H = fit_homography(flat, centres)
     rms = float(np.sqrt(np.mean(np.sum((apply_homography(H, flat) - centres) ** 2, axis=1))))
-    return Detection(name=name, pixels=centres, area_px=blobs.areas[indices],
-                     contrast=contrast, homography=H, homography_rms_px=rms)
+    return Detection(name=name, pixels=centres, area_px=area, contrast=contrast,
+                     homography=H, homography_rms_px=rms)
 
 
 def _match_blobs(board: Board, rough: np.ndarray, blobs: Blobs) -> np.ndarray | None:
@@ -480,7 +493,10 @@ def circle_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
     (``samples`` points, distortion included) and the centroid of the enclosed polygon
     taken (exact to O(1/samples^2)). Subtract it from detected centroids to get the
     images of the dot centres; ``camera_T_board`` (4, 4, m) from a first calibration pass.
+    A charuco board's corners have no such bias (zeros).
     """
+    if board.kind == "charuco":
+        return np.zeros((board.count, 2))
     angles = np.linspace(0, 2 * np.pi, samples, endpoint=False)
     ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(samples)], -1)
     centres = board.dot_positions()

@@ -1,6 +1,7 @@
 """The boards users own already: OpenCV's symmetric and asymmetric circle grids, found by
-``cv2.findCirclesGrid`` (its blob detector, then its grid ordering), so ``olp-cal camera``
-reads them as it reads its own board (:mod:`.board`, ``"kind"``).
+``cv2.findCirclesGrid`` (its blob detector, then its grid ordering), and ChArUco boards,
+found by ``cv2.aruco.CharucoDetector`` (its sub-pixel corners used as they are), so
+``olp-cal camera`` reads them as it reads its own board (:mod:`.board`, ``"kind"``).
 
 OpenCV orders the centres row by row, ``cols`` per row, as :meth:`.Board.dot_positions`
 lays the dots out for these kinds. The blob detector's default largest blob (5,000 px^2) is
@@ -62,6 +63,26 @@ def right_handed(board: Board, centres: np.ndarray) -> np.ndarray | None:
     if board.kind == "opencv-circles":
         return centres.reshape(board.rows, board.cols, 2)[:, ::-1].reshape(-1, 2)
     return None
+
+
+def find_charuco_corners(grey: np.ndarray, board: Board) -> np.ndarray | str:
+    """A charuco board's inner corners (n, 2) px in :meth:`Board.dot_positions` order, or
+    why not: every corner must be found (as every dot of our boards must)."""
+    import cv2
+
+    dictionary_id = getattr(cv2.aruco, board.dictionary, None)
+    if not isinstance(dictionary_id, int):
+        raise DataError(f"board: OpenCV has no ArUco dictionary {board.dictionary!r}")
+    opencv_board = cv2.aruco.CharucoBoard((board.cols, board.rows), board.pitch_m,
+                                          board.dot_diameter_m,
+                                          cv2.aruco.getPredefinedDictionary(dictionary_id))
+    corners, ids, _, _ = cv2.aruco.CharucoDetector(opencv_board).detectBoard(grey)
+    found = 0 if ids is None else len(ids)
+    if found != board.count:
+        return (f"{found} of the charuco board's {board.count} corners found "
+                f"(cv2.aruco.CharucoDetector): the whole board must be in view")
+    order = np.argsort(np.asarray(ids).ravel())
+    return np.asarray(corners, dtype=float).reshape(-1, 2)[order]
 
 
 def check_measurable(board: Board) -> None:

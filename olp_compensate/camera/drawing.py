@@ -74,8 +74,15 @@ def _parameters_text(board: Board) -> str:
             f"{board.marker_diameter_m / MM:g} mm - print at 100 %")
 
 
+def _drawable(board: Board) -> None:
+    if board.kind == "charuco":
+        raise DataError("board drawing: a charuco board is printed from OpenCV's "
+                        "CharucoBoard.generateImage, not drawn here")
+
+
 def board_svg(board: Board) -> str:
     """The board as an SVG document in mm (1 user unit = 1 mm), exact circles."""
+    _drawable(board)
     g = _layout(board)
     dots = []
     for (x, y, _), r in zip(board.dot_positions() / MM, board.dot_radii() / MM):
@@ -114,6 +121,7 @@ def board_image(board: Board, dpi: float = 300.0) -> np.ndarray:
     """The board as an 8-bit grey image (h, w) at ``dpi`` dots per inch (antialiased)."""
     import cv2
 
+    _drawable(board)
     check_png_size(board, dpi)
     g = _layout(board)
     px = dpi / 25.4  # pixels per mm

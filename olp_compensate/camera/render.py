@@ -101,6 +101,9 @@ class _Scene:
     """Signed distances to the dot edges and the sheet edge of one board (m)."""
 
     def __init__(self, board: Board):
+        if board.kind == "charuco":
+            raise DataError("render: charuco boards are not rendered here (use an olp-dots "
+                            "or OpenCV circle-grid board for virtual views)")
         self.board = board
         self.sheet = board.sheet_extent()
         self.dot_r = board.dot_diameter_m / 2

@@ -118,15 +118,16 @@ def read_reference(path: str | Path, board: Board) -> BoardScale:
                             f"{len(header)}")
         cell = dict(zip(header, record))
         dots = []
-        for column, size in zip(REFERENCE_COLUMNS[:4], (board.rows, board.cols) * 2):
+        for column, size in zip(REFERENCE_COLUMNS[:4], board.grid_shape * 2):
             value = parse_cell_number(cell[column], source, line, column)
             if value != int(value) or not 0 <= value < size:
                 raise DataError(f"{source}:{line}: column '{column}': {cell[column].strip()} "
-                                f"is not a dot of the {board.rows} x {board.cols} board")
+                                f"is not a dot of the {board.grid_shape[0]} x "
+                                f"{board.grid_shape[1]} grid")
             dots.append(int(value))
         positions = board.dot_positions()
-        a = positions[dots[0] * board.cols + dots[1], :2]
-        b = positions[dots[2] * board.cols + dots[3], :2]
+        a = positions[dots[0] * board.grid_shape[1] + dots[1], :2]
+        b = positions[dots[2] * board.grid_shape[1] + dots[3], :2]
         length = float(np.linalg.norm(a - b))
         if length == 0:
             raise DataError(f"{source}:{line}: the two dots are the same")

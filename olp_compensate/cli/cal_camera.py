@@ -56,7 +56,7 @@ def add_arguments(p) -> None:
     b.add_argument("--dot-mm", type=float, default=5.0, help="dot diameter, mm (default 5)")
     b.add_argument("--marker-mm", type=float, default=8.0,
                    help="diameter of the marker dot (row 0, column 0), mm (default 8)")
-    b.add_argument("--kind", choices=READ_KINDS, default="olp-dots",
+    b.add_argument("--kind", choices=READ_KINDS[:3], default="olp-dots",
                    help="olp-dots (default: ours, with a marker dot); opencv-circles or "
                         "opencv-acircles: OpenCV's symmetric or asymmetric circle grid "
                         "(--cols circles per row; no marker)")

@@ -149,3 +149,17 @@ def test_measured_scale_bar_gives_the_robot_within_0_05_mm(printed_campaign):
     assert "unverified scale" not in _run(["identify", str(root / "meas.csv"), "--robot",
                                            "abb_irb2400", "--folds", "0"])
     assert read_board(root / "board.json") == NOMINAL
+
+
+def test_assess_states_the_scale_its_known_moves_imply():
+    """Camera positions measured with a board 0.1 % larger than board.json says come out
+    0.1 % short; the known moves then give the printed board 1.001 x nominal."""
+    from olp_compensate.camera.assess import assess_moves
+    from olp_compensate.cli.cal_camera_assess import implied_scale
+
+    moves = np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1, 0.05]])
+    poses = np.tile(np.eye(4), (4, 1, 1))
+    poses[:, :3, 3] = (np.array([0.1, 0.1, -0.5]) + moves) / 1.001
+    result = assess_moves(poses, moves, NOMINAL.centre())
+    text = implied_scale(result, BoardScale(), NOMINAL)
+    assert "printed board 1.001000 x" in text and "100.100 mm" in text
