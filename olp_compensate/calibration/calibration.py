@@ -131,7 +131,7 @@ class Calibration:
     local models (:class:`RegionCalibration`) of the same robot, chosen by
     :meth:`region_for` for points inside their boxes (the global model elsewhere).
     ``warnings``: verdicts the fit's own statistics gave and the user overrode (``--force``),
-    written into calib.json and printed wherever the file is used.
+    kept in calib.json's ``"warnings"`` list.
     """
 
     robot: Robot
