@@ -9,7 +9,9 @@ detected centres*:
 
 - ours: the seed's RAC then the full refinement, with the circle-centre correction (the
   default of ``olp-cal camera calibrate``); the same without that correction; RAC only;
-- OpenCV: ``cv2.calibrateCamera`` (Zhang, 5 distortion coefficients) then ``cv2.solvePnP``.
+- OpenCV: ``cv2.calibrateCamera`` (Zhang, 5 distortion coefficients) then ``cv2.solvePnP``;
+  and OpenCV's whole pipeline: the same on its own centres (``cv2.findCirclesGrid``), views
+  it does not find left out.
 
 Errors against the truth: focal lengths and centre (px); the distortion, whose models
 differ (ours distorted -> undistorted, OpenCV's undistorted -> distorted), compared through
@@ -89,6 +91,27 @@ def detect_all(images):
     return [f.pixels for f in found], rate
 
 
+def opencv_centres(images, ours):
+    """OpenCV's own dot centres (cv2.findCirclesGrid's blob centres), put in the order of
+    our detection (a square symmetric grid comes back turned by any quarter turn); None for
+    a view it does not find."""
+    params = cv2.SimpleBlobDetector_Params()
+    params.maxArea = TRUTH.width * TRUTH.height / BOARD.count
+    detector = cv2.SimpleBlobDetector_create(params)
+    out = []
+    for image, pixels in zip(images, ours):
+        found, centres = cv2.findCirclesGrid(image, (BOARD.cols, BOARD.rows),
+                                             flags=cv2.CALIB_CB_SYMMETRIC_GRID,
+                                             blobDetector=detector)
+        if not found:
+            out.append(None)
+            continue
+        centres = centres.reshape(-1, 2).astype(float)
+        nearest = np.argmin(np.linalg.norm(pixels[:, None] - centres[None], axis=2), axis=1)
+        out.append(centres[nearest] if len(set(nearest.tolist())) == BOARD.count else None)
+    return out
+
+
 # -- the estimates ---------------------------------------------------------------------------
 
 class Ours:
@@ -119,7 +142,8 @@ class OpenCV:
 
     label = "OpenCV calibrateCamera + solvePnP"
 
-    def __init__(self, pixels):
+    def __init__(self, pixels, label=None):
+        self.label = label or self.label
         objects = [BOARD.dot_positions().astype(np.float32)] * len(pixels)
         images = [p.astype(np.float32).reshape(-1, 1, 2) for p in pixels]
         start = time.perf_counter()
@@ -187,9 +211,16 @@ def camera_part(seed: int) -> None:
           f"{'1:N med':>8} {'worst':>7} | {'cal s':>6}")
     print(f"{'':<48} {'px':>7} {'px':>7} {'px':>7} {'px':>7} {'px':>8} {'px':>6} | "
           f"{'mm':>7} {'mm':>7} {'deg':>7} {'deg':>7} {'':>8} {'':>7} |")
-    for e in estimates:
+    own_cal = [p for p in opencv_centres(cal_images, cal_pixels) if p is not None]
+    own_new = opencv_centres(new_images, new_pixels)
+    kept = [k for k, p in enumerate(own_new) if p is not None]
+    own = OpenCV(own_cal, f"OpenCV's own centres: {len(own_cal)}+{len(kept)} views found")
+    for e in estimates + [own]:
         rms, worst = distortion_field_error(e)
-        err = pose_errors(e, new_pixels, new_poses)
+        if e is own:
+            err = pose_errors(e, [own_new[k] for k in kept], [new_poses[k] for k in kept])
+        else:
+            err = pose_errors(e, new_pixels, new_poses)
         print(f"{e.label:<48} {e.fx - TRUTH.fx:7.3f} {e.fy - TRUTH.fy:7.3f} "
               f"{e.cx - TRUTH.cx:7.3f} {e.cy - TRUTH.cy:7.3f} {rms:8.3f} {worst:6.3f} | "
               f"{np.median(err[:, 0]):7.4f} {np.max(err[:, 0]):7.4f} "
@@ -252,12 +283,19 @@ def robot_part(seed: int, candidates_per_pose: int = 1) -> None:
 
 
 def main() -> None:
+    global RENDER
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--skip-robot", action="store_true")
     parser.add_argument("--skip-camera", action="store_true")
     parser.add_argument("--candidates-per-pose", type=int, default=1)
+    parser.add_argument("--noise", type=float, default=RENDER.noise_sigma,
+                        help="image noise, grey levels (default 2)")
+    parser.add_argument("--blur", type=float, default=RENDER.blur_sigma_px,
+                        help="Gaussian blur, px (default 0.8)")
     args = parser.parse_args()
+    RENDER = replace(RENDER, noise_sigma=args.noise, blur_sigma_px=args.blur)
+    print(f"rendering: noise {RENDER.noise_sigma:g} grey levels, blur {RENDER.blur_sigma_px:g} px")
     if not args.skip_camera:
         camera_part(args.seed)
     if not args.skip_robot:

@@ -237,3 +237,43 @@ def test_cli_collinear_marks_exit_1_with_one_line(robot, workspace, tmp_path, ca
     err = capsys.readouterr().err
     assert code == 1 and "nearly on a line" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out.json").exists()
+
+
+def _write_marks(path, q, picks, marks):
+    lines = ["mark," + ",".join(f"q{k + 1}_deg" for k in range(6)) + ",x_mm,y_mm,z_mm"]
+    for k, i in enumerate(picks):
+        lines.append(f"M{k + 1}," + ",".join(f"{v:.9f}" for v in np.degrees(q[i]))
+                     + "," + ",".join(f"{v:.6f}" for v in marks[k] / MM))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_cli_refuses_a_base_whose_marks_do_not_fit_one_frame(robot, workspace, tmp_path,
+                                                             capsys):
+    """Issue 25: one mark 50 mm off moved the base 37 mm (RMS 18 mm) with exit 0. The
+    shared 5 mm rule (as for tools) refuses it naming the worst mark; --force writes it
+    with the verdict in the file."""
+    q, base = workspace
+    world = _world_T_base(tilted=False)
+    picks = _marks(workspace, 0.2, TETRAHEDRON + [(1, 1, -1)])
+    marks = base[picks] @ world[:3, :3].T + world[:3, 3]
+    marks[2, 0] += 50 * MM                                   # M3 written 50 mm off
+    model = tmp_path / "calib.json"
+    write_calibration(model, _calibration(robot))
+    _write_marks(tmp_path / "marks.csv", q, picks, marks)
+    out = tmp_path / "moved.json"
+    argv = ["--model", str(model), "--marks", str(tmp_path / "marks.csv"), "-o", str(out)]
+    assert _run_cli(argv) == 1
+    captured = capsys.readouterr()
+    assert "M3" in captured.err and "above the 5 mm limit" in captured.err
+    assert len(captured.err.strip().splitlines()) == 1 and not out.exists()
+    assert _run_cli(argv + ["--force"]) == 0
+    assert "WARNING" in capsys.readouterr().out
+    written = read_calibration(out)
+    assert len(written.warnings) == 1 and "M3" in written.warnings[0]
+    assert "--force" in json.loads(out.read_text())["warnings"][0]
+    # the same marks without the bad one: accepted, no warning in the file
+    good = np.arange(len(picks)) != 2
+    _write_marks(tmp_path / "good.csv", q, picks[good], marks[good])
+    assert _run_cli(["--model", str(model), "--marks", str(tmp_path / "good.csv"),
+                     "-o", str(tmp_path / "good.json")]) == 0
+    assert "warnings" not in json.loads((tmp_path / "good.json").read_text())

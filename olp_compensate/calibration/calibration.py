@@ -130,6 +130,8 @@ class Calibration:
     fitted non-geometric terms (:mod:`olp_compensate.calibration.effects`); ``regions``
     local models (:class:`RegionCalibration`) of the same robot, chosen by
     :meth:`region_for` for points inside their boxes (the global model elsewhere).
+    ``warnings``: verdicts the fit's own statistics gave and the user overrode (``--force``),
+    kept in calib.json's ``"warnings"`` list.
     """
 
     robot: Robot
@@ -142,8 +144,10 @@ class Calibration:
     effects: tuple[Effect, ...] = ()
     validation: Validation | None = None
     regions: tuple[RegionCalibration, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def __post_init__(self):
+        object.__setattr__(self, "warnings", tuple(self.warnings))
         if not self.regions:
             return
         object.__setattr__(self, "regions", tuple(self.regions))

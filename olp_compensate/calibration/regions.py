@@ -10,6 +10,11 @@ frame of the global calibration, grown by a margin (default :data:`DEFAULT_MARGI
 compensation uses a region's model for targets inside its box
 (:mod:`olp_compensate.compensation.regions`).
 
+A region's model is kept only when its held-out error (cross-validation on the region's
+rows) is not larger than the global model's held-out error on the same rows: a local model
+that predicts worse than the global one where it was measured is left out of the
+calibration (:func:`region_verdict`), and the figures say why.
+
 A region's base frame is defined from its own identified axes, as every calibration's is;
 its device frame is the same physical device (one measurement file), which is how the
 compensation relates the two base frames.
@@ -18,7 +23,7 @@ compensation relates the two base frames.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -42,6 +47,10 @@ class RegionalIdentification:
 
     result: IdentificationResult
     regions: tuple[tuple[str, IdentificationResult], ...]
+    candidates: tuple[RegionCalibration, ...] = ()
+    """Every region fitted, kept or not (same order as ``regions``)."""
+    left_out: dict[str, str] = field(default_factory=dict)
+    """Regions kept out of the calibration: name -> why (held-out figures, mm)."""
 
 
 def region_column(meas: Measurements) -> np.ndarray:
@@ -101,6 +110,19 @@ def _heldout(result: IdentificationResult, mask: np.ndarray) -> tuple[float | No
     return float(np.sqrt(np.mean(errors ** 2)) * 1e3), float(np.max(errors) * 1e3)
 
 
+def region_verdict(region: RegionCalibration) -> str | None:
+    """Why ``region`` must be kept out (its local model predicts its own rows worse
+    held-out than the global model), or None to keep it. Without both held-out figures
+    (``--folds 0``, too few poses) nothing can be compared and the region is kept."""
+    local = region.calibration.validation
+    local_rms = None if local is None else local.heldout_rms_mm
+    global_rms = region.global_heldout_rms_mm
+    if local_rms is None or global_rms is None or local_rms <= global_rms:
+        return None
+    return (f"local model held-out RMS {local_rms:.3f} mm > global model's {global_rms:.3f} "
+            f"mm on the same rows: the global model is used there")
+
+
 def identify_regions(robot: Robot, meas: Measurements,
                      options: IdentificationOptions = IdentificationOptions(),
                      margin_m: float = DEFAULT_MARGIN_M,
@@ -110,8 +132,9 @@ def identify_regions(robot: Robot, meas: Measurements,
     ``meas``) and one model per region named in the ``region`` column, each on its rows
     alone with ``options``; the global calibration returned carries them as
     :class:`RegionCalibration` (box: the region's measured points in the global base frame,
-    grown by ``margin_m``, m). :class:`DataError` naming a region whose rows cannot
-    determine a model."""
+    grown by ``margin_m``, m); a region whose model is worse held-out than the global one
+    (:func:`region_verdict`) is left out of it and listed in ``left_out``.
+    :class:`DataError` naming a region whose rows cannot determine a model."""
     labels = region_column(meas)
     result = identify(robot, meas, options) if global_result is None else global_result
     device_T_base = result.calibration.device_T_base
@@ -132,6 +155,9 @@ def identify_regions(robot: Robot, meas: Measurements,
             calibration=local.calibration, global_heldout_rms_mm=rms,
             global_heldout_max_mm=worst))
         fits.append((name, local))
-    calibration = replace(result.calibration, regions=tuple(regions))
+    left_out = {r.name: why for r in regions if (why := region_verdict(r)) is not None}
+    kept = tuple(r for r in regions if r.name not in left_out)
+    calibration = replace(result.calibration, regions=kept)
     return RegionalIdentification(result=replace(result, calibration=calibration),
-                                  regions=tuple(fits))
+                                  regions=tuple(fits), candidates=tuple(regions),
+                                  left_out=left_out)

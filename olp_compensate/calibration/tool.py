@@ -34,15 +34,13 @@ import numpy as np
 
 from ..errors import DataError
 from ..kinematics.conventions import MM, rotation_angle_between, rotation_from_rotvec, skew
+from .fit_check import MAX_RMS_M, judge_residual
 
 COND_LIMIT = 25.0
 """Largest accepted condition number of the column-scaled design matrix (see module doc)."""
 MIN_MARKS = {("known_marks", "base"): 3, ("known_marks", "world"): 4, ("fixed_point", None): 4}
 """Fewest touches per method (and frame) that leave redundancy to estimate the noise."""
 
-MAX_RMS_M = 5e-3
-"""Largest accepted RMS residual of a tool fit, m: touches 5 mm off one tool point are
-wrong marks, frame or robot model, not touch noise (see :func:`check_tool_fit`)."""
 SAME_MARK_M = 1e-4
 """Marks closer than this to each other in every coordinate are one mark, m."""
 
@@ -327,18 +325,16 @@ def calibrate_tool(request: ToolRequest, flange_pose: FlangePose) -> ToolCalibra
 
 def check_tool_fit(result: ToolCalibration, max_rms_m: float = MAX_RMS_M) -> None:
     """:class:`DataError` when a fitted tool is not fit to save: a non-finite TCP or
-    residual, or an RMS residual above ``max_rms_m`` (naming the worst touch)."""
+    residual, or an RMS residual above ``max_rms_m`` (naming the worst touch): the rule of
+    :mod:`olp_compensate.calibration.fit_check`, shared with base and identify."""
     numbers = np.concatenate([np.ravel(result.xyz_m), np.ravel(result.residuals_m)])
     if not np.all(np.isfinite(numbers)):
         raise DataError(f"tool {result.name}: the fit gave non-finite numbers; check the "
                         f"marks' coordinates and joints")
-    if result.rms_m > max_rms_m:
-        worst = int(np.argmax(result.residuals_m))
-        raise DataError(f"tool {result.name}: the touches do not fit one tool point (RMS "
-                        f"residual {result.rms_m / MM:.3f} mm, above {max_rms_m / MM:g} mm; "
-                        f"worst {result.mark_names[worst]}: "
-                        f"{result.residuals_m[worst] / MM:.3f} mm): wrong marks, frame or "
-                        f"robot model? Nothing written")
+    verdict = judge_residual(f"tool {result.name}: the touches do not fit one tool point",
+                             result.residuals_m, result.mark_names, max_rms_m)
+    if verdict.rejected:
+        raise DataError(f"{verdict.message} Nothing written")
 
 
 # -- report -----------------------------------------------------------------------------------

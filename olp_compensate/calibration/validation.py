@@ -226,14 +226,27 @@ def _line(label: str, s: ErrorStats) -> str:
             f"{s.median * 1e3:.3f} mm, p95 {s.p95 * 1e3:.3f} mm, max {s.max * 1e3:.3f} mm")
 
 
+def change_words(before_m: float, after_m: float) -> str:
+    """How the mean error changed, in words that match the sign: 'N.Nx smaller', 'N.Nx
+    LARGER' (with the figures and what it means), or 'unchanged'; m in, mm out."""
+    if after_m < before_m:
+        gain = f"{before_m / after_m:.1f}x" if after_m > 0 else "infinitely"
+        return f"mean error {gain} smaller after calibration"
+    if after_m == before_m:
+        return "mean error unchanged by the calibration"
+    ratio = f"{after_m / before_m:.1f}x" if before_m > 0 else "infinitely"
+    return (f"WARNING: mean error {ratio} LARGER after calibration ({before_m * 1e3:.3f} mm "
+            f"-> {after_m * 1e3:.3f} mm): the calibration does not describe the robot that "
+            f"made these measurements (another robot, tool or cell?)")
+
+
 def validation_summary(report: ValidationReport) -> list[str]:
     """Printed lines: overall and per-region figures, every number with its unit."""
     lines = [f"validation of {report.robot} on {report.source}: {report.n} measured points",
              "  before: nominal arm, device frame registered to these measurements; after: "
              "the calibrated model as it predicts (no re-fit)",
              _line("before", report.before), _line("after", report.after)]
-    gain = report.before.mean / report.after.mean if report.after.mean > 0 else math.inf
-    lines.append(f"  mean error {gain:.1f}x smaller after calibration")
+    lines.append(f"  {change_words(report.before.mean, report.after.mean)}")
     for r in report.regions:
         lines.append(f"region {r.name}: {r.after.n} points")
         lines.extend([_line("before", r.before), _line("after", r.after)])

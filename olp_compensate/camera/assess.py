@@ -38,6 +38,8 @@ from ..kinematics.conventions import rotation_angle_between
 
 MOVED = ("camera", "board")
 MOVE_COLUMNS = ("image", "dx_mm", "dy_mm", "dz_mm")
+MAX_MOVE_MM = 1e5
+"""Largest accepted stage coordinate, mm (100 m: no stage or CMM travels further)."""
 
 
 @dataclass(frozen=True)
@@ -195,6 +197,11 @@ def parse_moves(text: str, source: str = "<moves>") -> tuple[list[str], np.ndarr
                                 f"'{record[i].strip()}'") from None
         if not np.all(np.isfinite(values)):
             raise DataError(f"{source}:{line}: moves must be finite numbers")
+        too_far = next((c for c, v in zip(MOVE_COLUMNS[1:], values) if abs(v) > MAX_MOVE_MM),
+                       None)
+        if too_far is not None:
+            raise DataError(f"{source}:{line}: {too_far} = {values[MOVE_COLUMNS.index(too_far) - 1]:g} "
+                            f"mm is beyond any stage (limit {MAX_MOVE_MM:g} mm)")
         names.append(name)
         moves.append(values)
     if len(names) < 3:
@@ -209,7 +216,11 @@ def read_moves(path: str | Path) -> tuple[list[str], np.ndarray]:
 
 
 def _ratio(n: float) -> str:
-    return "1:inf" if not np.isfinite(n) else f"1:{n:,.0f}"
+    """'1:N'; an error above a tenth of the distance keeps two significant digits (a
+    1e308 mm error is '1:1e-305', not '1:0')."""
+    if not np.isfinite(n):
+        return "1:inf"
+    return f"1:{n:,.0f}" if n >= 10 else f"1:{n:.2g}"
 
 
 def assessment_table(result: MoveAssessment) -> str:

@@ -30,6 +30,8 @@ from ..errors import DataError
 from . import rac
 from .model import CameraIntrinsics, project_points
 from .refine import INTRINSIC_NAMES, refine
+from .scale import BoardScale
+from .zhang import zhang_start
 
 MIN_VIEWS = 3
 """Fewest usable views for either method (see the module docstring)."""
@@ -44,6 +46,11 @@ BIAS_ITERATIONS = 3
 """Passes of the circle-centre correction (each: bias at the current estimate, re-fit)."""
 
 METHODS = ("rac", "rac-only")
+
+STAGES = {"rac": "in the RAC stages, then refined",
+          "rac-pose": "pose from the RAC's intrinsics (too near face-on for the RAC), refined",
+          "homography": "pose and intrinsics from homographies (Zhang), refined"}
+"""How a view entered the refinement."""
 
 CentreBias = Callable[[CameraIntrinsics, np.ndarray], np.ndarray]
 """``bias(intrinsics, camera_T_board) -> (n, 2)`` px: detected centre minus the image of the
@@ -64,7 +71,8 @@ class View:
 class ViewResult:
     """A calibrated view: camera_T_board (4, 4) m; reprojection ``rms_px`` (RMS of the
     distances) and ``max_px``; ``tilt_deg`` the angle between the board normal and the
-    optical axis; ``in_rac`` whether the RAC stages used it."""
+    optical axis; ``in_rac`` whether the RAC stages used it; ``stage`` how it entered the
+    refinement (:data:`STAGES`)."""
 
     name: str
     camera_T_board: np.ndarray
@@ -72,6 +80,7 @@ class ViewResult:
     max_px: float
     tilt_deg: float
     in_rac: bool
+    stage: str = "rac"
 
 
 @dataclass(frozen=True)
@@ -94,7 +103,9 @@ class CameraCalibration:
     views : per used view. skipped : views not used. rms_px, max_px : over all dots.
     sigma_px : residual standard deviation sqrt(RSS / (m - n)) (NaN for rac-only).
     rac_excluded : views left out of the RAC stages, with reasons. bias_iterations : passes of
-    the circle-centre correction (0: detected centres used as they are).
+    the circle-centre correction (0: detected centres used as they are). scale : the board's
+    scale the views' poses were measured with (:class:`.scale.BoardScale`). start : where
+    the refinement started, "rac" or "homography" (then ``rac`` holds that start).
     """
 
     intrinsics: CameraIntrinsics
@@ -108,6 +119,8 @@ class CameraCalibration:
     sigma_px: float = float("nan")
     rac_excluded: tuple = ()
     bias_iterations: int = 0
+    scale: BoardScale = BoardScale()
+    start: str = "rac"
 
 
 def tilt_deg(camera_T_board: np.ndarray) -> float:
@@ -200,27 +213,15 @@ def calibrate(views: Sequence[View], width: int, height: int, *, method: str = "
         s = rac.stage1(v.pixels, v.points, guess[0], guess[1], 1.0)
         tilts.append(float(np.degrees(np.arccos(np.clip(abs(s.rotation[2, 2]), 0, 1)))))
     tilted = [k for k, t in enumerate(tilts) if t >= MIN_TILT_DEG]
+    found, start, poses, stages, reason = _start(pixels, points, width, height, tilted,
+                                                 method, guess, advice)
+    if found is None:
+        tilted = []
     excluded = tuple(Skipped(usable[k].name, f"tilt {tilts[k]:.0f} deg < {MIN_TILT_DEG:.0f}: "
-                                             f"too close to parallel to the board for the RAC")
+                                             f"{reason}")
                      for k in range(len(usable)) if k not in tilted)
-    if len(tilted) < MIN_VIEWS:
-        raise DataError(f"calibrate: only {len(tilted)} of {len(usable)} views have the board "
-                        f"tilted by {MIN_TILT_DEG:.0f} degrees or more (the RAC is "
-                        f"ill-conditioned nearer to parallel; the seed asks for 30); "
-                        f"{MIN_VIEWS} are needed: {advice}")
-    normals = []
-    for k in tilted:
-        s = rac.stage1(pixels[k], points[k], guess[0], guess[1], 1.0)
-        normals.append(s.rotation[:, 2] * np.sign(s.rotation[2, 2]))
-    normals = np.array(normals)
-    spread = np.degrees(np.arccos(np.clip(np.min(normals @ normals.T), -1.0, 1.0)))
-    if spread < MIN_SPREAD_DEG:
-        raise DataError(f"calibrate: the board normals of the views span only {spread:.1f} "
-                        f"degrees (at least {MIN_SPREAD_DEG:.0f} needed): the views are too "
-                        f"alike to separate the focal length from the centre; {advice}")
-
-    found, poses = _rac_stage(pixels, points, width, height, tilted)
-    intrinsics, refined, passes = found.intrinsics, None, 0
+    kind = "rac" if found is not None else "homography"
+    intrinsics, refined, passes = start, None, 0
     if method == "rac":
         refined = refine(pixels, points, intrinsics, poses)
         intrinsics, poses = refined.intrinsics, refined.camera_T_board
@@ -242,10 +243,52 @@ def calibrate(views: Sequence[View], width: int, height: int, *, method: str = "
     else:
         std, sigma = refined.intrinsics_std, refined.sigma_px
     results = tuple(ViewResult(v.name, T, float(np.sqrt(np.mean(d ** 2))), float(np.max(d)),
-                               tilt_deg(T), k in tilted)
+                               tilt_deg(T), k in tilted, stages[k])
                     for k, (v, T, d) in enumerate(zip(usable, poses, distances)))
     return CameraCalibration(
-        intrinsics=intrinsics, std=std, rac=found.intrinsics,
+        intrinsics=intrinsics, std=std, rac=start if found is None else found.intrinsics,
         method=method, views=results, skipped=tuple(skipped),
         rms_px=float(np.sqrt(np.mean(every ** 2))), max_px=float(np.max(every)),
-        sigma_px=sigma, rac_excluded=excluded, bias_iterations=passes)
+        sigma_px=sigma, rac_excluded=excluded, bias_iterations=passes, start=kind)
+
+
+def _start(pixels, points, width, height, tilted, method, guess, advice):
+    """Where the refinement starts: (RAC result or None, intrinsics, poses (V, 4, 4), each
+    view's stage, why views were left out of the RAC). The RAC on the tilted views when
+    there are :data:`MIN_VIEWS`, else (method "rac") every view from its homography."""
+    n = len(pixels)
+    if len(tilted) >= MIN_VIEWS:
+        _check_spread(_stage1_normals(pixels, points, tilted, guess), advice)
+        found, poses = _rac_stage(pixels, points, width, height, tilted)
+        stages = ["rac" if k in tilted else "rac-pose" for k in range(n)]
+        return (found, found.intrinsics, poses, stages, "too close to parallel to the board "
+                "for the RAC; pose from the RAC's intrinsics")
+    if method == "rac-only":
+        raise DataError(f"calibrate: only {len(tilted)} of {n} views have the board "
+                        f"tilted by {MIN_TILT_DEG:.0f} degrees or more (the RAC is "
+                        f"ill-conditioned nearer to parallel; the seed asks for 30); "
+                        f"{MIN_VIEWS} are needed for rac-only (the default method starts "
+                        f"such views from their homographies): {advice}")
+    start, poses = zhang_start(pixels, points, width, height)
+    _check_spread(poses[:, :3, 2] * np.sign(poses[:, 2:3, 2]), advice)
+    return (None, start, poses, ["homography"] * n,
+            f"fewer than {MIN_VIEWS} views tilted {MIN_TILT_DEG:.0f} deg or more: every "
+            f"view started from its homography (Zhang)")
+
+
+def _stage1_normals(pixels, points, views, guess) -> np.ndarray:
+    """(k, 3) board normals of ``views`` from the RAC's stage 1 at ``guess``, mu = 1."""
+    normals = []
+    for k in views:
+        s = rac.stage1(pixels[k], points[k], guess[0], guess[1], 1.0)
+        normals.append(s.rotation[:, 2] * np.sign(s.rotation[2, 2]))
+    return np.array(normals)
+
+
+def _check_spread(normals: np.ndarray, advice: str) -> None:
+    """:class:`DataError` when the board normals (k, 3) span less than MIN_SPREAD_DEG."""
+    spread = np.degrees(np.arccos(np.clip(np.min(normals @ normals.T), -1.0, 1.0)))
+    if spread < MIN_SPREAD_DEG:
+        raise DataError(f"calibrate: the board normals of the views span only {spread:.1f} "
+                        f"degrees (at least {MIN_SPREAD_DEG:.0f} needed): the views are too "
+                        f"alike to separate the focal length from the centre; {advice}")

@@ -130,8 +130,7 @@ def camera_mount(rng: np.random.Generator, distance_m: tuple[float, float] = (0.
 
 def board_centre(board: Board) -> np.ndarray:
     """The centre of the dot grid in the board frame (3,), m."""
-    return np.array([(board.cols - 1) * board.pitch_m / 2, (board.rows - 1) * board.pitch_m / 2,
-                     0.0])
+    return board.centre()
 
 
 def default_board_pose(robot: Robot, board: Board, seed: int = 0) -> np.ndarray:
@@ -339,9 +338,10 @@ def joints_csv(campaign: CameraCampaign) -> str:
 
 
 def write_campaign(campaign: CameraCampaign, folder: str | Path,
-                   options: RenderOptions = RenderOptions()) -> Path:
+                   options: RenderOptions = RenderOptions(), progress=None) -> Path:
     """Render every view into ``folder/images`` and write ``joints.csv`` and
-    ``truth.json`` beside it (each file atomically); returns the images folder."""
+    ``truth.json`` beside it (each file atomically); returns the images folder.
+    ``progress(done, total)``, when given, is called after each view is written."""
     folder = Path(folder)
     images = folder / "images"
     try:
@@ -350,6 +350,8 @@ def write_campaign(campaign: CameraCampaign, folder: str | Path,
         raise DataError(f"{images}: cannot create the folder ({exc.strerror})") from None
     for k, name in enumerate(campaign.names):
         write_png(images / name, render_view(campaign, k, options))
+        if progress is not None:
+            progress(k + 1, len(campaign.names))
     write_text_atomic(folder / "joints.csv", joints_csv(campaign))
     write_text_atomic(folder / "truth.json", truth_json(campaign, options))
     return images

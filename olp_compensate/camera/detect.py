@@ -368,6 +368,16 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
     if method not in ("centroid", "ellipse"):
         raise DataError(f"detect: method must be 'centroid' or 'ellipse', got {method!r}")
     grey = _as_grey(image)
+    if board.kind == "charuco":
+        from .detect_opencv import find_charuco_corners
+
+        corners = find_charuco_corners(grey, board)
+        if isinstance(corners, str):
+            return DetectionFailure(name, corners)
+        return _detection(name, board, corners, np.full(board.count, np.nan),
+                          np.full(board.count, np.nan))
+    if board.kind != "olp-dots":
+        return _detect_opencv(grey, board, name)
     paper = paper_level(grey, board)
     first = None
     for threshold in CONTRAST_THRESHOLDS:
@@ -400,6 +410,66 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
                      contrast=contrast, homography=H, homography_rms_px=rms)
 
 
+def _detect_opencv(grey: np.ndarray, board: Board, name: str) -> Detection | DetectionFailure:
+    """An OpenCV circle grid as a :class:`Detection`: ``cv2.findCirclesGrid`` orders the
+    dots (:mod:`.detect_opencv`), our blobs and darkness-weighted centroids measure them."""
+    from .detect_opencv import find_opencv_grid, right_handed
+
+    rough = find_opencv_grid(grey, board)
+    if rough is None:
+        return DetectionFailure(name, f"no {board.rows} x {board.cols} {board.kind} grid "
+                                      f"found (cv2.findCirclesGrid)")
+    rough = right_handed(board, rough)
+    if rough is None:
+        return DetectionFailure(name, f"the {board.kind} grid was found mirrored")
+    blobs = find_blobs(dark_mask(grey, paper_level(grey, board), CONTRAST_THRESHOLDS[0]))
+    if not len(blobs.areas):
+        return DetectionFailure(name, "no dark dots below the paper level")
+    indices = _match_blobs(board, rough, blobs)
+    if indices is None:
+        return DetectionFailure(name, "the circle grid's dots do not match one blob each")
+    if np.any(blobs.touches_border[indices]):
+        return DetectionFailure(name, "board touches the image border")
+    centres, contrast, inside = refine_centres(grey, blobs, indices)
+    if not np.all(inside):
+        return DetectionFailure(name, "board touches the image border")
+    return _detection(name, board, centres, blobs.areas[indices], contrast)
+
+
+def _detection(name, board, centres, area, contrast) -> Detection:
+    """A :class:`Detection` of ``centres`` (n, 2) px with the board's homography."""
+    flat = board.dot_positions()[:, :2]
+    H = fit_homography(flat, centres)
+    rms = float(np.sqrt(np.mean(np.sum((apply_homography(H, flat) - centres) ** 2, axis=1))))
+    return Detection(name=name, pixels=centres, area_px=area, contrast=contrast,
+                     homography=H, homography_rms_px=rms)
+
+
+def _match_blobs(board: Board, rough: np.ndarray, blobs: Blobs) -> np.ndarray | None:
+    """The blob of every dot (n,), from OpenCV's ordered centres ``rough`` (n, 2) px: a
+    homography fitted with RANSAC (OpenCV now and then puts a corner dot on its neighbour)
+    predicts each dot, the nearest blob within a quarter of the dot spacing is taken, and
+    the match is redone once on the matched blobs; None when a dot has no blob of its own."""
+    import cv2
+
+    flat = board.dot_positions()[:, :2]
+    grid = rough.reshape(board.rows, board.cols, 2)
+    spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
+    H, _ = cv2.findHomography(flat, rough, cv2.RANSAC, 0.1 * spacing)
+    if H is None:
+        return None
+    indices = None
+    for _ in range(2):
+        predicted = apply_homography(H, flat)
+        gap = np.linalg.norm(predicted[:, None, :] - blobs.centres[None, :, :], axis=2)
+        indices = np.argmin(gap, axis=1)
+        if (len(set(indices.tolist())) < board.count
+                or np.max(gap[np.arange(board.count), indices]) > 0.25 * spacing):
+            return None
+        H = fit_homography(flat, blobs.centres[indices])
+    return indices
+
+
 def detect_many(images: str | Path | Iterable[str | Path], board: Board,
                 method: str = "centroid") -> Iterator[Detection | DetectionFailure]:
     """Detect the board in every image of IMAGES (a folder, sorted by name, or a list of
@@ -423,7 +493,10 @@ def circle_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
     (``samples`` points, distortion included) and the centroid of the enclosed polygon
     taken (exact to O(1/samples^2)). Subtract it from detected centroids to get the
     images of the dot centres; ``camera_T_board`` (4, 4, m) from a first calibration pass.
+    A charuco board's corners have no such bias (zeros).
     """
+    if board.kind == "charuco":
+        return np.zeros((board.count, 2))
     angles = np.linspace(0, 2 * np.pi, samples, endpoint=False)
     ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(samples)], -1)
     centres = board.dot_positions()

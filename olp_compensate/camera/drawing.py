@@ -3,7 +3,7 @@ detection picture for the report.
 
 The printed sheet is :meth:`Board.sheet_extent`; on the page, board x runs to the right and
 board y down (so the reader faces the printed side, seeing it from board z < 0, as the
-camera does). A 100 mm scale bar with its label and the board parameters sit in the margin
+camera does). A scale bar (100 mm unless board.json says otherwise) with its label and the board parameters sit in the margin
 below the last row, away from the grid.
 """
 
@@ -20,10 +20,36 @@ from ..errors import DataError
 from ..io.atomic import write_bytes_atomic, write_text_atomic
 from .board import Board
 
-SCALE_BAR_MM = 100.0
-"""Length of the printed scale bar, mm."""
 
 _TEXT_MM = 3.0  # height of the small text, mm
+MAX_PNG_PIXELS = 60e6
+"""Largest PNG drawn, pixels (an A1 sheet at 300 dpi); the SVG has no such limit."""
+PAPER_MM = {"A4": (210.0, 297.0), "Letter": (215.9, 279.4)}
+"""Paper sizes, mm (ISO 216; ANSI letter)."""
+PRINTER_MARGIN_MM = 5.0
+"""Unprintable border of an office printer on each side, mm."""
+
+
+def fits_on(board: Board) -> list[str]:
+    """The paper sizes (of :data:`PAPER_MM`) whose printable area holds the sheet, in
+    either orientation."""
+    sheet = board.sheet_extent()
+    w, h = sorted((sheet.width / MM, sheet.height / MM))
+    return [name for name, (pw, ph) in PAPER_MM.items()
+            if w <= pw - 2 * PRINTER_MARGIN_MM and h <= ph - 2 * PRINTER_MARGIN_MM]
+
+
+def check_png_size(board: Board, dpi: float) -> None:
+    """:class:`DataError` when the PNG at ``dpi`` would exceed :data:`MAX_PNG_PIXELS` or the
+    dpi is outside 50-2400."""
+    if not np.isfinite(dpi) or not 50 <= dpi <= 2400:
+        raise DataError(f"board drawing: dpi must be 50-2400, got {dpi!r}")
+    sheet = board.sheet_extent()
+    pixels = (sheet.width / MM * dpi / 25.4) * (sheet.height / MM * dpi / 25.4)
+    if pixels > MAX_PNG_PIXELS:
+        raise DataError(f"board drawing: a {sheet.width / MM:.0f} x {sheet.height / MM:.0f} mm "
+                        f"sheet at {dpi:g} dpi is {pixels / 1e6:.0f} million pixels, above "
+                        f"{MAX_PNG_PIXELS / 1e6:.0f} million; lower --dpi or print the SVG")
 
 
 def _layout(board: Board) -> dict:
@@ -40,18 +66,28 @@ def _layout(board: Board) -> dict:
 
 
 def _parameters_text(board: Board) -> str:
+    if board.kind != "olp-dots":
+        return (f"{board.kind} {board.rows} x {board.cols}, pitch {board.pitch_m / MM:g} mm, "
+                f"dot {board.dot_diameter_m / MM:g} mm - print at 100 %")
     return (f"{board.rows} x {board.cols} dots, pitch {board.pitch_m / MM:g} mm, "
             f"dot {board.dot_diameter_m / MM:g} mm, marker (row 0, col 0) "
             f"{board.marker_diameter_m / MM:g} mm - print at 100 %")
 
 
+def _drawable(board: Board) -> None:
+    if board.kind == "charuco":
+        raise DataError("board drawing: a charuco board is printed from OpenCV's "
+                        "CharucoBoard.generateImage, not drawn here")
+
+
 def board_svg(board: Board) -> str:
     """The board as an SVG document in mm (1 user unit = 1 mm), exact circles."""
+    _drawable(board)
     g = _layout(board)
     dots = []
     for (x, y, _), r in zip(board.dot_positions() / MM, board.dot_radii() / MM):
         dots.append(f'    <circle cx="{g["x0"] + x:.4f}" cy="{g["y0"] + y:.4f}" r="{r:.4f}"/>')
-    bar_end = g["bar_x"] + SCALE_BAR_MM
+    bar_end = g["bar_x"] + board.scale_bar_m / MM
     return "\n".join([
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" width="{g["width"]:.4f}mm" '
@@ -63,10 +99,10 @@ def board_svg(board: Board) -> str:
         *dots,
         "  </g>",
         '  <g id="scale-bar" fill="#000000">',
-        f'    <rect x="{g["bar_x"]:.4f}" y="{g["bar_y"]:.4f}" width="{SCALE_BAR_MM:.4f}" '
+        f'    <rect x="{g["bar_x"]:.4f}" y="{g["bar_y"]:.4f}" width="{board.scale_bar_m / MM:.4f}" '
         f'height="{g["bar_h"]:.4f}"/>',
         f'    <text x="{bar_end + 3:.4f}" y="{g["label_y"]:.4f}" font-family="sans-serif" '
-        f'font-size="{_TEXT_MM}">{SCALE_BAR_MM:g} mm</text>',
+        f'font-size="{_TEXT_MM}">{board.scale_bar_m / MM:g} mm</text>',
         "  </g>",
         f'  <text id="parameters" x="{g["bar_x"]:.4f}" y="{g["params_y"]:.4f}" '
         f'font-family="sans-serif" font-size="{_TEXT_MM * 0.8:g}">{_parameters_text(board)}'
@@ -85,8 +121,8 @@ def board_image(board: Board, dpi: float = 300.0) -> np.ndarray:
     """The board as an 8-bit grey image (h, w) at ``dpi`` dots per inch (antialiased)."""
     import cv2
 
-    if not np.isfinite(dpi) or not 50 <= dpi <= 2400:
-        raise DataError(f"board drawing: dpi must be 50-2400, got {dpi!r}")
+    _drawable(board)
+    check_png_size(board, dpi)
     g = _layout(board)
     px = dpi / 25.4  # pixels per mm
     width, height = int(round(g["width"] * px)), int(round(g["height"] * px))
@@ -97,14 +133,15 @@ def board_image(board: Board, dpi: float = 300.0) -> np.ndarray:
 
     for (x, y, _), r in zip(board.dot_positions() / MM, board.dot_radii() / MM):
         _add_disc(ink, page_px(g["x0"] + x), page_px(g["y0"] + y), r * px)
-    _add_box(ink, page_px(g["bar_x"]), page_px(g["bar_x"] + SCALE_BAR_MM),
+    bar_mm = board.scale_bar_m / MM
+    _add_box(ink, page_px(g["bar_x"]), page_px(g["bar_x"] + bar_mm),
              page_px(g["bar_y"]), page_px(g["bar_y"] + g["bar_h"]))
     image = np.rint(255 * (1 - np.clip(ink, 0, 1))).astype(np.uint8)
     font = cv2.FONT_HERSHEY_SIMPLEX
     scale = _TEXT_MM * px / cv2.getTextSize("0", font, 1.0, 1)[0][1]
     thickness = max(1, int(round(scale * 1.5)))
-    cv2.putText(image, f"{SCALE_BAR_MM:g} mm",
-                (int((g["bar_x"] + SCALE_BAR_MM + 3) * px), int(g["label_y"] * px)), font,
+    cv2.putText(image, f"{bar_mm:g} mm",
+                (int((g["bar_x"] + bar_mm + 3) * px), int(g["label_y"] * px)), font,
                 scale, 0, thickness, cv2.LINE_AA)
     cv2.putText(image, _parameters_text(board), (int(g["bar_x"] * px), int(g["params_y"] * px)),
                 font, scale * 0.8, 0, thickness, cv2.LINE_AA)

@@ -101,20 +101,20 @@ class _Scene:
     """Signed distances to the dot edges and the sheet edge of one board (m)."""
 
     def __init__(self, board: Board):
+        if board.kind == "charuco":
+            raise DataError("render: charuco boards are not rendered here (use an olp-dots "
+                            "or OpenCV circle-grid board for virtual views)")
         self.board = board
         self.sheet = board.sheet_extent()
         self.dot_r = board.dot_diameter_m / 2
-        self.marker_r = board.marker_diameter_m / 2
+        self.marker_r = float(np.max(board.dot_radii()))
 
     def distances(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance to the nearest dot's edge and to the sheet's edge (m, < 0 inside)."""
-        p, bd = self.board.pitch_m, self.board
         bx, by = b[..., 0], b[..., 1]
-        c = np.rint(bx / p)
-        r = np.rint(by / p)
-        in_grid = (c >= 0) & (c < bd.cols) & (r >= 0) & (r < bd.rows)
-        radius = np.where((c == 0) & (r == 0), self.marker_r, self.dot_r)
-        s_dot = np.where(in_grid, np.hypot(bx - c * p, by - r * p) - radius, np.inf)
+        x, y, in_grid, marker = self.board.nearest_dot(bx, by)
+        radius = np.where(marker, self.marker_r, self.dot_r)
+        s_dot = np.where(in_grid, np.hypot(bx - x, by - y) - radius, np.inf)
         s = self.sheet
         s_sheet = np.maximum(np.maximum(s.x_min - bx, bx - s.x_max),
                              np.maximum(s.y_min - by, by - s.y_max))
@@ -273,10 +273,8 @@ def random_views(board: Board, intrinsics: CameraIntrinsics, count: int,
     by a uniform random angle about that axis; views where a dot comes within ``margin_px``
     of the image border are drawn again.
     """
-    centre = np.array([(board.cols - 1) * board.pitch_m / 2,
-                       (board.rows - 1) * board.pitch_m / 2, 0.0])
-    spread = 0.1 * np.array([(board.cols - 1) * board.pitch_m,
-                             (board.rows - 1) * board.pitch_m, 0.0])
+    centre = board.centre()
+    spread = 0.1 * np.ptp(board.dot_positions(), axis=0)
     views = []
     for _ in range(max_tries):
         if len(views) == count:

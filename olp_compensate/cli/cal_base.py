@@ -10,6 +10,7 @@ another part of the workspace (or to another cell).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import os
 from pathlib import Path
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.base import base_report, recalibrate_base
+from ..calibration.fit_check import MAX_RMS_M, forced_warning, judge_residual
 from ..errors import DataError
 from ..io.calibration_file import read_calibration, write_calibration
 from ..io.measurements import data_records, joint_columns, parse_cell_number, read_csv_text
@@ -38,6 +40,9 @@ def add_arguments(p) -> None:
     p.add_argument("--keep-tilt", action="store_true",
                    help="keep the tilt of the model's device_T_base; fit only the rotation "
                         "about z and the translation (4 DoF)")
+    p.add_argument("--force", action="store_true",
+                   help="write the base even when its RMS residual is above the "
+                        f"{MAX_RMS_M / MM:g} mm limit (the file then carries the warning)")
     p.add_argument("-o", "--output", required=True, help="calib.json to write (never an input)")
 
 
@@ -90,9 +95,19 @@ def run(args) -> int:
     names, joints, marks = read_base_marks(args.marks, cal.robot)
     result = recalibrate_base(cal, joints, marks, tool=args.tool, keep_tilt=args.keep_tilt,
                               mark_names=names)
-    write_calibration(out, result.calibration)
     for line in base_report(result, flag_above_m=FLAG_MM * MM):
         print(line)
+    verdict = judge_residual("base frame: the marks do not fit one rigid frame",
+                             result.residuals_m, result.mark_names)
+    calibration = result.calibration
+    if verdict.rejected:
+        if not args.force:
+            raise DataError(f"{args.marks}: {verdict.message} Nothing written (--force "
+                            f"writes it with this warning in the file)")
+        calibration = dataclasses.replace(
+            calibration, warnings=calibration.warnings + (forced_warning(verdict),))
+        print(f"WARNING: {verdict.message} Written anyway (--force), flagged in {out}")
+    write_calibration(out, calibration)
     print(f"wrote {out}: the calibration of {args.model} with the new base frame "
           f"(olp-cal predict --model {out} predicts in the marks' frame)")
     return 0

@@ -17,13 +17,17 @@ Exit codes: 0 success; 1 bad input (one line on stderr).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import re
 from pathlib import Path
 
 import numpy as np
 
-from ..camera.board import Board, board_to_dict, read_board, write_board
+from ..camera.board import READ_KINDS, Board, board_to_dict, read_board, write_board
+from ..camera.detect_opencv import check_measurable
+from ..camera.scale import (SCALE_LINE, BoardScale, from_scale_bar, read_reference,
+                            scaled_board, unverified_note)
 from ..camera.calibrate import METHODS, View, calibrate
 from ..camera.detect import circle_centre_bias, detect_dots
 from ..camera.measure import measure_pose
@@ -31,7 +35,8 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.camera_file import read_camera, write_camera
 from ..io.images import image_paths, read_grey
-from ..io.measurements import FORMAT_LINE, read_csv_text
+from ..kinematics.conventions import MM, invert_pose
+from ..io.measurements import FORMAT_LINE, parse_cell_number, read_csv_text
 
 HELP = "camera: make a dot board, calibrate a camera from views of it, measure camera poses"
 
@@ -44,12 +49,17 @@ def add_arguments(p) -> None:
                        description="Write a dot board's description (board.json, mm) and "
                                    "optionally a drawing to print at scale.")
     b.add_argument("--rows", type=int, default=9, help="dot rows (default 9)")
-    b.add_argument("--cols", type=int, default=9, help="dot columns (default 9)")
-    b.add_argument("--pitch-mm", type=float, default=25.0,
-                   help="centre-to-centre distance of the dots, mm (default 25)")
+    b.add_argument("--cols", type=int, default=7, help="dot columns (default 7)")
+    b.add_argument("--pitch-mm", type=float, default=22.0,
+                   help="centre-to-centre distance of the dots, mm (default 22: the default "
+                        "sheet, 184 x 228 mm, prints on A4 and Letter)")
     b.add_argument("--dot-mm", type=float, default=5.0, help="dot diameter, mm (default 5)")
     b.add_argument("--marker-mm", type=float, default=8.0,
                    help="diameter of the marker dot (row 0, column 0), mm (default 8)")
+    b.add_argument("--kind", choices=READ_KINDS[:3], default="olp-dots",
+                   help="olp-dots (default: ours, with a marker dot); opencv-circles or "
+                        "opencv-acircles: OpenCV's symmetric or asymmetric circle grid "
+                        "(--cols circles per row; no marker)")
     b.add_argument("-o", "--output", required=True, help="board.json to write")
     b.add_argument("--svg", help="also write the board as SVG (print at 100 %%)")
     b.add_argument("--png", help="also write the board as PNG")
@@ -69,6 +79,7 @@ def add_arguments(p) -> None:
     c.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are (default: correct the "
                         "perspective bias of circle centres)")
+    add_scale_arguments(c)
     c.add_argument("--html", metavar="REPORT.html",
                    help="also write an HTML report: parameters, reprojection error per view, "
                         "each view with its dots and magnified residuals")
@@ -89,6 +100,7 @@ def add_arguments(p) -> None:
                    help="point name in the measurement CSV (default camera)")
     m.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are")
+    add_scale_arguments(m, inherit=True)
 
     from . import cal_camera_assess
     cal_camera_assess.add_arguments(sub.add_parser(
@@ -104,6 +116,36 @@ def run(args) -> int:
 
 
 # -- shared -----------------------------------------------------------------------------------
+
+def add_scale_arguments(p, inherit: bool = False) -> None:
+    """``--scale-bar-mm`` / ``--reference``: the board's length reference
+    (:mod:`olp_compensate.camera.scale`)."""
+    g = p.add_mutually_exclusive_group()
+    more = " (default: the scale camera.json records)" if inherit else ""
+    g.add_argument("--scale-bar-mm", type=float, metavar="L",
+                   help="the printed scale bar as measured with a caliper, mm (nominal: "
+                        "board.json's scale_bar_mm, 100)" + more)
+    g.add_argument("--reference", metavar="CSV",
+                   help="measured distances between dots: row_a, col_a, row_b, col_b, "
+                        "distance_mm" + more)
+
+
+def board_scale(args, board: Board, recorded: BoardScale | None = None) -> BoardScale:
+    """The scale the options give, else ``recorded`` (camera.json's) when verified, else
+    unverified."""
+    if args.scale_bar_mm is not None:
+        return from_scale_bar(args.scale_bar_mm, board.scale_bar_m / MM)
+    if args.reference:
+        return read_reference(args.reference, board)
+    return recorded if recorded is not None and recorded.verified else BoardScale()
+
+
+def print_scale(scale: BoardScale, distances_mm) -> None:
+    """The scale line, and once the unverified warning at the median working distance."""
+    print(f"board scale: {scale.summary()}")
+    if not scale.verified and len(distances_mm):
+        print(unverified_note(float(np.median(distances_mm))))
+
 
 def _same_file(a: Path, b: Path) -> bool:
     try:
@@ -151,19 +193,30 @@ def _detect(paths: list[Path], board: Board):
 # -- board ------------------------------------------------------------------------------------
 
 def _run_board(args) -> int:
-    from ..camera.drawing import write_board_png, write_board_svg
+    from ..camera.drawing import check_png_size, fits_on, write_board_png, write_board_svg
 
+    marker = args.marker_mm if args.kind == "olp-dots" else args.dot_mm
     board = Board(rows=args.rows, cols=args.cols, pitch_m=args.pitch_mm * 1e-3,
-                  dot_diameter_m=args.dot_mm * 1e-3, marker_diameter_m=args.marker_mm * 1e-3)
+                  dot_diameter_m=args.dot_mm * 1e-3, marker_diameter_m=marker * 1e-3,
+                  kind=args.kind)
     outputs = [Path(p) for p in (args.output, args.svg, args.png) if p]
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise DataError("-o, --svg and --png must name different files")
+    if args.png:
+        check_png_size(board, args.dpi)
     write_board(board, args.output)
+    sheet = board.sheet_extent()
+    papers = fits_on(board)
+    paper = (f"prints on {' and '.join(papers)}" if papers else
+             "larger than A4 and Letter: print it at a print shop, at 100 %")
+    what = (f"marker {args.marker_mm:g} mm" if args.kind == "olp-dots" else args.kind)
     print(f"wrote {args.output} ({board.rows} x {board.cols} dots, pitch "
-          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, marker {args.marker_mm:g} mm)")
+          f"{args.pitch_mm:g} mm, dots {args.dot_mm:g} mm, {what}; "
+          f"sheet {sheet.width / MM:.0f} x {sheet.height / MM:.0f} mm, {paper})")
     if args.svg:
         write_board_svg(board, args.svg)
-        print(f"wrote {args.svg} (print at 100 %, then check the pitch with a rule)")
+        print(f"wrote {args.svg} (print at 100 %, then measure the printed scale bar, "
+              f"nominal {board.scale_bar_m / MM:g} mm, with a caliper: --scale-bar-mm)")
     if args.png:
         write_board_png(board, args.png, args.dpi)
         print(f"wrote {args.png} ({args.dpi:g} dpi)")
@@ -189,6 +242,8 @@ def _run_calibrate(args) -> int:
             f"{name} {w}x{h}" for name, _, _, (w, h) in found[:len(sizes) + 1]) +
             "; calibrate one camera at one resolution")
     width, height = sizes.pop()
+    scale = board_scale(args, board)
+    nominal_board, board = board, scaled_board(board, scale)
     points = board.dot_positions()
     views = [View(name, pix, points) for name, pix, _, _ in found if pix is not None]
     not_found = [(name, reason) for name, pix, reason, _ in found if pix is None]
@@ -196,15 +251,19 @@ def _run_calibrate(args) -> int:
         print(f"skipped {name}: {reason}")
     bias = None if args.no_circle_correction else \
         (lambda k, T: circle_centre_bias(k, T, board))
-    cal = calibrate(views, width, height, method=args.method, centre_bias=bias)
-    what = ("the seed's RAC, then the full refinement" if args.method == "rac"
-            else "the seed's RAC estimates kept")
+    cal = dataclasses.replace(calibrate(views, width, height, method=args.method,
+                                        centre_bias=bias), scale=scale)
+    what = ("the seed's RAC estimates kept" if args.method == "rac-only" else
+            "the seed's RAC, then the full refinement" if cal.start == "rac" else
+            "too few views tilted for the RAC: homographies (Zhang), then the full refinement")
     corr = (f"circle-centre correction, {cal.bias_iterations} passes" if cal.bias_iterations
             else "detected centroids as they are")
     print(f"camera {width} x {height} px from {len(cal.views)} of {len(paths)} images "
           f"(method {args.method}: {what}; {corr})")
     for v in cal.views:
-        note = "" if v.in_rac else "  (not in the RAC: too close to parallel)"
+        note = {"rac": "", "rac-pose": "  (not in the RAC: too near face-on; started from the "
+                                       "RAC's intrinsics)",
+                "homography": "  (started from its homography)"}[v.stage]
         print(f"  {v.name}: rms {v.rms_px:.3f} px, max {v.max_px:.3f} px, board tilted "
               f"{v.tilt_deg:.0f} deg{note}")
     for s in cal.skipped:
@@ -213,13 +272,17 @@ def _run_calibrate(args) -> int:
     sigma = "" if not np.isfinite(cal.sigma_px) else f", sigma {cal.sigma_px:.3f} px"
     print(f"overall: rms {cal.rms_px:.3f} px, max {cal.max_px:.3f} px over {n_dots} dots"
           f"{sigma}")
-    print("parameters (value +/- one standard deviation; RAC estimate):")
+    label = "RAC" if cal.start == "rac" else "start"
+    print(f"parameters (value +/- one standard deviation; {label} estimate):")
     for name, (unit, digits) in _UNITS.items():
         value, std = getattr(cal.intrinsics, name), cal.std[name]
         sd = f"+/- {std:.{digits}f}" if np.isfinite(std) else "+/- n/a (RAC)"
         print(f"  {name:3s} {value:.{digits}f} {sd} {unit}".rstrip()
-              + f"   (RAC {getattr(cal.rac, name):.{digits}f})")
-    write_camera(out, cal, board_to_dict(board))
+              + f"   ({label} {getattr(cal.rac, name):.{digits}f})")
+    centre = board.dot_positions().mean(axis=0)
+    print_scale(scale, [np.linalg.norm(invert_pose(v.camera_T_board)[:3, 3] - centre) / MM
+                        for v in cal.views])
+    write_camera(out, cal, board_to_dict(nominal_board))
     print(f"wrote {out}")
     if args.html:
         from ..report.camera_html import write_calibration_html
@@ -263,7 +326,10 @@ def _read_joints(path: Path) -> tuple[list[str], list[dict[str, str]], list[int]
         if len(record) != len(header):
             raise DataError(f"{path}:{line}: {len(record)} fields, the header has "
                             f"{len(header)}")
-        rows.append({h: c.strip() for h, c in zip(header, record)})
+        row = {h: c.strip() for h, c in zip(header, record)}
+        for column in joints:              # a finite, plausible number (NaN is refused)
+            parse_cell_number(row[column], str(path), line, column)
+        rows.append(row)
         where.append(line)
     if not rows:
         raise DataError(f"{path}: no data rows after the header")
@@ -272,6 +338,7 @@ def _read_joints(path: Path) -> tuple[list[str], list[dict[str, str]], list[int]
 
 def _run_measure(args) -> int:
     board = read_board(args.board)
+    check_measurable(board)
     cal = read_camera(args.camera)
     paths = _expand(args.images)
     out = Path(args.output)
@@ -288,11 +355,13 @@ def _run_measure(args) -> int:
                                 f"the images given")
     _check_output(out, inputs)
     k = cal.intrinsics
+    scale = board_scale(args, board, cal.scale)
+    nominal_board, board = board, scaled_board(board, scale)
     bias = None if args.no_circle_correction else \
         (lambda intr, T: circle_centre_bias(intr, T, board))
     points = board.dot_positions()
     measured = {}
-    for name, pix, reason, (w, h) in _detect(paths, board):
+    for name, pix, reason, (w, h) in _detect(paths, nominal_board):
         if (w, h) != (k.width, k.height):
             raise DataError(f"{name}: image is {w} x {h} px, the camera was calibrated at "
                             f"{k.width} x {k.height} ({args.camera})")
@@ -304,7 +373,7 @@ def _run_measure(args) -> int:
         text = _poses_csv(measured)
         count = len(measured)
     else:
-        text, count = _measurements_csv(joints, measured, args.name, args.joints)
+        text, count = _measurements_csv(joints, measured, args.name, args.joints, scale)
         listed = {row["image"] for row in joints[1]}
         for name in measured:
             if name not in listed:
@@ -314,6 +383,9 @@ def _run_measure(args) -> int:
         print(f"  {m.name}: x {m.position_mm[0]:.3f} y {m.position_mm[1]:.3f} z "
               f"{m.position_mm[2]:.3f} mm, +/- {m.sigma_mm:.3f} mm, {m.sigma_deg:.4f} deg, "
               f"rms {m.rms_px:.3f} px")
+    centre = board.dot_positions().mean(axis=0)
+    print_scale(scale, [np.linalg.norm(m.board_T_camera[:3, 3] - centre) / MM
+                        for m in measured.values()])
     print(f"wrote {out} ({count} rows: the camera frame in the board frame, mm, quaternion "
           f"w first)")
     return 0
@@ -332,7 +404,8 @@ def _poses_csv(measured: dict) -> str:
     return buf.getvalue()
 
 
-def _measurements_csv(joints, measured: dict, point: str, source: str) -> tuple[str, int]:
+def _measurements_csv(joints, measured: dict, point: str, source: str,
+                      scale: BoardScale) -> tuple[str, int]:
     header, rows, _ = joints
     joint_cols = sorted((h for h in header if JOINT_RE.match(h)),
                         key=lambda h: int(JOINT_RE.match(h).group(1)))
@@ -341,7 +414,8 @@ def _measurements_csv(joints, measured: dict, point: str, source: str) -> tuple[
     extra = [h for h in header if h not in own and h not in joint_cols]
     buf = io.StringIO()
     buf.write(f"{FORMAT_LINE}\n# device: the board (frame of its dot (0, 0)); point "
-              f"{point}: the camera's optical centre and axes; from {source}\n")
+              f"{point}: the camera's optical centre and axes; from {source}\n"
+              f"{SCALE_LINE}{scale.summary()}\n")
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["image"] + joint_cols + ["pose", "point", "x_mm", "y_mm", "z_mm", "qw",
                                              "qx", "qy", "qz", "sigma_mm", "sigma_deg"]

@@ -32,6 +32,8 @@ def add_arguments(p) -> None:
     p.add_argument("-o", "--output", help="also write the per-view figures as CSV")
     p.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are")
+    from .cal_camera import add_scale_arguments
+    add_scale_arguments(p, inherit=True)
 
 
 def run(args) -> int:
@@ -45,8 +47,16 @@ def run(args) -> int:
     from ..io.camera_file import read_camera
     from ..io.images import image_paths, read_grey
 
+    from ..camera.detect_opencv import check_measurable
+    from ..camera.scale import scaled_board
+    from .cal_camera import board_scale, print_scale
+
     board = read_board(args.board)
-    intrinsics = read_camera(args.camera).intrinsics
+    check_measurable(board)
+    camera = read_camera(args.camera)
+    intrinsics = camera.intrinsics
+    scale = board_scale(args, board, camera.scale)
+    nominal_board, board = board, scaled_board(board, scale)
     names, moves = read_moves(args.moves)
     paths = {}
     for item in args.images:
@@ -67,7 +77,7 @@ def run(args) -> int:
         if (grey.shape[1], grey.shape[0]) != (intrinsics.width, intrinsics.height):
             raise DataError(f"{name}: image is {grey.shape[1]} x {grey.shape[0]} px, the camera "
                             f"was calibrated at {intrinsics.width} x {intrinsics.height}")
-        found = detect_dots(grey, board, name)
+        found = detect_dots(grey, nominal_board, name)
         if not found.ok:
             if not kept:
                 raise DataError(f"{name}: board not found ({found.reason}); the reference "
@@ -83,10 +93,24 @@ def run(args) -> int:
     print(f"{len(kept)} views, the {args.moved} moved by known translations; errors in mm, "
           f"ratios 1:N of the distance from the camera to the board centre")
     print(assessment_table(result))
+    print_scale(scale, result.distance_mm)
+    print(implied_scale(result, scale, nominal_board))
     if args.output:
         write_text_atomic(args.output, _csv(result))
         print(f"wrote {args.output}")
     return 0
+
+
+def implied_scale(result, scale, board) -> str:
+    """What the known moves say about the board's scale: the measured travel over the known
+    one (least squares) is nominal / printed size of the board as used here."""
+    known, measured = result.known_mm[1:], result.measured_mm[1:]
+    ratio = float(known @ measured / (known @ known))
+    printed = scale.factor / ratio
+    bar = board.scale_bar_m * 1e3 * printed
+    return (f"the known moves give the printed board {printed:.6f} x board.json's size "
+            f"(measured travel / known {ratio:.6f}): as if the scale bar measured "
+            f"{bar:.3f} mm (--scale-bar-mm)")
 
 
 def _csv(result) -> str:

@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from ..calibration.identify import IdentificationOptions, identify
+from ..calibration.fit_check import MAX_RMS_M, FitVerdict, forced_warning, judge_residual
 from ..calibration.measurements import check_spread
 from ..calibration.regions import (DEFAULT_MARGIN_M, check_margin, identify_regions,
                                    least_unknowns, region_column)
-from ..errors import DataError
+from ..camera.scale import unverified_rows
+from ..errors import DataError, OlpError
 from ..io.calibration_file import write_calibration
 from ..io.session import read_measurements_any
 from ..kinematics.robot import load_robot
@@ -87,6 +90,9 @@ def add_arguments(p) -> None:
                    help="also fit one model per region named in the measurements' 'region' "
                         "column, on its rows alone; olp-fix uses a region's model for "
                         "targets inside its volume (the global model elsewhere)")
+    p.add_argument("--force", action="store_true",
+                   help="write the calibration even when its RMS residual is above the "
+                        f"{MAX_RMS_M * 1e3:g} mm limit (the file then carries the warning)")
     p.add_argument("--region-margin-mm", type=float, default=DEFAULT_MARGIN_M * 1e3,
                    help="with --per-region: a region's volume is the bounding box of its "
                         "measured points (base frame) grown by this much on every side, mm")
@@ -158,13 +164,14 @@ def _optional_mm(value: float | None) -> str:
 
 def regions_report(regional) -> str:
     """The per-region lines, as printed: each region's volume, poses, residual and held-out
-    errors beside the global model's held-out errors on the same rows."""
-    cal = regional.result.calibration
-    lines = [f"local models: {len(cal.regions)} region{'s' if len(cal.regions) != 1 else ''} "
+    errors beside the global model's held-out errors on the same rows, and whether it is
+    kept (a local model worse held-out than the global one is left out)."""
+    regions = regional.candidates or regional.result.calibration.regions
+    kept = len(regions) - len(regional.left_out)
+    lines = [f"local models: {kept} region{'s' if kept != 1 else ''} kept of {len(regions)} "
              f"(volumes: measured points' bounding box in the base frame, grown by "
-             f"{cal.regions[0].box.margin_m * 1e3:.1f} mm)" if cal.regions else
-             "local models: none"]
-    for region, (_, result) in zip(cal.regions, regional.regions):
+             f"{regions[0].box.margin_m * 1e3:.1f} mm)" if regions else "local models: none"]
+    for region, (_, result) in zip(regions, regional.regions):
         low = ", ".join(f"{v * 1e3:.1f}" for v in region.box.min_m)
         high = ", ".join(f"{v * 1e3:.1f}" for v in region.box.max_m)
         lines.append(f"region {region.name}: {result.n_poses} poses, volume ({low})..({high}) "
@@ -176,7 +183,10 @@ def regions_report(regional) -> str:
                          f"{_optional_mm(region.global_heldout_rms_mm)}, max "
                          f"{_optional_mm(region.global_heldout_max_mm)}")
         else:
-            lines.append("  held-out: not computed (too few poses or --folds 0)")
+            lines.append("  held-out: not computed (too few poses or --folds 0); the local "
+                         "model is kept unchecked")
+        if region.name in regional.left_out:
+            lines.append(f"  LEFT OUT: {regional.left_out[region.name]}")
         if result.identifiability.weak:
             lines.append(f"  WARNING: barely observable in this region: "
                          f"{'; '.join(result.identifiability.weak)}")
@@ -191,12 +201,56 @@ def check_fit(result) -> None:
                         f"nothing written")
 
 
+def judge_identification(result, meas, sigma_mm: float) -> FitVerdict:
+    """The shared residual rule (:mod:`olp_compensate.calibration.fit_check`) on an
+    identification: RMS residual above the limit, naming the file line of the worst row."""
+    cal = result.calibration
+    if result.residual_rms <= MAX_RMS_M:
+        return FitVerdict(False)
+    try:
+        distances = np.linalg.norm(cal.predict_points(meas.joints, meas.point_names)
+                                   - meas.points, axis=1)
+    except DataError:
+        distances = np.array([result.residual_max])
+    lines = (meas.rows if meas.rows is not None and len(meas.rows) == len(distances)
+             else np.arange(1, len(distances) + 1))
+    names = [f"line {int(line)}" for line in lines]
+    noise = (f"{MAX_RMS_M * 1e3 / sigma_mm:.0f} times the stated noise of {sigma_mm:g} mm "
+             f"(--position-sigma-mm)")
+    return judge_residual(f"{meas.source}: the measurements do not fit robot "
+                          f"{cal.robot.name}", distances, names, noise=noise,
+                          rms_m=result.residual_rms)
+
+
+def check_robot_line(meas, robot) -> None:
+    """:class:`DataError` when the CSV's ``# robot: NAME`` line names another robot than
+    ``--robot`` (same name, or a bundled robot of the same kinematic fingerprint, agree)."""
+    for line in meas.metadata:
+        key, _, value = line.lstrip("#").partition(":")
+        if key.strip().lower() != "robot" or not value.strip():
+            continue
+        named = value.strip()
+        if named == robot.name or _same_kinematics(named, robot):
+            return
+        raise DataError(f"{meas.source}: its '# robot: {named}' line names another robot than "
+                        f"--robot {robot.name}; identify with --robot {named}, or correct the "
+                        f"line if the data were measured on {robot.name}")
+
+
+def _same_kinematics(name: str, robot) -> bool:
+    try:
+        return load_robot(name).fingerprint == robot.fingerprint
+    except OlpError:
+        return False
+
+
 def run(args) -> int:
     refuse_clashes([("measurements", args.measurements), ("--points", args.points),
                     ("--robot", args.robot)], [("-o", args.output)])
     robot = load_robot(args.robot)
     check_freeze_names(robot, args.convention, args.freeze)
     meas = read_measurement_source(args, [j.unit for j in robot.joints])
+    check_robot_line(meas, robot)
     check_spread(meas, least_unknowns(robot, meas))
     if args.per_region:            # refuse bad region input before the global fit
         region_column(meas)
@@ -209,6 +263,17 @@ def run(args) -> int:
     result = identify(robot, meas, options)
     check_fit(result)
     print(report(result))
+    if unverified_rows(meas.metadata):
+        print("WARNING: these camera rows were measured with a board of unverified scale "
+              "(their '# board scale:' line): a 0.1-0.3 % print error scales the identified "
+              "lengths by as much, and neither the residual nor the held-out error shows it; "
+              "measure the printed scale bar and run 'camera measure --scale-bar-mm L'")
+    verdict = judge_identification(result, meas, args.position_sigma_mm)
+    if verdict.rejected:
+        if not args.force:
+            raise DataError(f"{verdict.message} Nothing written (--force writes it with this "
+                            f"warning in the file)")
+        print(f"WARNING: {verdict.message} Written anyway (--force), flagged in the file")
     if args.per_region:
         regional = identify_regions(robot, meas, options, args.region_margin_mm * 1e-3,
                                     global_result=result)
@@ -216,6 +281,10 @@ def run(args) -> int:
         print("")
         print(regions_report(regional))
     if args.output:
-        write_calibration(args.output, result.calibration)
+        calibration = result.calibration
+        if verdict.rejected:
+            calibration = replace(calibration, warnings=calibration.warnings
+                                  + (forced_warning(verdict),))
+        write_calibration(args.output, calibration)
         print(f"wrote {args.output}")
     return 0

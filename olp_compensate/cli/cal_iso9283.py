@@ -19,7 +19,7 @@ from ..calibration.calibration import nominal_calibration
 from ..calibration.iso9283 import (DEFAULT_CYCLES, iso_report_to_dict, iso_results,
                                    iso_summary, plan_iso_test, rapid_program, vplus_program)
 from ..errors import DataError
-from ..io.atomic import write_text_atomic
+from ..io.atomic import check_finite_json, write_text_atomic
 from ..io.calibration_file import read_calibration
 from ..io.measurements import data_records, parse_cell_number, read_csv_text
 from ..kinematics.conventions import MM
@@ -160,9 +160,21 @@ def read_iso_measurements(path):
             np.array(quat) if has[0] else None, np.array(quat_c) if has[0] else None)
 
 
+CONDITION_RANGES = {"load_kg": ("--load-kg", 0.0, 1e4), "speed_mm_s": ("--speed-mm-s", 0.0, 1e5),
+                    "temperature_c": ("--temperature-c", -273.15, 1e3)}
+"""Accepted test conditions: option, least and largest value (kg; mm/s; deg C)."""
+
+
 def _conditions(args) -> dict:
+    """The test conditions given; :class:`DataError` for a number that is not finite or
+    outside :data:`CONDITION_RANGES` (NaN would end in the JSON report)."""
     given = {"load_kg": args.load_kg, "speed_mm_s": args.speed_mm_s,
              "temperature_c": args.temperature_c, "instrument": args.instrument}
+    for key, (option, low, high) in CONDITION_RANGES.items():
+        value = given[key]
+        if value is not None and not (low <= value <= high):
+            raise DataError(f"{option}: expected a number from {low:g} to {high:g}, got "
+                            f"{value!r}")
     return {k: v for k, v in given.items() if v is not None}
 
 
@@ -171,14 +183,15 @@ def _run_report(args) -> int:
         source = out and _is_input(Path(out), [args.measurements])
         if source:
             raise DataError(f"{out}: is an input ({source}); choose another output file")
+    conditions = _conditions(args)
     poses, attained, commanded, quat, quat_c = read_iso_measurements(args.measurements)
     results = iso_results(poses, attained, commanded, quat, quat_c)
-    conditions = _conditions(args)
     for line in iso_summary(results, conditions):
         print(line)
     if args.json_out:
-        write_text_atomic(args.json_out,
-                          json.dumps(iso_report_to_dict(results, conditions), indent=2) + "\n")
+        doc = iso_report_to_dict(results, conditions)
+        check_finite_json(doc, args.json_out)
+        write_text_atomic(args.json_out, json.dumps(doc, indent=2, allow_nan=False) + "\n")
         print(f"wrote {args.json_out}")
     if args.html_out:
         from ..report.validation_html import write_iso_html

@@ -12,6 +12,7 @@ options, and ``run`` hands over to :func:`run_camera` when ``--camera`` is given
 from __future__ import annotations
 
 import math
+import sys
 
 CANDIDATES = 1
 """Default of --candidates-per-pose (the library's CANDIDATES_PER_POSE, without importing
@@ -53,6 +54,13 @@ def _range(text: str, option: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _progress(done: int, total: int) -> None:
+    """One stderr line per tenth of the views (and the last): rendering is the long part."""
+    step = max(1, total // 10)
+    if done % step == 0 or done == total:
+        print(f"rendered {done} of {total} views", file=sys.stderr, flush=True)
+
+
 def run_camera(args) -> int:
     """Write the campaign of ``args`` (see the module docstring)."""
     from pathlib import Path
@@ -84,13 +92,15 @@ def run_camera(args) -> int:
                             seed=args.seed)
     virtual = make_camera_robot(robot, board, args.seed, args.length_error_mm * 1e-3,
                                 math.radians(args.angle_error_deg))
+    print(f"planning {args.poses} poses at which the camera sees the board ...",
+          file=sys.stderr, flush=True)
     campaign = plan_campaign(virtual, board, intrinsics, args.poses,
                              np.random.default_rng(args.seed + 3_000_017), limits,
                              candidates_per_pose=args.candidates_per_pose)
     folder = Path(args.output)
     if folder.exists() and not folder.is_dir():
         raise DataError(f"{folder}: with --camera, -o names a folder, and this is a file")
-    images = write_campaign(campaign, folder, options)
+    images = write_campaign(campaign, folder, options, progress=_progress)
     print(f"wrote {args.poses} views of the board ({intrinsics.width} x {intrinsics.height} "
           f"px) to {images}, the joints to {folder / 'joints.csv'}, the truth (robot errors, "
           f"hand-eye, board pose) to {folder / 'truth.json'}")

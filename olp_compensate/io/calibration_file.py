@@ -18,6 +18,10 @@ axis-aligned box in the base frame of the global calibration), "model", "device_
 "tools", "effects", "validation"}`` (each as the global calibration stores it, of the same
 robot) plus ``"global_heldout_rms_mm"`` and ``"global_heldout_max_mm"`` (the global model's
 held-out errors on the region's rows). Files without the key have no regions.
+
+A fit written although its own statistics rejected it (``--force``) carries ``"warnings"``:
+a list of one-line verdicts (:mod:`olp_compensate.calibration.fit_check`); files without
+the key have none.
 """
 
 from __future__ import annotations
@@ -140,6 +144,8 @@ def calibration_to_dict(cal: Calibration) -> dict:
     }
     if cal.regions:
         doc["regions"] = [_region_to_dict(r) for r in cal.regions]
+    if cal.warnings:
+        doc["warnings"] = list(cal.warnings)
     return doc
 
 
@@ -181,6 +187,8 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
                          f"({robot.fingerprint[:19]}...)")
     embedded = _with_axis_ranges(embedded, doc["robot"].get("axis_ranges_deg"), robot, source)
     calibration = _model_from_dict(doc, embedded, source)
+    if doc.get("warnings"):
+        calibration = dataclasses.replace(calibration, warnings=tuple(doc["warnings"]))
     regions = tuple(_region_from_dict(entry, embedded, f"{source}: regions/{k}")
                     for k, entry in enumerate(doc.get("regions", ())))
     if not regions:

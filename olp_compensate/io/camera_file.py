@@ -5,6 +5,12 @@ undistorted, see :mod:`olp_compensate.camera.model`) with their standard deviati
 where the method gives none: the RAC-only estimate), the RAC estimate beside the refined
 one, the fit's reprojection figures, each view's camera pose in the board frame (mm, w-first
 quaternion), the views skipped with their reasons, and the board it was calibrated on.
+``"scale"`` records where the board's scale came from (``source``: "unverified", "scale
+bar" or "reference"; ``factor`` printed / nominal; ``detail``; see
+:mod:`olp_compensate.camera.scale`); files without it have an unverified scale. ``"start"`` says where the refinement started
+("rac", or "homography" when too few views were tilted for the RAC; then
+``"rac_estimate"`` holds that start) and each view's ``"stage"`` how it entered
+(:data:`olp_compensate.camera.calibrate.STAGES`).
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ import numpy as np
 
 from ..camera.calibrate import CameraCalibration, Skipped, ViewResult
 from ..camera.model import CameraIntrinsics
+from ..camera.scale import BoardScale
 from ..errors import ModelError
 from ..kinematics.conventions import (invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, quat_wxyz_from_matrix)
@@ -49,7 +56,7 @@ def camera_to_dict(cal: CameraCalibration, board: dict | None = None) -> dict:
     for v in cal.views:
         board_T_camera = invert_pose(v.camera_T_board)
         views.append({"image": v.name, "rms_px": v.rms_px, "max_px": v.max_px,
-                      "tilt_deg": v.tilt_deg, "in_rac": bool(v.in_rac),
+                      "tilt_deg": v.tilt_deg, "in_rac": bool(v.in_rac), "stage": v.stage,
                       "xyz_mm": (board_T_camera[:3, 3] * 1e3).tolist(),
                       "quat_wxyz": quat_wxyz_from_matrix(board_T_camera[:3, :3]).tolist()})
     k = cal.intrinsics
@@ -66,6 +73,8 @@ def camera_to_dict(cal: CameraCalibration, board: dict | None = None) -> dict:
         "skipped": [{"image": s.name, "reason": s.reason} for s in cal.skipped],
         "rac_excluded": [{"image": s.name, "reason": s.reason} for s in cal.rac_excluded],
         "board": board,
+        "scale": cal.scale.to_dict(),
+        "start": cal.start,
     }
 
 
@@ -97,7 +106,8 @@ def camera_from_dict(doc: dict, source: str = "<camera>") -> CameraCalibration:
     views = tuple(ViewResult(
         v["image"], invert_pose(pose_from_rotation_translation(
             matrix_from_quat_wxyz(v["quat_wxyz"]), np.array(v["xyz_mm"]) * 1e-3)),
-        v["rms_px"], v["max_px"], v["tilt_deg"], v["in_rac"]) for v in doc["views"])
+        v["rms_px"], v["max_px"], v["tilt_deg"], v["in_rac"],
+        v.get("stage", "rac" if v["in_rac"] else "rac-pose")) for v in doc["views"])
     fit = doc["fit"]
     return CameraCalibration(
         intrinsics=intrinsics(doc["intrinsics"]),
@@ -109,7 +119,8 @@ def camera_from_dict(doc: dict, source: str = "<camera>") -> CameraCalibration:
         sigma_px=float("nan") if fit["sigma_px"] is None else fit["sigma_px"],
         rac_excluded=tuple(Skipped(s["image"], s["reason"])
                            for s in doc.get("rac_excluded", [])),
-        bias_iterations=fit["circle_bias_iterations"])
+        bias_iterations=fit["circle_bias_iterations"],
+        scale=BoardScale.from_dict(doc.get("scale")), start=doc.get("start", "rac"))
 
 
 def read_camera(path: str | Path) -> CameraCalibration:

@@ -169,7 +169,11 @@ def test_cli_writes_a_campaign_folder(tmp_path, capsys):
                                    "--poses", "2", "--seed", "5", "--distance-mm", "350:600",
                                    "--candidates-per-pose", "2",
                                    "-o", str(out)])
-    assert code == 0, capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert code == 0, err
+    # progress on stderr (issue 25: 64 s of silence before)
+    assert "planning 2 poses" in err and "rendered 1 of 2 views" in err
+    assert "rendered 2 of 2 views" in err
     assert sorted(p.name for p in (out / "images").iterdir()) == ["view001.png", "view002.png"]
     assert (out / "joints.csv").read_text().startswith("image,q1_deg,")
     assert "truth" in text

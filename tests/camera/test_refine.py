@@ -143,10 +143,14 @@ def test_views_parallel_to_the_board_are_left_out_of_the_rac_and_named():
     assert "parallel" in cal.rac_excluded[0].reason
     assert len(cal.views) == 7 and not cal.views[6].in_rac   # still refined
     assert abs(cal.intrinsics.fx - TRUTH.fx) < 3 * cal.std["fx"]
-    flat = random_poses(rng, 4, points, tilt_deg=(0.0, 10.0))
+    # issue 33: views all nearer to face-on than the RAC admits start from their
+    # homographies (the RAC-only method still refuses them)
+    flat = random_poses(rng, 8, points, tilt_deg=(8.0, 15.0))
     pixels = [project_points(TRUTH, T, points) for T in flat]
+    frontal = calibrate(_views(pixels, points), 1280, 1024)
+    assert frontal.start == "homography" and abs(frontal.intrinsics.fx - TRUTH.fx) < 0.05
     with pytest.raises(DataError, match="tilted by 20 degrees or more"):
-        calibrate(_views(pixels, points), 1280, 1024)
+        calibrate(_views(pixels, points), 1280, 1024, method="rac-only")
 
 
 def test_views_too_alike_are_refused():

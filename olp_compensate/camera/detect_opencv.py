@@ -1,0 +1,94 @@
+"""The boards users own already: OpenCV's symmetric and asymmetric circle grids, found by
+``cv2.findCirclesGrid`` (its blob detector, then its grid ordering), and ChArUco boards,
+found by ``cv2.aruco.CharucoDetector`` (its sub-pixel corners used as they are), so
+``olp-cal camera`` reads them as it reads its own board (:mod:`.board`, ``"kind"``).
+
+OpenCV orders the centres row by row, ``cols`` per row, as :meth:`.Board.dot_positions`
+lays the dots out for these kinds. The blob detector's default largest blob (5,000 px^2) is
+lifted to the image's share per dot so that near views of large circles are found; the circle-centre bias correction
+applies as for our board. A symmetric grid has no marker: its orientation is ambiguous by a
+half turn (OpenCV's own caveat), which a calibration does not mind and a pose measurement
+does (:func:`check_measurable`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DataError
+from .board import Board
+
+
+def _detector(grey: np.ndarray, board: Board):
+    import cv2
+
+    params = cv2.SimpleBlobDetector_Params()
+    # no dot can be larger than the image's share per dot (a larger limit lets the dark
+    # background in); OpenCV's other defaults kept: they reject noise blobs
+    params.maxArea = max(float(params.maxArea), grey.size / board.count)
+    return cv2.SimpleBlobDetector_create(params)
+
+
+def find_opencv_grid(grey: np.ndarray, board: Board) -> np.ndarray | None:
+    """Centres (rows*cols, 2) px in :meth:`Board.dot_positions` order, or None."""
+    import cv2
+
+    flags = (cv2.CALIB_CB_SYMMETRIC_GRID if board.kind == "opencv-circles"
+             else cv2.CALIB_CB_ASYMMETRIC_GRID)
+    found, centres = cv2.findCirclesGrid(grey, (board.cols, board.rows), flags=flags,
+                                         blobDetector=_detector(grey, board))
+    if not found or centres is None or len(centres) != board.count:
+        return None
+    return centres.reshape(-1, 2).astype(float)
+
+
+def right_handed(board: Board, centres: np.ndarray) -> np.ndarray | None:
+    """``centres`` (n, 2) px ordered so that the board frame is seen from its printed side
+    (z < 0): board x and y turn the same way as image columns and rows (positive Jacobian
+    determinant of board plane -> image at the grid's centre). A mirrored symmetric grid is
+    put right by reversing each row; a mirrored asymmetric one gives None."""
+    import cv2
+
+    flat = board.dot_positions()[:, :2]
+    H, _ = cv2.findHomography(flat, centres)
+    if H is None:
+        return None
+    centre = board.centre()[:2]
+    step = board.pitch_m
+    corners = np.array([centre, centre + [step, 0.0], centre + [0.0, step]])
+    at = cv2.perspectiveTransform(corners[None], H)[0]
+    du, dv = at[1] - at[0], at[2] - at[0]
+    if du[0] * dv[1] - du[1] * dv[0] > 0:
+        return centres
+    if board.kind == "opencv-circles":
+        return centres.reshape(board.rows, board.cols, 2)[:, ::-1].reshape(-1, 2)
+    return None
+
+
+def find_charuco_corners(grey: np.ndarray, board: Board) -> np.ndarray | str:
+    """A charuco board's inner corners (n, 2) px in :meth:`Board.dot_positions` order, or
+    why not: every corner must be found (as every dot of our boards must)."""
+    import cv2
+
+    dictionary_id = getattr(cv2.aruco, board.dictionary, None)
+    if not isinstance(dictionary_id, int):
+        raise DataError(f"board: OpenCV has no ArUco dictionary {board.dictionary!r}")
+    opencv_board = cv2.aruco.CharucoBoard((board.cols, board.rows), board.pitch_m,
+                                          board.dot_diameter_m,
+                                          cv2.aruco.getPredefinedDictionary(dictionary_id))
+    corners, ids, _, _ = cv2.aruco.CharucoDetector(opencv_board).detectBoard(grey)
+    found = 0 if ids is None else len(ids)
+    if found != board.count:
+        return (f"{found} of the charuco board's {board.count} corners found "
+                f"(cv2.aruco.CharucoDetector): the whole board must be in view")
+    order = np.argsort(np.asarray(ids).ravel())
+    return np.asarray(corners, dtype=float).reshape(-1, 2)[order]
+
+
+def check_measurable(board: Board) -> None:
+    """:class:`DataError` for a board whose views do not fix the board frame."""
+    if board.kind == "opencv-circles":
+        raise DataError("board: a symmetric circle grid (opencv-circles) is ambiguous by a "
+                        "half turn, so a camera pose measured on it may be turned 180 deg; "
+                        "use it to calibrate the camera, and measure with an olp-dots or "
+                        "opencv-acircles board")
