@@ -204,4 +204,6 @@ def test_identification_from_fifty_planned_poses(name):
     from olp_compensate.calibration.pose_planning import plan
 
     robot = load_robot(name)
-    assert _identification_error(robot, plan(robot, 50).joints, 8) < 2 * NOISE
+    # 1,000 random candidates (the command's default is 5,000): the planned 50 poses identify
+    # as well and the library's 75 robots plan in 1.3 s each, not 6.4 s
+    assert _identification_error(robot, plan(robot, 50, n_candidates=1000).joints, 8) < 2 * NOISE
