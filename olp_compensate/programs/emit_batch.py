@@ -189,7 +189,7 @@ class _PlainRun:
         self.first, self.last = cols[0], cols[-1]
         # possessive: a number takes its whole digit run, as the parser's does (the
         # backtracking form spent 170 us failing each exponent-style span, 1.5E0)
-        plain = [r"-?\d++(?:\.\d{0,%d})?+" % d for d in decimals]
+        plain = [r"-?\d++(?>(?:\.\d{0,%d})?)" % d for d in decimals]
         self.pattern = re.compile("(" + ")([^-+.0-9]*+)(".join(plain) + ")")
         self.templates: dict[tuple[str, ...], str] = {}
 

@@ -17,7 +17,7 @@ from .targets import Number
 
 NUMBER_PATTERN = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 NUMBER_RE = re.compile(NUMBER_PATTERN)
-NUMBER_GROUP = r"([-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+)"
+NUMBER_GROUP = r"([-+]?+(?:\d++(?>(?:\.\d*+)?)|\.\d++)(?>(?:[eE][-+]?+\d++)?))"
 """NUMBER_PATTERN, possessive, as one capturing group (a number of a record literal)."""
 _N = NUMBER_GROUP
 _S = r"[ \t\r\n\f]*+"
