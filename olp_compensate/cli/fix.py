@@ -124,7 +124,10 @@ def run(args, retain: list | None = None) -> int:
 
     if args.jobs is not None and args.jobs < 1:
         raise DataError(f"-j/--jobs: expected a positive number of processes, got {args.jobs}")
-    units = plan_units(args.program, args.dialect, args.output, EXTENSIONS)
+    skipped: list[str] = []
+    units = plan_units(args.program, args.dialect, args.output, EXTENSIONS, skipped)
+    for line in skipped:
+        print(f"olp-fix: warning: {line}", file=sys.stderr)
     refuse_clashes([*(("program", p) for u in units for p in u.paths), ("--model", args.model),
                     ("--robot", args.robot), ("--taught-on", args.taught_on),
                     ("--config", args.config)],
@@ -209,7 +212,7 @@ def _run_one(args, unit, retain: list | None) -> int:
         retain += [result, report]
     if not report.rows:
         check_not_cut_short(unit.dialect, unit.paths, unit.names)   # data-only: written as is
-    if output_is_folder(args):           # -o OUTDIR mirrors the input tree
+    if unit.mirrored:                    # -o OUTDIR (or FOLDER_compensated) mirrors the input
         for out in unit.outputs:
             out.parent.mkdir(parents=True, exist_ok=True)
     files = [(out, result.pieces(i)) for i, out in enumerate(unit.outputs)]

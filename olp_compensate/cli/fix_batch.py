@@ -41,6 +41,28 @@ def _start_worker(model: str, robot: str | None, taught_on: str | None, options:
                   calibration=calibration, model=model)
 
 
+def _start_pool_worker(parent: int, *init) -> None:
+    """A pool worker's start: it dies with ``parent`` (this olp-fix), then
+    :func:`_start_worker`."""
+    _end_with(parent)
+    _start_worker(*init)
+
+
+def _end_with(parent: int) -> None:
+    """Have the kernel kill this worker when its parent ``parent`` dies, even by SIGKILL
+    (Linux ``prctl(PR_SET_PDEATHSIG)``): a killed olp-fix leaves no worker reading on."""
+    import ctypes
+    import signal
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)   # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):   # no prctl (not Linux): the pool ends its workers
+        return
+    if os.getppid() != parent:          # the parent died before prctl took effect
+        os._exit(1)
+
+
 def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
     """Compensate one unit in this process (see :func:`_start_worker`)."""
     from ..compensation.files import ProgramFiles, compensate_files
@@ -78,8 +100,8 @@ def _outcomes(args, units):
         return
     _warm(units, init)       # forked workers inherit the imports, the parsers, the model
     order = sorted(range(len(units)), key=lambda k: -_size(units[k]))   # largest first
-    with ProcessPoolExecutor(max_workers=jobs, initializer=_start_worker,
-                             initargs=init) as pool:
+    with ProcessPoolExecutor(max_workers=jobs, initializer=_start_pool_worker,
+                             initargs=(os.getpid(), *init)) as pool:
         futures = [pool.submit(_work, k, units[k].dialect, tuple(map(str, units[k].paths)),
                                units[k].names) for k in order]
         for future in as_completed(futures):
@@ -114,7 +136,7 @@ def run_batch(args, units) -> int:
     unit's outputs as it completes and the one report at the end; print the table."""
     from ..compensation.report import CompensationReport
     from ..io.atomic import write_files_atomic, write_text_atomic
-    from .fix import load_calibrations, output_is_folder
+    from .fix import load_calibrations
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
@@ -123,7 +145,7 @@ def run_batch(args, units) -> int:
         outcomes[outcome.index] = outcome
         if outcome.error is None:
             outputs = units[outcome.index].outputs
-            if output_is_folder(args):          # -o OUTDIR mirrors the input tree
+            if units[outcome.index].mirrored:   # -o OUTDIR (or F_compensated) mirrors F
                 for out in outputs:
                     out.parent.mkdir(parents=True, exist_ok=True)
             write_files_atomic(list(zip(outputs, outcome.data)))

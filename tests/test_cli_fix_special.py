@@ -1,0 +1,168 @@
+"""olp-fix on special files and awkward -o: what is not a regular file is skipped in a folder
+(with a warning) and refused as a program, never read; -o cases get one clear line; a folder
+compensated without -o goes to a sibling folder; pool workers die with their parent."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.cli.fix import main
+from olp_compensate.io.calibration_file import write_calibration
+from olp_compensate.kinematics.robot import load_robot
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    path = tmp_path_factory.mktemp("special") / "nominal.json"
+    write_calibration(path, nominal_calibration(load_robot("abb_irb2400")))
+    return path
+
+
+@pytest.fixture
+def task(tmp_path):
+    folder = tmp_path / "TASK1"
+    folder.mkdir()
+    shutil.copy(SAMPLES / "cell_a.mod", folder / "cell_a.mod")
+    return folder
+
+
+def _tree(folder: Path) -> dict:
+    return {p.relative_to(folder).as_posix(): p.read_bytes()
+            for p in sorted(folder.rglob("*")) if p.is_file() and not p.is_symlink()}
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_special_files_in_a_folder_are_skipped_with_a_warning(task, model, capsys):
+    os.mkfifo(task / "pipe.mod")
+    (task / "zero.mod").symlink_to("/dev/zero")
+    (task / "gone.mod").symlink_to(task / "nothing.mod")
+    out = task.parent / "out"
+    code = main([str(task), "--model", str(model), "-o", str(out), "-q", "-j", "2"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err        # cell_a holds reported targets
+    for name in ("pipe.mod", "zero.mod", "gone.mod"):
+        assert f"{name}: skipped" in err
+    assert "pipe (FIFO)" in err and "character device" in err
+    assert _tree(out) == {"cell_a.mod": (SAMPLES / "cell_a.mod").read_bytes()}
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("kind", ["fifo", "devnull", "zero_link"])
+def test_a_program_that_is_no_regular_file_is_refused(tmp_path, model, capsys, kind):
+    program = tmp_path / "p.mod"
+    if kind == "fifo":
+        os.mkfifo(program)
+    elif kind == "zero_link":
+        program.symlink_to("/dev/zero")
+    else:
+        program = Path(os.devnull)
+    code = main([str(program), "--model", str(model), "--dialect", "rapid", "-q"])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and "not a regular file" in err
+    assert str(program) in err
+
+
+def test_a_pipe_given_by_the_shell_is_refused(tmp_path, model):
+    """``olp-fix <(cat x.mod)``: /dev/fd/N is a pipe; one line, exit 1, nothing written."""
+    script = (f"import sys; from olp_compensate.cli.fix import main; "
+              f"sys.exit(main([sys.argv[1], '--model', {str(model)!r}, '--dialect', 'rapid']))")
+    reader, writer = os.pipe()
+    proc = subprocess.Popen([sys.executable, "-c", script, f"/dev/fd/{reader}"],
+                            pass_fds=(reader,), stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    os.close(reader)
+    os.write(writer, (SAMPLES / "cell_a.mod").read_bytes()[:1000])
+    os.close(writer)
+    err = proc.communicate(timeout=120)[1]
+    assert proc.returncode == 1 and "pipe (FIFO), not a regular file" in err
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == []
+
+
+def test_o_cases_get_one_clear_line(task, model, capsys):
+    before = _tree(task.parent)
+    existing = task.parent / "afile"
+    existing.write_text("x")
+    before = _tree(task.parent)
+    cases = [([str(task), "-o", str(existing)], "-o names an existing file"),
+             ([str(task), "-o", str(task / "out")], "-o is inside the input folder"),
+             ([str(task), "-o", str(task)], "-o is the input folder"),
+             ([str(task / "cell_a.mod"), "-o", str(task.parent)], "-o names a folder"),
+             (["", "-o", str(task.parent / "o")], "an empty program path")]
+    for argv, message in cases:
+        assert main([*argv, "--model", str(model), "-q"]) == 1, argv
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1 and "Traceback" not in err, err
+        assert _tree(task.parent) == before
+
+
+def test_an_empty_path_does_not_scan_the_current_folder(task, model, capsys, monkeypatch):
+    monkeypatch.chdir(task)
+    assert main(["", "--model", str(model), "-q"]) == 1
+    assert "an empty program path" in capsys.readouterr().err
+    assert sorted(p.name for p in task.parent.iterdir()) == ["TASK1"]
+
+
+def test_a_folder_without_o_goes_to_a_sibling_mirror(task, model):
+    """A task folder compensated in place would hold Weld.mod and Weld_compensated.mod,
+    both MODULE Weld: the task would not load. The outputs go to TASK1_compensated/."""
+    (task / "sub").mkdir()
+    shutil.copy(SAMPLES / "cell_a.mod", task / "sub" / "second.mod")
+    before = _tree(task)
+    assert main([str(task), "--model", str(model), "-q"]) == 2
+    assert _tree(task) == before                       # nothing written into the task
+    mirror = task.parent / "TASK1_compensated"
+    assert _tree(mirror) == before                     # nominal model: the same bytes
+    # a second run over the parent folder does not take the mirror as input
+    assert main([str(task.parent), "--model", str(model), "-q"]) == 2
+    assert _tree(task.parent.parent / (task.parent.name + "_compensated")) == {
+        f"TASK1/{k}": v for k, v in before.items()}
+
+
+def test_a_file_given_is_still_written_beside_it(task, model):
+    assert main([str(task / "cell_a.mod"), "--model", str(model), "-q"]) == 2
+    assert (task / "cell_a_compensated.mod").read_bytes() == (task / "cell_a.mod").read_bytes()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0]
+    except (FileNotFoundError, IndexError):
+        return False
+    return state not in "ZX"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl is Linux's")
+def test_a_pool_worker_dies_with_its_parent():
+    """The start of olp-fix's pool workers: killed by the kernel when olp-fix is (SIGKILL
+    included), instead of reading on (a worker grew to 11.7 GB on /dev/zero)."""
+    script = ("import os, sys, time\n"
+              "from olp_compensate.cli.fix_batch import _end_with\n"
+              "parent = os.getpid()\n"
+              "pid = os.fork()\n"
+              "if pid == 0:\n"
+              "    _end_with(parent)\n"
+              "    time.sleep(120)\n"
+              "    os._exit(0)\n"
+              "print(pid, flush=True)\n"
+              "time.sleep(120)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    worker = int(proc.stdout.readline())
+    assert _alive(worker)
+    proc.kill()
+    proc.wait()
+    for _ in range(300):          # the kernel's signal: at once; waits only for the reaping
+        if not _alive(worker):
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(worker, 9)
+        pytest.fail("the worker outlived its killed parent")
