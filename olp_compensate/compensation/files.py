@@ -104,6 +104,21 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     """
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     texts = [_read(p) for p in files.paths]
+    if files.dialect == "rapid" and len(texts) > 1:
+        from .unreadable import compensate_readable
+
+        return compensate_readable(
+            texts, files.names, lambda keep: _compensate_texts(
+                ProgramFiles(files.dialect, tuple(files.paths[k] for k in keep),
+                             tuple(files.names[k] for k in keep)),
+                [texts[k] for k in keep], comp, emit, unused, taught_on, frames_path, jobs),
+            ENCODING)
+    return _compensate_texts(files, texts, comp, emit, unused, taught_on, frames_path, jobs)
+
+
+def _compensate_texts(files: ProgramFiles, texts: list[str], comp: Compensator, emit: str,
+                      unused: str, taught_on, frames_path, jobs: int) -> FilesResult:
+    """:func:`compensate_files` of the decoded ``texts`` of ``files``."""
     if files.dialect == "rapid" and emit == "pose":
         from .module_columns import compensate_rapid_task
         from .program import check_options
