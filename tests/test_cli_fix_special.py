@@ -166,3 +166,23 @@ def test_a_pool_worker_dies_with_its_parent():
     else:
         os.kill(worker, 9)
         pytest.fail("the worker outlived its killed parent")
+
+
+def test_krl_names_follow_the_output_files():
+    """DEF/DEFDAT renamed after the output file when it differs, every other byte kept; a
+    local DEF and the same word elsewhere untouched; a name KSS refuses is said."""
+    from olp_compensate.compensation.files import match_krl_names
+
+    src = (b"&ACCESS RVP\r\nGLOBAL DEF Cell( )\r\n  Cell_2()\r\nEND\r\n"
+           b"DEF Cell_2( )\r\nEND\r\n")
+    dat = b"&ACCESS RVP\r\nDEFDAT  CELL PUBLIC\r\n;Cell data\r\nENDDAT\r\n"
+    data, notes = match_krl_names([Path("in/Cell.src"), Path("in/Cell.dat")],
+                                  [Path("o/Fixed.src"), Path("o/Fixed.dat")], [src, dat])
+    assert data[0] == src.replace(b"DEF Cell(", b"DEF Fixed(")
+    assert data[1] == dat.replace(b"DEFDAT  CELL", b"DEFDAT  Fixed")
+    assert len(notes) == 2 and "DEF Cell renamed Fixed" in notes[0]
+    same, none = match_krl_names([Path("a/Cell.src")], [Path("b/Cell.src")], [src])
+    assert same == [src] and none == []
+    long = "Cell_" + "x" * 30
+    _, notes = match_krl_names([Path("Cell.src")], [Path(long + ".src")], [src])
+    assert len(notes) == 2 and "no KRL name KSS accepts" in notes[1]

@@ -172,6 +172,21 @@ def check_not_cut_short(dialect: str, paths, names) -> None:
                         f"short?); nothing written")
 
 
+def loadable_outputs(unit, data: list) -> list:
+    """The outputs' bytes with the names inside matching the file names where the
+    controller requires it (KRL ``DEF``/``DEFDAT``: see
+    :func:`~olp_compensate.compensation.files.match_krl_names`), each rename said on
+    stderr; other dialects' data as given."""
+    if unit.dialect != "krl":
+        return data
+    from ..compensation.files import match_krl_names
+
+    data, notes = match_krl_names(unit.paths, unit.outputs, data)
+    for note in notes:
+        print(f"olp-fix: warning: {note}", file=sys.stderr)
+    return data
+
+
 def output_is_folder(args) -> bool:
     """Whether ``-o`` names a folder mirroring the inputs (several paths, or a folder) rather
     than one program's output file."""
@@ -215,7 +230,8 @@ def _run_one(args, unit, retain: list | None) -> int:
     if unit.mirrored:                    # -o OUTDIR (or FOLDER_compensated) mirrors the input
         for out in unit.outputs:
             out.parent.mkdir(parents=True, exist_ok=True)
-    files = [(out, result.pieces(i)) for i, out in enumerate(unit.outputs)]
+    files = list(zip(unit.outputs, loadable_outputs(
+        unit, [result.pieces(i) for i in range(len(unit.outputs))])))
     if args.report:
         files.append((Path(args.report), (piece.encode("utf-8")
                                           for piece in report.csv_chunks())))

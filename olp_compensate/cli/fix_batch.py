@@ -136,7 +136,7 @@ def run_batch(args, units) -> int:
     unit's outputs as it completes and the one report at the end; print the table."""
     from ..compensation.report import CompensationReport
     from ..io.atomic import write_files_atomic, write_text_atomic
-    from .fix import load_calibrations
+    from .fix import load_calibrations, loadable_outputs
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
@@ -148,7 +148,8 @@ def run_batch(args, units) -> int:
             if units[outcome.index].mirrored:   # -o OUTDIR (or F_compensated) mirrors F
                 for out in outputs:
                     out.parent.mkdir(parents=True, exist_ok=True)
-            write_files_atomic(list(zip(outputs, outcome.data)))
+            write_files_atomic(list(zip(outputs, loadable_outputs(units[outcome.index],
+                                                                  list(outcome.data)))))
     rows = [r for o in outcomes if o.report is not None for r in o.report.rows]
     n_joints = calibration.robot.n_joints
     report = CompensationReport(file="(several)", rows=tuple(rows), n_joints=n_joints,
