@@ -57,20 +57,20 @@ def irb2400_vplus() -> bytes:
 def test_a_program_of_another_robot_in_a_backup_is_refused(backup, tmp_path, capsys):
     """A PUMA .pg (its taught precision points outside the IRB 2400's axis ranges) in a
     backup compensated with an IRB 2400 calibration: refused with the reason, the others
-    written; a 7-axis AS step against the 6-axis arm the same."""
+    written; a 5-axis precision point against the 6-axis arm the same."""
     tree, model = backup
     copy = tmp_path / "in"
     shutil.copytree(tree, copy)
     shutil.copy(SAMPLES / "cell_b.pg", copy / "puma.pg")
-    (copy / "seven.pg").write_bytes(b".PROGRAM seven()\n    MOVE #a\n.END\n.LOCATIONS\n"
-                                    b"#a  0.0 10.0 -10.0 0.0 30.0 0.0 5.0\n.END\n")
+    (copy / "five.pg").write_bytes(b".PROGRAM five()\n    MOVE #a\n.END\n.LOCATIONS\n"
+                                   b"#a  0.0 10.0 -10.0 0.0 30.0\n.END\n")
     out = tmp_path / "out"
     assert main([str(copy), "--model", str(model), "-o", str(out), "-j", "1", "-q"]) == 1
     err = capsys.readouterr().err
     assert "puma.pg:" in err and "outside abb_irb2400's range" in err
     assert "taught on another robot" in err
-    assert "seven.pg:" in err and "7 joint values" in err and "6 axes" in err
-    assert not (out / "puma.pg").exists() and not (out / "seven.pg").exists()
+    assert "five.pg:" in err and "5 joint values" in err and "6 axes" in err
+    assert not (out / "puma.pg").exists() and not (out / "five.pg").exists()
     assert (out / "cell_b.pg").read_bytes() == (copy / "cell_b.pg").read_bytes()
 
 

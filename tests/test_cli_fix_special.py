@@ -186,3 +186,23 @@ def test_krl_names_follow_the_output_files():
     long = "Cell_" + "x" * 30
     _, notes = match_krl_names([Path("Cell.src")], [Path(long + ".src")], [src])
     assert len(notes) == 2 and "no KRL name KSS accepts" in notes[1]
+
+
+def test_a_seven_value_as_step_reports_the_robot_axes_under_its_header(tmp_path, capsys):
+    """A Kawasaki block step #[j1..j7] of a 6-axis arm: the seventh value is an external
+    axis; the report row has the header's 6 joint columns and names it in its note."""
+    import csv
+
+    model = tmp_path / "n.json"
+    write_calibration(model, nominal_calibration(load_robot("abb_irb2400")))
+    program = tmp_path / "step.as"
+    program.write_bytes(b".PROGRAM step()\r\n  JOINT SPEED9 ACCU1 TIMER0 TOOL1 WORK0 CLAMP1 "
+                        b"(OFF,0,0,O) 2 (0,0,O) 1 #[0,10,-10,0,30,0,250.5]\r\n.END\r\n")
+    report = tmp_path / "r.csv"
+    assert main([str(program), "--model", str(model), "-o", str(tmp_path / "o.as"),
+                 "--report", str(report), "-q"]) == 0
+    rows = list(csv.reader(report.open()))
+    assert len(rows) == 2 and len(rows[1]) == len(rows[0]) == 21
+    assert rows[1][rows[0].index("q6_deg")] == "0.000000"
+    assert "250.5" in rows[1][-1] and "external axes" in rows[1][-1]
+    assert (tmp_path / "o.as").read_bytes() == program.read_bytes()

@@ -195,8 +195,9 @@ JOINT_SLACK_DEG = 1.0
 
 def check_taught_joints(report: CompensationReport, robot) -> None:
     """:class:`ModelError` when a precision point of the program (joints as taught, a
-    ``joint_target`` row) cannot be of the calibration's robot: another number of axes
-    (a 7-axis AS dump against a 6-axis arm), or a value outside a controller axis range
+    ``joint_target`` row) cannot be of the calibration's robot: fewer values than its axes
+    (a 6-axis program against a 7-axis arm; more are external axes, see
+    :func:`.task._external_axes_in_notes`), or a value outside a controller axis range
     (a PUMA's ``#ready`` on an IRB 2400): the program is for another robot."""
     ranges = robot.controller_ranges
     scale = np.array([1e3 if j.kind == "prismatic" else math.degrees(1.0)
@@ -206,7 +207,7 @@ def check_taught_joints(report: CompensationReport, robot) -> None:
         if row.status != "joint_target" or not row.joints:
             continue
         where = f"{row.file}:{row.line}:{row.column}: {row.target}"
-        if len(row.joints) != robot.n_joints:
+        if len(row.joints) < robot.n_joints:
             raise ModelError(f"{where}: {len(row.joints)} joint values, but the calibration's "
                              f"robot {robot.name} has {robot.n_joints} axes: the program is "
                              f"for another robot")
