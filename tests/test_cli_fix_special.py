@@ -206,3 +206,22 @@ def test_a_seven_value_as_step_reports_the_robot_axes_under_its_header(tmp_path,
     assert rows[1][rows[0].index("q6_deg")] == "0.000000"
     assert "250.5" in rows[1][-1] and "external axes" in rows[1][-1]
     assert (tmp_path / "o.as").read_bytes() == program.read_bytes()
+
+
+def test_a_closed_stdout_loses_no_output_file(tmp_path):
+    """``olp-cal identify ... | head -2``: the reader leaves before the report is printed;
+    the calibration is written all the same, the exit code is the command's, and no
+    traceback."""
+    out = tmp_path / "calib.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from olp_compensate.cli.cal import main; "
+         "sys.exit(main(sys.argv[1:]))", "identify", str(SAMPLES / "irb2400_measurements.csv"),
+         "--robot", "abb_irb2400", "-o", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()                  # the reader is gone before anything is printed
+    err = proc.stderr.read()
+    assert proc.wait(timeout=300) == 0, err
+    assert "Traceback" not in err and "Exception ignored" not in err
+    from olp_compensate.io.calibration_file import read_calibration
+
+    assert read_calibration(out).robot.name == "abb_irb2400"
