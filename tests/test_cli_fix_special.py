@@ -225,3 +225,42 @@ def test_a_closed_stdout_loses_no_output_file(tmp_path):
     from olp_compensate.io.calibration_file import read_calibration
 
     assert read_calibration(out).robot.name == "abb_irb2400"
+
+
+def test_output_checks_look_at_each_path_once(tmp_path, monkeypatch):
+    """refuse_clashes over n inputs and n outputs: at most one stat (and one resolve) per
+    path, not one per pair (a 1,000-program backup spent 98 s there); a clash is still
+    found, by inode through a hard link too."""
+    from olp_compensate.cli import common
+
+    n = 400
+    inputs = []
+    for k in range(n):
+        p = tmp_path / f"p{k}.mod"
+        p.write_text("x")
+        inputs.append(("program", p))
+    outputs = [("-o", tmp_path / "out" / f"p{k}.mod") for k in range(n)]
+    calls = {"stat": 0, "realpath": 0}
+    real_stat, real_realpath = os.stat, os.path.realpath
+
+    def stat(path, *a, **k):
+        calls["stat"] += 1
+        return real_stat(path, *a, **k)
+
+    def realpath(path, *a, **k):
+        calls["realpath"] += 1
+        return real_realpath(path, *a, **k)
+
+    monkeypatch.setattr(common.os, "stat", stat)
+    monkeypatch.setattr(common.os.path, "realpath", realpath)
+    common.refuse_clashes(inputs, outputs)
+    assert calls["stat"] <= 3 * 2 * n and calls["realpath"] <= 2 * n, calls
+    monkeypatch.undo()
+    link = tmp_path / "link.mod"
+    os.link(tmp_path / "p7.mod", link)
+    from olp_compensate.errors import DataError
+
+    with pytest.raises(DataError, match="is an input"):
+        common.refuse_clashes(inputs, [*outputs, ("-o", link)])
+    with pytest.raises(DataError, match="named for both"):
+        common.refuse_clashes(inputs, [*outputs, ("--report", outputs[3][1])])
