@@ -264,3 +264,37 @@ def test_output_checks_look_at_each_path_once(tmp_path, monkeypatch):
         common.refuse_clashes(inputs, [*outputs, ("-o", link)])
     with pytest.raises(DataError, match="named for both"):
         common.refuse_clashes(inputs, [*outputs, ("--report", outputs[3][1])])
+
+
+def test_a_folder_run_keeps_no_finished_programs_report(tmp_path, model, monkeypatch):
+    """A folder of programs: each one's outputs and report rows are written as it is done
+    and then dropped (only a summary stays), so memory is bounded by the programs in
+    flight, not their sum; the report keeps the input tree's order."""
+    import csv
+    import gc
+    import weakref
+
+    from olp_compensate.cli import fix_batch
+
+    folder = tmp_path / "backup"
+    for k in range(6):
+        (folder / f"T{k}").mkdir(parents=True)
+        shutil.copy(SAMPLES / "cell_a.mod", folder / f"T{k}" / "cell_a.mod")
+    alive: list = []
+    held_back: list[int] = []
+    summary = fix_batch._summary
+
+    def watched(outcome):
+        gc.collect()
+        held_back.append(sum(ref() is not None for ref in alive))
+        alive.append(weakref.ref(outcome.report))
+        return summary(outcome)
+
+    monkeypatch.setattr(fix_batch, "_summary", watched)
+    report = tmp_path / "r.csv"
+    assert main([str(folder), "--model", str(model), "-o", str(tmp_path / "out"),
+                 "--report", str(report), "-j", "1", "-q"]) == 2
+    assert max(held_back) <= 1, held_back      # at most the one just written out
+    files = [r["file"] for r in csv.DictReader(report.open())]
+    assert files == sorted(files, key=lambda f: f.split("/")[0])
+    assert {f.split("/")[0] for f in files} == {f"T{k}" for k in range(6)}

@@ -3,11 +3,12 @@ table and one report; a program that fails is reported and the others go on."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import OlpError
@@ -131,66 +132,112 @@ def _warm(units, init) -> None:
         import_module(f"..compensation.{module}", __package__)
 
 
+@dataclass
+class UnitSummary:
+    """What the table keeps of a unit once its outputs and report rows are written: its
+    counts, its first problem rows, its exit code (or its error)."""
+
+    error: str | None = None
+    uses: int = 0
+    fine: int = 0
+    counts: dict = field(default_factory=dict)
+    problems: list = field(default_factory=list)
+    more_problems: int = 0
+    exit_code: int = 0
+
+
+def _summary(outcome: UnitOutcome) -> UnitSummary:
+    if outcome.error is not None:
+        return UnitSummary(error=outcome.error)
+    report = outcome.report
+    problems = report.problem_rows()
+    counts = report.counts()
+    return UnitSummary(uses=len(report.rows), fine=len(report.rows) - len(problems),
+                       counts=counts, problems=problems[:SHOWN_PROBLEMS],
+                       more_problems=max(0, len(problems) - SHOWN_PROBLEMS),
+                       exit_code=report.exit_code)
+
+
+def _stream(args, units, n_joints: int, summaries: list):
+    """The report's CSV text, in pieces: its header, then each unit's rows in the order of
+    the input tree, as soon as the units before it are done. Each unit's outputs are
+    written when it completes; then only its :class:`UnitSummary` is kept (memory: the
+    units done out of order, not every program's rows and bytes)."""
+    from ..compensation.report import CompensationReport
+    from ..io.atomic import write_files_atomic
+    from .fix import loadable_outputs
+
+    yield next(CompensationReport(file="(several)", rows=(), n_joints=n_joints).csv_chunks())
+    waiting: dict[int, UnitOutcome] = {}
+    done = 0
+    for outcome in _outcomes(args, units):
+        if outcome.error is None:
+            unit = units[outcome.index]
+            if unit.mirrored:                     # -o OUTDIR (or F_compensated) mirrors F
+                for out in unit.outputs:
+                    out.parent.mkdir(parents=True, exist_ok=True)
+            write_files_atomic(list(zip(unit.outputs,
+                                        loadable_outputs(unit, list(outcome.data)))))
+        summaries[outcome.index] = _summary(outcome)
+        waiting[outcome.index] = dataclasses.replace(outcome, data=())
+        while done in waiting:
+            ready = waiting.pop(done)
+            done += 1
+            if ready.report is not None:
+                chunks = dataclasses.replace(ready.report, n_joints=n_joints).csv_chunks()
+                next(chunks)                      # the header, written once
+                yield from chunks
+
+
 def run_batch(args, units) -> int:
     """Compensate ``units`` (:class:`~olp_compensate.cli.fix_inputs.Unit`); write each
-    unit's outputs as it completes and the one report at the end; print the table."""
-    from ..compensation.report import CompensationReport
-    from ..io.atomic import write_files_atomic, write_text_atomic
-    from .fix import load_calibrations, loadable_outputs
+    unit's outputs as it completes and the report's rows in input order as they become
+    ready (see :func:`_stream`); print the table."""
+    from ..io.atomic import write_files_atomic
+    from .fix import load_calibrations
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
-    outcomes: list[UnitOutcome | None] = [None] * len(units)
-    for outcome in _outcomes(args, units):
-        outcomes[outcome.index] = outcome
-        if outcome.error is None:
-            outputs = units[outcome.index].outputs
-            if units[outcome.index].mirrored:   # -o OUTDIR (or F_compensated) mirrors F
-                for out in outputs:
-                    out.parent.mkdir(parents=True, exist_ok=True)
-            write_files_atomic(list(zip(outputs, loadable_outputs(units[outcome.index],
-                                                                  list(outcome.data)))))
-    rows = [r for o in outcomes if o.report is not None for r in o.report.rows]
-    n_joints = calibration.robot.n_joints
-    report = CompensationReport(file="(several)", rows=tuple(rows), n_joints=n_joints,
-                                warnings=tuple(w for o in outcomes if o.report is not None
-                                               for w in o.report.warnings))
+    summaries: list[UnitSummary | None] = [None] * len(units)
+    pieces = _stream(args, units, calibration.robot.n_joints, summaries)
     if args.report:
-        write_text_atomic(args.report, report.to_csv())
-    failed = [o for o in outcomes if o.error is not None]
+        write_files_atomic([(Path(args.report), (p.encode("utf-8") for p in pieces))])
+    else:
+        for _ in pieces:
+            pass
+    failed = [s for s in summaries if s.error is not None]
     if not args.quiet:
-        _table(units, outcomes, report, calibration, args, time.perf_counter() - started)
-    for o in failed:
-        print(f"olp-fix: {o.error}", file=sys.stderr)
+        _table(units, summaries, calibration, args, time.perf_counter() - started)
+    for s in failed:
+        print(f"olp-fix: {s.error}", file=sys.stderr)
     if failed:
         return 1
-    return report.exit_code
+    return max((s.exit_code for s in summaries), default=0)
 
 
-def _table(units, outcomes, report, calibration, args, seconds: float) -> None:
-    from ..compensation.program import KEPT
-
-    print(f"olp-fix: {len(units)} programs, {len(report.rows)} target uses in "
-          f"{seconds:.2f} s")
+def _table(units, summaries: list[UnitSummary], calibration, args, seconds: float) -> None:
+    uses = sum(s.uses for s in summaries)
+    print(f"olp-fix: {len(units)} programs, {uses} target uses in {seconds:.2f} s")
     print(f"  robot {calibration.robot.name} (calibration {args.model})")
     width = max(len(" + ".join(u.names)) for u in units)
     print(f"  {'program':<{width}}  {'uses':>6}  {'ok':>6}  {'not':>6}  status")
-    for unit, outcome in zip(units, outcomes):
+    counts: dict[str, int] = {}
+    for unit, s in zip(units, summaries):
         name = " + ".join(unit.names)
-        if outcome.error is not None:
-            print(f"  {name:<{width}}  {'':>6}  {'':>6}  {'':>6}  failed: {outcome.error}")
+        if s.error is not None:
+            print(f"  {name:<{width}}  {'':>6}  {'':>6}  {'':>6}  failed: {s.error}")
             continue
-        rows = outcome.report.rows
-        fine = sum(1 for r in rows if r.status in KEPT or r.compensated)
-        print(f"  {name:<{width}}  {len(rows):>6}  {fine:>6}  {len(rows) - fine:>6}  "
-              f"exit {outcome.report.exit_code}")
-    counts = report.counts()
+        for status, n in s.counts.items():
+            counts[status] = counts.get(status, 0) + n
+        print(f"  {name:<{width}}  {s.uses:>6}  {s.fine:>6}  {s.uses - s.fine:>6}  "
+              f"exit {s.exit_code}")
     print("  statuses: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
-    problems = [r for r in report.rows if not (r.status in KEPT or r.compensated)]
+    problems = [r for s in summaries for r in s.problems]
+    more = sum(s.more_problems for s in summaries) + max(0, len(problems) - SHOWN_PROBLEMS)
     for r in problems[:SHOWN_PROBLEMS]:
         print(f"  {r.file}:{r.line}:{r.column}: {r.target}: {r.status}"
               + (f" ({r.note})" if r.note else ""))
-    if len(problems) > SHOWN_PROBLEMS:
-        print(f"  ... and {len(problems) - SHOWN_PROBLEMS} more (see --report)")
-    written = sum(len(u.outputs) for u, o in zip(units, outcomes) if o.error is None)
+    if more:
+        print(f"  ... and {more} more (see --report)")
+    written = sum(len(u.outputs) for u, s in zip(units, summaries) if s.error is None)
     print(f"  wrote {written} programs" + (f" and {args.report}" if args.report else ""))
