@@ -5,6 +5,7 @@ so a bare exponent (``[900,0,1e]``) was read as a number there."""
 
 from __future__ import annotations
 
+import random
 import re
 from pathlib import Path
 
@@ -12,7 +13,7 @@ import pytest
 
 from olp_compensate.cli.cal import main as cal
 from olp_compensate.cli.fix import main as fix
-from olp_compensate.programs import literals, rapid_fast
+from olp_compensate.programs import literals, rapid_fast, regex_compat
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = ["900", "0", "1000", "1", "0", "0", "0", "0", "0", "0", "0",
@@ -75,12 +76,9 @@ def test_plain_argument_and_separator_patterns():
     assert rapid_fast._SEP_RE.match("  ! c\n  x").end() == 8
 
 
-def _pattern_sources() -> list[tuple[str, str]]:
-    """(where, pattern) of every regular expression in programs/ and grammars/."""
+def _grammar_lines() -> list[tuple[str, str]]:
+    """(where, line) of the lark grammars' rules (lark compiles them, no guard there)."""
     found = []
-    for path in sorted((ROOT / "olp_compensate" / "programs").glob("*.py")):
-        for number, line in enumerate(path.read_text().splitlines(), 1):
-            found.append((f"{path.name}:{number}", line))
     for path in sorted((ROOT / "grammars").glob("*.lark")):
         for number, line in enumerate(path.read_text().splitlines(), 1):
             if not line.lstrip().startswith("//"):
@@ -88,8 +86,46 @@ def _pattern_sources() -> list[tuple[str, str]]:
     return found
 
 
-def test_no_possessive_quantifier_on_a_group():
-    """Groups that must not backtrack are atomic, ``(?>(?:...)*)``, which 3.11.2 gets right."""
-    offending = [where for where, line in _pattern_sources()
-                 if not line.lstrip().startswith("#") and GROUP_POSSESSIVE.search(line)]
-    assert offending == []
+def test_the_grammars_hold_no_possessive_quantifier_on_a_group():
+    """Groups of the grammars that must not backtrack are atomic, ``(?>(?:...)*)``."""
+    assert [where for where, line in _grammar_lines() if GROUP_POSSESSIVE.search(line)] == []
+
+
+def _compiled() -> dict:
+    """Every compiled pattern of the modules that read and write RAPID numbers."""
+    from olp_compensate.programs.emit_batch import _PlainRun
+
+    found = {f"{m.__name__}.{k}": v for m in (literals, rapid_fast)
+             for k, v in vars(m).items() if isinstance(v, re.Pattern)}
+    found["emit_batch"] = _PlainRun([0, 1, 2], [3, 3, 3], "").pattern
+    return found
+
+
+def test_patterns_in_use_have_no_possessive_group_where_re_gets_them_wrong():
+    patterns = _compiled()
+    assert len(patterns) > 10
+    if regex_compat.GROUPS_OK:
+        assert any(GROUP_POSSESSIVE.search(p.pattern) for p in patterns.values())
+        return
+    assert [k for k, p in patterns.items() if GROUP_POSSESSIVE.search(p.pattern)] == []
+
+
+@pytest.mark.skipif(not regex_compat.GROUPS_OK, reason="possessive groups are wrong here")
+def test_the_atomic_rewrite_matches_the_same():
+    """On a Python whose possessive groups are right, each pattern and its atomic rewrite
+    (what 3.11.2 runs) match the same spans and groups on texts made to end anywhere."""
+    rnd = random.Random(7)
+    alphabet = list("0123456789.eE+-,[]() \t\n!;:={}*\\") + [
+        "MoveL ", "p1", "v100", "z1", "tool0", "\\WObj:=", "CONST robtarget ", "x.y"]
+    literal = "[[900,0,1e],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]"
+    for name, pattern in _compiled().items():
+        twin = re.compile(regex_compat.atomic(pattern.pattern), pattern.flags)
+        if twin.pattern == pattern.pattern:
+            continue
+        for _ in range(1500):
+            text = literal[:rnd.randint(0, len(literal))] * (rnd.random() < 0.4) + "".join(
+                rnd.choice(alphabet) for _ in range(rnd.randint(0, 25)))
+            for a, b in ((pattern.match(text), twin.match(text)),
+                         (pattern.search(text), twin.search(text))):
+                assert (a and (a.span(), a.groups())) == (b and (b.span(), b.groups())), \
+                    (name, text)

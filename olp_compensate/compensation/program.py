@@ -57,9 +57,8 @@ _SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree withi
 
 
 def _real_tool(calibration: Calibration, name: str, tooldata: np.ndarray):
-    """flange_T_tool of the real robot for the program tool ``name`` (written as
-    ``tooldata``, flange_T_tool), and a note: a tool calibrated for programs of that name
-    (:mod:`.program_tools`), else the tooldata itself and no note.
+    """flange_T_tool of the real robot for the program tool ``name`` (``tooldata``), and a
+    note: a tool calibrated for programs of that name (:mod:`.program_tools`), else none.
 
     A calibrated orientation more than :data:`TOOL_FRAME_SLACK_RAD` from the tooldata's is
     the frame of the measuring device's probe, not the tool's axes: the tooldata's
@@ -67,9 +66,7 @@ def _real_tool(calibration: Calibration, name: str, tooldata: np.ndarray):
     found = program_tool(calibration, [name])
     if found is None:
         return tooldata, ""
-    cal_name, tool = found
-    note = program_tool_note(name, cal_name)
-    rotation = tooldata[:3, :3]
+    note, tool, rotation = program_tool_note(name, found[0]), found[1], tooldata[:3, :3]
     if tool.quat_wxyz is not None:
         measured = matrix_from_quat_wxyz(tool.quat_wxyz)
         apart = float(rotation_angle_between(measured, rotation))
@@ -377,10 +374,8 @@ def _regions(comp: Compensator, res, job: list[int], requested: np.ndarray):
 
 
 def _calibrated_tool_key(calibration: Calibration, name: str) -> str | None:
-    """The calibration's name of the tool calibrated for programs that the program calls
-    ``name`` (case-insensitive), or None."""
-    found = program_tool(calibration, [name])
-    return None if found is None else found[0]
+    """The calibration's name of the program tool the program calls ``name``, or None."""
+    return (program_tool(calibration, [name]) or (None,))[0]
 
 
 def _aim(comp: Compensator, res, job: list[int], requested: np.ndarray,
