@@ -77,8 +77,10 @@ def test_a_pipe_given_by_the_shell_is_refused(tmp_path, model):
     script = (f"import sys; from olp_compensate.cli.fix import main; "
               f"sys.exit(main([sys.argv[1], '--model', {str(model)!r}, '--dialect', 'rapid']))")
     reader, writer = os.pipe()
+    env = {**os.environ, "PYTHONPATH": str(SAMPLES.parent)}   # this tree, from any cwd
     proc = subprocess.Popen([sys.executable, "-c", script, f"/dev/fd/{reader}"],
-                            pass_fds=(reader,), stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+                            pass_fds=(reader,), stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                            env=env)
     os.close(reader)
     os.write(writer, (SAMPLES / "cell_a.mod").read_bytes()[:1000])
     os.close(writer)
