@@ -187,12 +187,6 @@ def loadable_outputs(unit, data: list) -> list:
     return data
 
 
-def output_is_folder(args) -> bool:
-    """Whether ``-o`` names a folder mirroring the inputs (several paths, or a folder) rather
-    than one program's output file."""
-    return bool(args.output) and not (len(args.program) == 1 and Path(args.program[0]).is_file())
-
-
 def make_compensator(calibration, region: str | None):
     """The compensator of a run: the regional one when the calibration has regions (or
     ``--region`` forces one), else the plain one."""
