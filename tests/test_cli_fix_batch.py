@@ -27,7 +27,7 @@ def backup(tmp_path_factory):
     (tree / "RAPID" / "TASK1" / "PROGMOD").mkdir(parents=True)
     (tree / "KRL" / "R1" / "Program").mkdir(parents=True)
     shutil.copy(SAMPLES / "cell_a.mod", tree / "RAPID" / "TASK1" / "PROGMOD" / "cell_a.mod")
-    shutil.copy(SAMPLES / "cell_b.pg", tree / "cell_b.pg")
+    (tree / "cell_b.pg").write_bytes(irb2400_vplus())
     from test_programs_krl import _program_joints, _targets_at, krl_module
 
     src, dat = krl_module(_targets_at(_program_joints(3, 4)))
@@ -37,6 +37,41 @@ def backup(tmp_path_factory):
     model = root / "nominal.json"
     write_calibration(model, nominal_calibration(load_robot("abb_irb2400")))
     return tree, model
+
+
+def irb2400_vplus() -> bytes:
+    """The V+ sample with its precision points moved inside the IRB 2400's axis ranges (as
+    taught on it: the PUMA's own are not, and olp-fix refuses them on an IRB 2400)."""
+    text = (SAMPLES / "cell_b.pg").read_bytes()
+    for old, new in ((b"#PPOINT(0.0, 60.0, -120.0, 0.0, 30.0, 0.0)",
+                      b"#PPOINT(0.0, 30.0, -20.0, 0.0, 30.0, 0.0)"),
+                     (b"#ready         0.000    90.000   -90.000",
+                      b"#ready         0.000    40.000   -30.000"),
+                     (b"#park         90.000   135.000  -160.000",
+                      b"#park         90.000    35.000   -50.000")):
+        assert old in text
+        text = text.replace(old, new)
+    return text
+
+
+def test_a_program_of_another_robot_in_a_backup_is_refused(backup, tmp_path, capsys):
+    """A PUMA .pg (its taught precision points outside the IRB 2400's axis ranges) in a
+    backup compensated with an IRB 2400 calibration: refused with the reason, the others
+    written; a 5-axis precision point against the 6-axis arm the same."""
+    tree, model = backup
+    copy = tmp_path / "in"
+    shutil.copytree(tree, copy)
+    shutil.copy(SAMPLES / "cell_b.pg", copy / "puma.pg")
+    (copy / "five.pg").write_bytes(b".PROGRAM five()\n    MOVE #a\n.END\n.LOCATIONS\n"
+                                   b"#a  0.0 10.0 -10.0 0.0 30.0\n.END\n")
+    out = tmp_path / "out"
+    assert main([str(copy), "--model", str(model), "-o", str(out), "-j", "1", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "puma.pg:" in err and "outside abb_irb2400's range" in err
+    assert "taught on another robot" in err
+    assert "five.pg:" in err and "5 joint values" in err and "6 axes" in err
+    assert not (out / "puma.pg").exists() and not (out / "five.pg").exists()
+    assert (out / "cell_b.pg").read_bytes() == (copy / "cell_b.pg").read_bytes()
 
 
 def _rows(path):
@@ -85,8 +120,12 @@ def test_a_krl_pair_named_by_its_src_is_written_as_a_pair(backup, tmp_path):
     out = tmp_path / "Fixed.src"
     assert main([str(src), "--model", str(model), "-o", str(out), "--config", str(config),
                  "-q"]) == 0
-    assert out.read_bytes() == src.read_bytes()
-    assert (tmp_path / "Fixed.dat").read_bytes() == src.with_suffix(".dat").read_bytes()
+    # KSS loads a module only when DEF/DEFDAT name its files: renamed, every other byte kept
+    assert out.read_bytes() == src.read_bytes().replace(b"DEF CELL(", b"DEF Fixed(", 1)
+    assert (tmp_path / "Fixed.dat").read_bytes() == src.with_suffix(".dat").read_bytes(
+        ).replace(b"DEFDAT  CELL", b"DEFDAT  Fixed", 1)
+    text = out.read_text(encoding="latin-1")
+    assert text.count("Fixed") == 1 and "DEF CELL" not in text
 
 
 def test_a_failing_program_is_reported_and_the_others_go_on(backup, tmp_path, capsys):
@@ -107,7 +146,7 @@ def test_an_output_folder_on_the_inputs_is_refused(backup, tmp_path, capsys):
     shutil.copytree(tree, copy)
     before = {p: p.read_bytes() for p in copy.rglob("*") if p.is_file()}
     assert main([str(copy), "--model", str(model), "-o", str(copy), "-q"]) == 1
-    assert "refusing to overwrite" in capsys.readouterr().err
+    assert "-o is the input folder" in capsys.readouterr().err   # refused before any read
     assert {p: p.read_bytes() for p in before} == before
     assert sorted(p for p in copy.rglob("*") if p.is_file()) == sorted(before)
 
@@ -146,8 +185,10 @@ def test_a_krl_pair_named_by_its_dat_writes_the_dat_to_o(backup, tmp_path):
     dat = tree / "KRL" / "R1" / "Program" / "Cell.dat"
     out = tmp_path / "Fixed.dat"
     main([str(dat), "--model", str(model), "-o", str(out), "-q"])
-    assert out.read_bytes() == dat.read_bytes()
-    assert (tmp_path / "Fixed.src").read_bytes() == dat.with_suffix(".src").read_bytes()
+    # the names inside follow the files' (KSS), every other byte as read
+    assert out.read_bytes() == dat.read_bytes().replace(b"DEFDAT  CELL", b"DEFDAT  Fixed")
+    assert (tmp_path / "Fixed.src").read_bytes() == dat.with_suffix(".src").read_bytes(
+        ).replace(b"DEF CELL(", b"DEF Fixed(")
 
 
 def test_a_task_folder_resolves_across_its_modules(tmp_path):

@@ -125,6 +125,8 @@ def test_known_marks_recover_the_tcp_and_rewrite_the_tooldata(model, tmp_path, c
     assert cal.tools["tGun"].quat_wxyz is None  # touches cannot see the orientation
     assert np.all(cal.tools["tGun"].std_m < 0.1 * MM)
     assert "tcp" in cal.tools  # the model's other tools are kept
+    # the new tool is one for programs; the identification's measured point stays not one
+    assert cal.tools["tGun"].for_programs and not cal.tools["tcp"].for_programs
 
     written = tmp_path / "cell_a_tGun.mod"
     assert prog.read_bytes() == PROGRAM  # the input is never touched

@@ -10,6 +10,7 @@ in the measuring device's frame, where both the calibration and the truth place 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -43,7 +44,8 @@ class World:
         self.virtual = make_virtual_robot(self.robot, seed=seed, n_points=3)
         rng = np.random.default_rng(seed)
         meas = self.virtual.measure(random_joints(self.robot, 60, rng), NOISE_M, rng)
-        self.calibration = identify(self.robot, meas, IdentificationOptions(folds=0)).calibration
+        self.calibration = as_program_tool(
+            identify(self.robot, meas, IdentificationOptions(folds=0)).calibration)
         n = self.robot.n_joints
         self.nominal = VirtualRobot(self.robot, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
         self.family = fit_family(lambda q: self.nominal.flange_poses(
@@ -91,6 +93,15 @@ class World:
         jac = np.concatenate([chain.dpoint_dq, chain.drot_dq], axis=1)
         smallest = np.linalg.svd(jac, compute_uv=False)[:, -1]
         return q[smallest > 0.02][:m]
+
+
+def as_program_tool(calibration, name: str = "tcp"):
+    """``calibration`` with its measured point ``name`` also calibrated for programs (as
+    olp-cal tool would mark it): the programs' tooldata 'tcp' then gets it as its real TCP
+    (a measured point alone never replaces a program's tool)."""
+    tools = dict(calibration.tools)
+    tools[name] = dataclasses.replace(tools[name], for_programs=True)
+    return dataclasses.replace(calibration, tools=tools)
 
 
 def rapid_module(targets, tool_xyz_mm, tool_quat, wobj_xyz_mm, wobj_quat) -> str:
@@ -374,7 +385,7 @@ def test_compliance_found_by_diagnose_is_compensated_too():
     q = World.program_joints(world, 10, seed=5)
     errors = {}
     for label, result in (("extended", found.extended), ("geometric", found.geometric)):
-        world.calibration = result.calibration
+        world.calibration = as_program_tool(result.calibration)
         numbers = written_targets(world, q, program_tool, wobj)
         text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
                             wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
@@ -446,7 +457,8 @@ def test_calibrated_tool_orientation_used_only_near_the_tooldata(turn_deg, used)
     tool_xyz = np.array([120.5, 0, 210]) * MM
     measured = program_rotation @ rotation_from_rotvec(np.radians([turn_deg, 0, 0]))
     cal = dataclasses.replace(nominal_calibration(robot), tools={
-        "tGun": ToolPoint(xyz_m=tool_xyz, quat_wxyz=quat_wxyz_from_matrix(measured))})
+        "tGun": ToolPoint(xyz_m=tool_xyz, quat_wxyz=quat_wxyz_from_matrix(measured),
+                          for_programs=True)})
     text = ("MODULE M\n  PERS tooldata tGun:=[TRUE,[[120.5,0,210],[0.92388,0,0.382683,0]],"
             "[2.5,[0,0,80],[1,0,0,0],0,0,0]];\n"
             "  CONST robtarget p1:=[[1200,100,900],[0,0,1,0],[0,0,0,0],"

@@ -106,7 +106,7 @@ def compliant_world(tmp_path_factory):
                                                            for j in COMPLIANCE))
     cal = identify(ROBOT, meas, options).calibration
     tools = dict(cal.tools)
-    tools["gun"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
+    tools["gun"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m, for_programs=True)   # olp-cal tool
     cal = dataclasses.replace(cal, tools=tools)
     write_calibration(folder / "cal.json", cal)
     return virtual, cal, folder

@@ -500,7 +500,7 @@ def uf2_cell(fanuc_world):
 
     virtual, cal = fanuc_world
     tools = dict(cal.tools)
-    tools["UT3"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
+    tools["UT3"] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m, for_programs=True)
     cal = dataclasses.replace(cal, tools=tools)
     tool_mm = tuple(np.round(virtual.tools["tcp"] * 1e4) / 10) + (0.0, 0.0, 0.0)
     controller = FanucController()

@@ -29,7 +29,7 @@ from olp_compensate.kinematics.conventions import MM, invert_pose, pose_from_rot
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import load, loads
 from olp_compensate.programs.semantics import resolve_task
-from test_compensate import (NOISE_M, World, rapid_module, read_rapid_targets,
+from test_compensate import (NOISE_M, World, as_program_tool, rapid_module, read_rapid_targets,
                              written_targets)
 from test_programs_accounting import literal_places
 
@@ -63,7 +63,8 @@ class _WorldWithToolOf(World):
         self.virtual = dataclasses.replace(drawn, tools=tools,
                                            tool_rotations=dict(other.virtual.tool_rotations))
         meas = self.virtual.measure(random_joints(self.robot, 60, rng), NOISE_M, rng)
-        self.calibration = identify(self.robot, meas, IdentificationOptions(folds=0)).calibration
+        self.calibration = as_program_tool(
+            identify(self.robot, meas, IdentificationOptions(folds=0)).calibration)
         self.nominal, self.family, self.limits = other.nominal, other.family, other.limits
 
 

@@ -194,7 +194,8 @@ def test_a_value_left_out_is_inserted_as_an_attribute():
     # a real gripper 0.3 deg tilted and 0.4 mm off: every number of the point changes
     cal = nominal_calibration(ROBOT)
     tilt = np.array([math.cos(math.radians(0.15)), math.sin(math.radians(0.15)), 0.0, 0.0])
-    tools = {"tGripper[0]": ToolPoint(xyz_m=np.array([0.0004, 0.0, 0.120]), quat_wxyz=tilt)}
+    tools = {"tGripper[0]": ToolPoint(xyz_m=np.array([0.0004, 0.0, 0.120]), quat_wxyz=tilt,
+                                      for_programs=True)}
     cal = cal.__class__(**{**cal.__dict__, "tools": tools})
     texts, report = compensate_pose_program(program, VAL3, cal)
     assert next(r for r in report.rows if r.target == "pPick[0]").status in ("ok", "singular")

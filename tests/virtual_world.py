@@ -14,15 +14,16 @@ from olp_compensate.calibration.simulate import make_virtual_robot, random_joint
 
 def identified_world(robot, seed: int, tool_alias: str | None = None):
     """(virtual robot, its calibration from 60 poses at 0.01 mm noise); ``tool_alias``: the
-    program's name for the measured point 'tcp', added to the calibration's tools so the
-    program's tool finds its real TCP."""
+    program's name for the measured point 'tcp', added to the calibration's tools as a tool
+    calibrated for programs (as ``olp-cal tool`` would write it) so the program's tool finds
+    its real TCP; a measured point alone is never a program's tool."""
     virtual = make_virtual_robot(robot, seed=seed, n_points=3)
     rng = np.random.default_rng(seed)
     meas = virtual.measure(random_joints(robot, 60, rng), 0.01e-3, rng)
     cal = identify(robot, meas, IdentificationOptions(folds=0)).calibration
     if tool_alias is not None:
         tools = dict(cal.tools)
-        tools[tool_alias] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m)
+        tools[tool_alias] = ToolPoint(xyz_m=cal.tools["tcp"].xyz_m, for_programs=True)
         cal = dataclasses.replace(cal, tools=tools)
     return virtual, cal
 

@@ -22,12 +22,17 @@ class ToolPoint:
     """A calibrated tool point in the flange frame: ``xyz_m`` (3,), its standard deviation
     (3,) or None, and the tool orientation as a quaternion (w, x, y, z) when known (the
     rotation of the tool's frame in the flange frame), with ``rot_std_rad`` (3,), the
-    standard deviation of a small rotation about the tool frame's own axes, when identified."""
+    standard deviation of a small rotation about the tool frame's own axes, when identified.
+
+    ``for_programs``: a tool calibrated for programs (``olp-cal tool``), which replaces a
+    program's tool of the same name; False for a point measured for the identification
+    (a tracker target, ``tcp`` by default), which is never a program's tool."""
 
     xyz_m: np.ndarray
     std_m: np.ndarray | None = None
     quat_wxyz: np.ndarray | None = None
     rot_std_rad: np.ndarray | None = None
+    for_programs: bool = False
 
 
 @dataclass(frozen=True)

@@ -230,7 +230,7 @@ def _write(result: ToolCalibration, cal: Calibration, plan: _Plan,
         tools = dict(cal.tools)
         tools[result.name] = ToolPoint(xyz_m=np.array(result.xyz_m, dtype=float),
                                        std_m=np.array(result.xyz_std_m, dtype=float),
-                                       quat_wxyz=quat)
+                                       quat_wxyz=quat, for_programs=True)
         write_calibration(plan.calib_out, replace(cal, tools=tools))
         written.append(plan.calib_out)
     if plan.program is not None:

@@ -74,6 +74,42 @@ def _signals_as_exceptions():
         signal.signal(signal.SIGINT, previous_int)
 
 
+class _StdoutGuard:
+    """``sys.stdout`` for a run whose reader may leave early (``olp-cal ... | head -2``):
+    a write or flush that finds the pipe closed sends the rest to the null device and the
+    command goes on (its files are written, its exit code is its own)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            silence_stdout()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            silence_stdout()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def _stdout_may_close():
+    """Route ``print`` through :class:`_StdoutGuard` for the run."""
+    previous = sys.stdout
+    sys.stdout = _StdoutGuard(previous)
+    try:
+        yield
+    finally:
+        sys.stdout = previous
+
+
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings from inside numpy or scipy: one log line, no source line."""
     logging.getLogger("olp_compensate").info("%s: %s", category.__name__, message)
@@ -87,7 +123,8 @@ def run_guarded(action: Callable[[], int], verbosity: int, prog: str) -> int:
                         format=f"{prog}: %(levelname)s: %(message)s")
     forget_written()
     try:
-        with _signals_as_exceptions(), limit_threads(), warnings.catch_warnings():
+        with _signals_as_exceptions(), limit_threads(), warnings.catch_warnings(), \
+                _stdout_may_close():
             warnings.showwarning = _one_line_warning
             return action()
     except OlpError as exc:

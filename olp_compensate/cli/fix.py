@@ -126,7 +126,10 @@ def run(args, retain: list | None = None) -> int:
 
     if args.jobs is not None and args.jobs < 1:
         raise DataError(f"-j/--jobs: expected a positive number of processes, got {args.jobs}")
-    units = plan_units(args.program, args.dialect, args.output, EXTENSIONS)
+    skipped: list[str] = []
+    units = plan_units(args.program, args.dialect, args.output, EXTENSIONS, skipped)
+    for line in skipped:
+        print(f"olp-fix: warning: {line}", file=sys.stderr)
     refuse_clashes([*(("program", p) for u in units for p in u.paths), ("--model", args.model),
                     ("--robot", args.robot), ("--taught-on", args.taught_on),
                     ("--config", args.config), ("--controller", args.controller)],
@@ -171,10 +174,19 @@ def check_not_cut_short(dialect: str, paths, names) -> None:
                         f"short?); nothing written")
 
 
-def output_is_folder(args) -> bool:
-    """Whether ``-o`` names a folder mirroring the inputs (several paths, or a folder) rather
-    than one program's output file."""
-    return bool(args.output) and not (len(args.program) == 1 and Path(args.program[0]).is_file())
+def loadable_outputs(unit, data: list) -> list:
+    """The outputs' bytes with the names inside matching the file names where the
+    controller requires it (KRL ``DEF``/``DEFDAT``: see
+    :func:`~olp_compensate.compensation.files.match_krl_names`), each rename said on
+    stderr; other dialects' data as given."""
+    if unit.dialect != "krl":
+        return data
+    from ..compensation.files import match_krl_names
+
+    data, notes = match_krl_names(unit.paths, unit.outputs, data)
+    for note in notes:
+        print(f"olp-fix: warning: {note}", file=sys.stderr)
+    return data
 
 
 def make_compensator(calibration, region: str | None, controller=None, load=None):
@@ -219,10 +231,11 @@ def _run_one(args, unit, retain: list | None) -> int:
         retain += [result, report]
     if not report.rows:
         check_not_cut_short(unit.dialect, unit.paths, unit.names)   # data-only: written as is
-    if output_is_folder(args):           # -o OUTDIR mirrors the input tree
+    if unit.mirrored:                    # -o OUTDIR (or FOLDER_compensated) mirrors the input
         for out in unit.outputs:
             out.parent.mkdir(parents=True, exist_ok=True)
-    files = [(out, result.pieces(i)) for i, out in enumerate(unit.outputs)]
+    files = list(zip(unit.outputs, loadable_outputs(
+        unit, [result.pieces(i) for i in range(len(unit.outputs))])))
     if args.report:
         files.append((Path(args.report), (piece.encode("utf-8")
                                           for piece in report.csv_chunks())))

@@ -62,6 +62,28 @@ def _compensator_for(dialect: str, paths, names):
     return _STATE["loaded"][key], load, notes
 
 
+def _start_pool_worker(parent: int, *init) -> None:
+    """A pool worker's start: it dies with ``parent`` (this olp-fix), then
+    :func:`_start_worker`."""
+    _end_with(parent)
+    _start_worker(*init)
+
+
+def _end_with(parent: int) -> None:
+    """Have the kernel kill this worker when its parent ``parent`` dies, even by SIGKILL
+    (Linux ``prctl(PR_SET_PDEATHSIG)``): a killed olp-fix leaves no worker reading on."""
+    import ctypes
+    import signal
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)   # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):   # no prctl (not Linux): the pool ends its workers
+        return
+    if os.getppid() != parent:          # the parent died before prctl took effect
+        os._exit(1)
+
+
 def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
     """Compensate one unit in this process (see :func:`_start_worker`)."""
     from ..compensation.files import ProgramFiles, compensate_files
@@ -103,8 +125,8 @@ def _outcomes(args, units):
         return
     _warm(units, init)       # forked workers inherit the imports, the parsers, the model
     order = sorted(range(len(units)), key=lambda k: -_size(units[k]))   # largest first
-    with ProcessPoolExecutor(max_workers=jobs, initializer=_start_worker,
-                             initargs=init) as pool:
+    with ProcessPoolExecutor(max_workers=jobs, initializer=_start_pool_worker,
+                             initargs=(os.getpid(), *init)) as pool:
         futures = [pool.submit(_work, k, units[k].dialect, tuple(map(str, units[k].paths)),
                                units[k].names) for k in order]
         for future in as_completed(futures):
@@ -208,7 +230,7 @@ def run_batch(args, units) -> int:
     unit's outputs and spool its report rows as it completes (memory bounded by the largest
     program, not the sum), then the one report in the input order; print the table."""
     from ..io.atomic import write_files_atomic
-    from .fix import load_calibrations, output_is_folder
+    from .fix import load_calibrations, loadable_outputs
     from .fix_models import read_controller, warn_ur
 
     started = time.perf_counter()
@@ -220,11 +242,12 @@ def run_batch(args, units) -> int:
     try:
         for outcome in _outcomes(args, units):
             if outcome.error is None:
-                outputs = units[outcome.index].outputs
-                if output_is_folder(args):          # -o OUTDIR mirrors the input tree
-                    for out in outputs:
+                unit = units[outcome.index]
+                if unit.mirrored:                     # -o OUTDIR (or F_compensated) mirrors F
+                    for out in unit.outputs:
                         out.parent.mkdir(parents=True, exist_ok=True)
-                write_files_atomic(list(zip(outputs, outcome.data)))
+                write_files_atomic(list(zip(unit.outputs,
+                                            loadable_outputs(unit, list(outcome.data)))))
                 if args.report:
                     spool.add(outcome.index, outcome.report)
             summaries[outcome.index] = _summary_of(outcome)

@@ -26,6 +26,8 @@ from ..programs.targets import Edit
 from .dialect_rules import ArmGeometry, DialectRules
 from .ik import closed_form_inverse
 from .pose import Compensator, explain_failures
+from .program_tools import program_tool as calibrated_program_tool
+from .program_tools import program_tool_note
 from .report import CompensationReport, TargetReport
 
 _GEOMETRY: dict[int, ArmGeometry] = {}
@@ -58,27 +60,26 @@ class FrameLookup:
                      f"of that name in calib.json"
 
     def _calibrated(self, key: str) -> np.ndarray | None:
-        for name in _names_of(key):
-            for cal_name, tool in self.calibration.tools.items():
-                if cal_name.lower() == name.lower():
-                    rotation = (np.eye(3) if tool.quat_wxyz is None
-                                else matrix_from_quat_wxyz(tool.quat_wxyz))
-                    return pose_from_rotation_translation(rotation, tool.xyz_m)
-        return None
+        found = calibrated_program_tool(self.calibration, _names_of(key))
+        if found is None:
+            return None
+        tool = found[1]
+        rotation = np.eye(3) if tool.quat_wxyz is None else matrix_from_quat_wxyz(tool.quat_wxyz)
+        return pose_from_rotation_translation(rotation, tool.xyz_m)
 
     def real_tool(self, key: str | None, program_tool: np.ndarray) -> tuple[np.ndarray, str]:
         """The real tool: a calibrated tool of the reference's name (its point; the program
         tool's orientation where the calibration has none), else the program's."""
         if key is None:
             return program_tool, ""
-        for name in _names_of(key):
-            for cal_name, tool in self.calibration.tools.items():
-                if cal_name.lower() == name.lower():
-                    rotation = (program_tool[:3, :3] if tool.quat_wxyz is None
-                                else matrix_from_quat_wxyz(tool.quat_wxyz))
-                    return (pose_from_rotation_translation(rotation, tool.xyz_m),
-                            f"real TCP of {key} from the calibration")
-        return program_tool, ""
+        found = calibrated_program_tool(self.calibration, _names_of(key))
+        if found is None:
+            return program_tool, ""
+        cal_name, tool = found
+        rotation = (program_tool[:3, :3] if tool.quat_wxyz is None
+                    else matrix_from_quat_wxyz(tool.quat_wxyz))
+        return (pose_from_rotation_translation(rotation, tool.xyz_m),
+                program_tool_note(key, cal_name))
 
 
 def _names_of(key: str) -> list[str]:

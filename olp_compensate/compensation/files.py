@@ -10,13 +10,17 @@ new bytes of each file and one report whose rows name the files as the user know
 from __future__ import annotations
 
 import functools
+import math
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..calibration.calibration import Calibration
-from ..errors import DataError, ParseError
+from ..errors import DataError, ModelError, ParseError
 from .pose import Compensator
 from .report import CompensationReport
 
@@ -104,6 +108,21 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     """
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     texts = [_read(p) for p in files.paths]
+    if files.dialect == "rapid" and len(texts) > 1:
+        from .unreadable import compensate_readable
+
+        return compensate_readable(
+            texts, files.names, lambda keep: _compensate_texts(
+                ProgramFiles(files.dialect, tuple(files.paths[k] for k in keep),
+                             tuple(files.names[k] for k in keep)),
+                [texts[k] for k in keep], comp, emit, unused, taught_on, frames_path, jobs),
+            ENCODING)
+    return _compensate_texts(files, texts, comp, emit, unused, taught_on, frames_path, jobs)
+
+
+def _compensate_texts(files: ProgramFiles, texts: list[str], comp: Compensator, emit: str,
+                      unused: str, taught_on, frames_path, jobs: int) -> FilesResult:
+    """:func:`compensate_files` of the decoded ``texts`` of ``files``."""
     if files.dialect == "rapid" and emit == "pose":
         from .module_columns import compensate_rapid_task
         from .program import check_options
@@ -120,6 +139,8 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
         programs = [loads(t, files.dialect, n) for t, n in zip(texts, files.names)]
         new, report = compensate_task(programs, comp, emit=emit, unused=unused,
                                       taught_on=taught_on)
+        if files.dialect == "vplus":
+            check_taught_joints(report, comp.robot)
         return FilesResult(new=tuple(t.encode(ENCODING) for t in new), report=report)
     if emit != "pose":
         raise DataError(f"{files.names[0]}: emit={emit!r}: joint targets are written for "
@@ -130,6 +151,74 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     new, report = compensate_pose_program(program, rules, comp, taught_on=taught_on)
     return FilesResult(new=tuple(new[name].encode(ENCODING) for name in files.names),
                        report=report)
+
+
+KRL_NAME_LIMIT = 24
+"""Characters of a KRL name (KSS refuses longer module names)."""
+
+
+def match_krl_names(paths, outputs, data: list[bytes]) -> tuple[list[bytes], list[str]]:
+    """KRL files' new bytes with the main ``DEF`` (``.src``) and the ``DEFDAT`` (``.dat``)
+    renamed after the output file when its name differs from the input's (KSS loads a
+    module only when the names inside match the file names); every other byte kept.
+    Returns ``(data, notes)``: one note per file renamed, and per name KSS would refuse."""
+    new, notes = [], []
+    for path, out, text in zip(paths, outputs, data):
+        old_name, new_name = Path(path).stem, Path(out).stem
+        if old_name.lower() == new_name.lower():
+            new.append(text)
+            continue
+        word = "DEFDAT" if Path(path).suffix.lower() == ".dat" else "DEF"
+        pattern = (rb"^([ \t]*DEFDAT[ \t]+)(%s)(?![\w$])" if word == "DEFDAT" else
+                   rb"^([ \t]*(?:GLOBAL[ \t]+)?DEF(?:FCT[ \t]+[\w$]+(?:\[[^\]\r\n]*\])?)?"
+                   rb"[ \t]+)(%s)(?=[ \t]*\()")
+        found = re.compile(pattern % re.escape(old_name.encode("latin-1")),
+                           re.IGNORECASE | re.MULTILINE).search(text)
+        if found is None:
+            new.append(text)
+            continue
+        new.append(text[:found.start(2)] + new_name.encode("latin-1") + text[found.end(2):])
+        notes.append(f"{out}: {word} {found.group(2).decode('latin-1')} renamed {new_name} "
+                     f"to match the file name (KSS loads a module only so); programs that "
+                     f"call it by the old name need the new one")
+        if not re.fullmatch(r"[A-Za-z_$][\w$]{0,%d}" % (KRL_NAME_LIMIT - 1), new_name,
+                            re.ASCII):
+            notes.append(f"{out}: {new_name!r} is no KRL name KSS accepts (a letter or _ "
+                         f"first, at most {KRL_NAME_LIMIT} letters, digits or _): choose a "
+                         f"shorter output name with -o")
+    return new, notes
+
+
+JOINT_SLACK_DEG = 1.0
+"""A taught joint value this far outside a controller axis range (deg, or mm) is out."""
+
+
+def check_taught_joints(report: CompensationReport, robot) -> None:
+    """:class:`ModelError` when a precision point of the program (joints as taught, a
+    ``joint_target`` row) cannot be of the calibration's robot: fewer values than its axes
+    (a 6-axis program against a 7-axis arm; more are external axes, see
+    :func:`.task._external_axes_in_notes`), or a value outside a controller axis range
+    (a PUMA's ``#ready`` on an IRB 2400): the program is for another robot."""
+    ranges = robot.controller_ranges
+    scale = np.array([1e3 if j.kind == "prismatic" else math.degrees(1.0)
+                      for j in robot.joints])
+    low, high = ranges[:, 0] * scale - JOINT_SLACK_DEG, ranges[:, 1] * scale + JOINT_SLACK_DEG
+    for row in report.rows:
+        if row.status != "joint_target" or not row.joints:
+            continue
+        where = f"{row.file}:{row.line}:{row.column}: {row.target}"
+        if len(row.joints) < robot.n_joints:
+            raise ModelError(f"{where}: {len(row.joints)} joint values, but the calibration's "
+                             f"robot {robot.name} has {robot.n_joints} axes: the program is "
+                             f"for another robot")
+        q = np.asarray(row.joints, float)
+        out = np.flatnonzero((q < low) | (q > high))
+        if len(out):
+            k = int(out[0])
+            raise ModelError(f"{where}: axis {k + 1} at {q[k]:g} is outside {robot.name}'s "
+                             f"range {low[k] + JOINT_SLACK_DEG:g}..{high[k] - JOINT_SLACK_DEG:g}"
+                             f": the program was taught on another robot (its header may "
+                             f"say so: '; olp-robot: NAME')")
 
 
 def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):

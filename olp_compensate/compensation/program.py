@@ -40,6 +40,7 @@ from .confdata import vplus_configuration
 from .ik import OPWParameters
 from .pose import COMPENSATED, Compensator, explain_failures
 from .program_edits import program_edits
+from .program_tools import program_tool, program_tool_note
 from .report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
                      config_texts, failure_row, joint_target_row, motion_row, row_name,
                      solved_note, written_row)
@@ -55,26 +56,26 @@ TOOL_FRAME_SLACK_RAD = math.radians(5.0)
 _SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree within this
 
 
-def _real_tool(calibration: Calibration, name: str, program_tool: np.ndarray):
-    """flange_T_tool of the real robot for the program tool ``name``, and a note.
+def _real_tool(calibration: Calibration, name: str, tooldata: np.ndarray):
+    """flange_T_tool of the real robot for the program tool ``name`` (``tooldata``), and a
+    note: a tool calibrated for programs of that name (:mod:`.program_tools`), else none.
 
     A calibrated orientation more than :data:`TOOL_FRAME_SLACK_RAD` from the tooldata's is
     the frame of the measuring device's probe, not the tool's axes: the tooldata's
     orientation is kept then (and the note says so)."""
-    for cal_name, tool in calibration.tools.items():
-        if cal_name.lower() == name.lower():
-            note = f"real TCP of {name} from the calibration"
-            rotation = program_tool[:3, :3]
-            if tool.quat_wxyz is not None:
-                measured = matrix_from_quat_wxyz(tool.quat_wxyz)
-                apart = float(rotation_angle_between(measured, rotation))
-                if apart <= TOOL_FRAME_SLACK_RAD:
-                    rotation = measured
-                else:
-                    note += (f" (its measured frame is {math.degrees(apart):.1f} deg from the "
-                             f"tooldata's: the tooldata's orientation kept)")
-            return pose_from_rotation_translation(rotation, tool.xyz_m), note
-    return program_tool, ""
+    found = program_tool(calibration, [name])
+    if found is None:
+        return tooldata, ""
+    note, tool, rotation = program_tool_note(name, found[0]), found[1], tooldata[:3, :3]
+    if tool.quat_wxyz is not None:
+        measured = matrix_from_quat_wxyz(tool.quat_wxyz)
+        apart = float(rotation_angle_between(measured, rotation))
+        if apart <= TOOL_FRAME_SLACK_RAD:
+            rotation = measured
+        else:
+            note += (f" (its measured frame is {math.degrees(apart):.1f} deg from the "
+                     f"tooldata's: the tooldata's orientation kept)")
+    return pose_from_rotation_translation(rotation, tool.xyz_m), note
 
 
 def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
@@ -373,8 +374,8 @@ def _regions(comp: Compensator, res, job: list[int], requested: np.ndarray):
 
 
 def _calibrated_tool_key(calibration: Calibration, name: str) -> str | None:
-    """The calibration's name of the tool the program calls ``name`` (case-insensitive)."""
-    return next((key for key in calibration.tools if key.lower() == name.lower()), None)
+    """The calibration's name of the program tool the program calls ``name``, or None."""
+    return (program_tool(calibration, [name]) or (None,))[0]
 
 
 def _aim(comp: Compensator, res, job: list[int], requested: np.ndarray,

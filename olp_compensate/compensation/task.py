@@ -74,10 +74,23 @@ def compensate_task(programs: list[Program], calibration: Calibration | Compensa
         rows += done.rows
         warnings += done.warnings
         edits += done.edits
+    _external_axes_in_notes(rows, comp.robot.n_joints)
     report = CompensationReport(file=programs[0].file, rows=tuple(rows),
                                 warnings=tuple(warnings), n_joints=comp.robot.n_joints,
                                 emit=emit, edits=edits)
     return texts, report
+
+
+def _external_axes_in_notes(rows: list, n_joints: int) -> None:
+    """Joint-target rows with more values than the robot has axes (a Kawasaki AS step
+    ``#[j1,...,j7]`` of a 6-axis arm with a seventh, external axis): the report's columns
+    hold the robot's axes, the others go to the note (the program keeps them as written)."""
+    for row in rows:
+        if row.status == "joint_target" and len(row.joints) > n_joints:
+            extra = ", ".join(f"{v:g}" for v in row.joints[n_joints:])
+            row.joints = row.joints[:n_joints]
+            row.note += (f"; values beyond axis {n_joints} ({extra}): external axes, kept "
+                         f"as written")
 
 
 def _calls_to_task_routines(programs: list[Program]) -> list[Program]:

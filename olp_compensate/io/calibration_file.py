@@ -12,6 +12,11 @@ and ``"rot_std_deg"`` (standard deviation of a small rotation about the tool's o
 validation then has ``orientation_rms_deg``, ``orientation_max_deg`` and their held-out
 counterparts. These keys are optional: files without them read as before.
 
+A tool calibrated for programs (``olp-cal tool``) has ``"for_programs": true``: only such a
+tool replaces a program's tool of its name in olp-fix. A tool without the key (every point
+of an identification, and every file written before the key existed) is a measured point,
+never a program's tool.
+
 A calibration with local models per region (``olp-cal identify --per-region``) also has
 ``"regions"``: a list of ``{"name", "volume": {"min_mm", "max_mm", "margin_mm"} (an
 axis-aligned box in the base frame of the global calibration), "model", "device_T_base",
@@ -95,6 +100,8 @@ def _model_to_dict(cal: Calibration) -> dict:
     for name, t in cal.tools.items():
         if t.rot_std_rad is not None:
             tools[name]["rot_std_deg"] = np.degrees(np.asarray(t.rot_std_rad)).tolist()
+        if t.for_programs:
+            tools[name]["for_programs"] = True
     validation = None
     if cal.validation is not None:
         v = cal.validation
@@ -239,7 +246,8 @@ def _model_from_dict(doc: dict, embedded: Robot, source: str) -> Calibration:
             xyz_m=np.array(t["xyz_mm"]) * 1e-3,
             std_m=None if t.get("std_mm") is None else np.array(t["std_mm"]) * 1e-3,
             quat_wxyz=None if t.get("quat_wxyz") is None else np.array(t["quat_wxyz"]),
-            rot_std_rad=None if t.get("rot_std_deg") is None else np.radians(t["rot_std_deg"]))
+            rot_std_rad=None if t.get("rot_std_deg") is None else np.radians(t["rot_std_deg"]),
+            for_programs=bool(t.get("for_programs", False)))
     v = doc.get("validation")
     validation = None if v is None else Validation(
         method=v["method"], poses=v["poses"], residual_rms_mm=v["residual_rms_mm"],

@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import DataError
 from .emit import target_edits
 from .number_format import DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, format_finite
+from .regex_compat import portable
 from .targets import QUAT_WXYZ, Edit, Program
 
 
@@ -189,7 +190,7 @@ class _PlainRun:
         self.first, self.last = cols[0], cols[-1]
         # possessive: a number takes its whole digit run, as the parser's does (the
         # backtracking form spent 170 us failing each exponent-style span, 1.5E0)
-        plain = [r"-?\d++(?:\.\d{0,%d})?+" % d for d in decimals]
+        plain = [portable(r"-?\d++(?:\.\d{0,%d})?+" % d) for d in decimals]   # .regex_compat
         self.pattern = re.compile("(" + ")([^-+.0-9]*+)(".join(plain) + ")")
         self.templates: dict[tuple[str, ...], str] = {}
 

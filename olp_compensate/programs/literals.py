@@ -13,12 +13,14 @@ import re
 from dataclasses import dataclass
 
 from .grammar import LineIndex, error_at
+from .regex_compat import portable
 from .targets import Number
 
 NUMBER_PATTERN = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 NUMBER_RE = re.compile(NUMBER_PATTERN)
-NUMBER_GROUP = r"([-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+)"
-"""NUMBER_PATTERN, possessive, as one capturing group (a number of a record literal)."""
+NUMBER_GROUP = portable(r"([-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+)")
+"""NUMBER_PATTERN, possessive, as one capturing group (a number of a record literal);
+atomic groups where ``re`` gets possessive groups wrong (:mod:`.regex_compat`)."""
 _N = NUMBER_GROUP
 _S = r"[ \t\r\n\f]*+"
 _make_number = Number._make

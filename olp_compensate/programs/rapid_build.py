@@ -261,8 +261,10 @@ class Builder(PositionedBuilder):
     def _other_call(self, rec: CallRecord, routine) -> None:
         """A call that is no motion instruction known here: robtargets handed to an
         instruction that is neither known nor a routine of this module are reported
-        'unknown_instruction'; names handed to a routine are references."""
-        known = rec.name == "%" or rec.name.lower() in self.routine_names
+        'unknown_instruction'; names handed to a routine are references. ``RETURN v`` of a
+        FUNC is no instruction: its value goes to the caller (a reference, no problem)."""
+        known = (rec.name == "%" or rec.name.lower() in self.routine_names
+                 or rec.name.upper() == "RETURN")
         context = "late-bound call" if rec.name == "%" else rec.name
         values = list(rec.positional) + [o.value for o in rec.opts if o.value is not None]
         for value in values:
@@ -271,10 +273,24 @@ class Builder(PositionedBuilder):
                 self.references.append(NameReference(
                     name=v.name, index=self._index(v), location=self.loc(v.start),
                     context=context, routine=routine))
-                if not known and v.name.lower() in self.robtarget_names:
+                if not known and self._robtarget_here(v.name.lower(), routine):
                     self._unknown_instruction(rec, self.text[v.start:v.end], v.start)
             elif v.kind == "aggregate" and not known and self._is_robtarget(v):
                 self._unknown_instruction(rec, "<inline>", v.start)
+
+    def _robtarget_here(self, low: str, routine) -> bool:
+        """Whether the name ``low`` is a robtarget in ``routine``: declared a robtarget in
+        the module and not shadowed there by a routine declaration of another type (a
+        FUNC's ``VAR num result`` beside another routine's ``VAR robtarget result``)."""
+        if low not in self.robtarget_names:
+            return False
+        if routine is None:
+            return True
+        span = next(((r.start, r.end) for r in self.routine_records if r.name == routine),
+                    None)
+        local = [d for d in self.sink.decls if d.name.lower() == low and span is not None
+                 and span[0] <= d.start < span[1]]
+        return not local or any(self.base_type(d.type_name) == "robtarget" for d in local)
 
     def _unknown_instruction(self, rec: CallRecord, shown: str, offset: int) -> None:
         self.problems.append(TargetProblem(

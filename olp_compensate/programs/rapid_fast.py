@@ -18,6 +18,7 @@ from lark import Token
 
 from .grammar import current_sink
 from .literals import NUMBER_GROUP, ROBTARGET_PATTERN
+from .regex_compat import portable
 from .rapid_records import Arg, Decl, Ex, Opt, Sink, call_record_of
 from .targets import QUAT_WXYZ, CartesianTarget, MotionUse
 
@@ -29,7 +30,7 @@ from .targets import QUAT_WXYZ, CartesianTarget, MotionUse
 
 # blanks and comments, possessive: at the end of a pattern (its only use) the same match as
 # greedy, without backtracking state
-_SEP = r"(?:[ \t\r\n\f]++|![^\r\n]*+)*+"
+_SEP = portable(r"(?:[ \t\r\n\f]++|![^\r\n]*+)*+")   # (see .regex_compat)
 _SEP_RE = re.compile(_SEP)
 _FAST_DECL = re.compile(
     r"(?:(LOCAL|TASK)[ \t]+)?(CONST|PERS|VAR)[ \t]+([A-Za-z_][A-Za-z0-9_]*)[ \t]+"
@@ -180,9 +181,9 @@ def _leave_routine(tok: Token) -> Token:
     return tok
 
 
-_VAL = (r"-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
-        r"(?:\{[^{}]*\})?|\[(?:[^\[\]]++|\[[^\[\]]*+\])*+\]|\*"
-        r"|[A-Za-z_]\w*\((?:[^()]++|\((?:[^()]++|\([^()]*+\))*+\))*+\)")
+_VAL = portable(r"-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+                r"(?:\{[^{}]*\})?|\[(?:[^\[\]]++|\[[^\[\]]*+\])*+\]|\*"
+                r"|[A-Za-z_]\w*\((?:[^()]++|\((?:[^()]++|\([^()]*+\))*+\))*+\)")
 _FAST_ITEM = re.compile(r"""
     [ \t]*(?:
       \\(?P<opt>[A-Za-z_]\w*)(?:[ \t]*(?P<op>:=|\?)[ \t]*(?P<oval>VAL))?
@@ -231,8 +232,8 @@ def value_ex(text: str, start: int, end: int) -> Ex:
 # instruction, target (name, index), tool, wobj, () where the arguments end; the same with
 # an inline robtarget (as RoboDK writes them): instruction, literal and its 17 numbers,
 # tool, wobj, () where the arguments end
-_PLAIN = (r"(?:[A-Za-z_][A-Za-z0-9_]*+(?:\.[A-Za-z_][A-Za-z0-9_]*+)*+"
-          r"|(?:\d++\.?+\d*+|\.\d++)(?:[eE]\d++)?+)")  # a name (field chain) or a number
+_PLAIN = portable(r"(?:[A-Za-z_][A-Za-z0-9_]*+(?:\.[A-Za-z_][A-Za-z0-9_]*+)*+"
+                  r"|(?:\d++\.?+\d*+|\.\d++)(?:[eE]\d++)?+)")  # a name (field chain), a number
 _MOVE_TAIL = (r"[ \t]*,[ \t]*" + _PLAIN + r"[ \t]*,[ \t]*" + _PLAIN + r"[ \t]*,[ \t]*"
               r"([A-Za-z_][A-Za-z0-9_]*)"
               r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?()[ \t]*;" + _SEP)

@@ -15,6 +15,7 @@ uncompensated miss. Numbers over the workspace are the benchmark's
 
 import argparse
 import contextlib
+import dataclasses
 import io
 import math
 
@@ -152,6 +153,11 @@ def rapid_module(targets, tool: np.ndarray) -> str:
 def test_compensated_program_brings_the_real_camera_to_its_targets(pipeline):
     robot, virtual = pipeline["robot"], pipeline["virtual"]
     calibration = pipeline["result"].calibration
+    # the camera point, calibrated for programs too (as olp-cal tool marks a tool): only
+    # such a tool replaces the program's tooldata 'camera'
+    tools = dict(calibration.tools)
+    tools[CAMERA_TOOL] = dataclasses.replace(tools[CAMERA_TOOL], for_programs=True)
+    calibration = dataclasses.replace(calibration, tools=tools)
     n = robot.n_joints
     nominal = VirtualRobot(robot, np.zeros((n, 6)), np.zeros(n), np.eye(4), {})
     family = fit_family(lambda q: nominal.flange_poses(robot.controller_from_joints(q)))
