@@ -48,10 +48,11 @@ QUADRANT_TOLERANCE = np.pi / 4
 configuration (as the solver's ``quadrant_tolerance``); the quadrant written is then the
 one it is in (:mod:`.confdata`)."""
 
-Asked = Callable[[np.ndarray, np.ndarray], np.ndarray]
-"""``asked(q (k, b, n) controller rad, usable (k, b) bool) -> (k, n)``: for each row, the
-joints among its usable candidates that are on the configuration the program asks for
-(turned as the controller turns them, inside every range), NaN where none is."""
+Asked = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+"""``asked(rows (k,) int, q (k, b, n) controller rad, usable (k, b) bool) -> (k, n)``: for
+each of ``rows`` (indices into the batch solved), the joints among its usable candidates
+that are on the configuration the program asks for (turned as the controller turns them),
+NaN where none is."""
 
 
 @dataclass(frozen=True)
@@ -136,24 +137,24 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
 
 
 def confdata_asked(comp: Compensator, confdata: np.ndarray | None) -> Asked:
-    """The :data:`Asked` predicate of ABB confdata ``(k, 4)`` (None: any configuration
-    is the one asked for): same cfx, and axes 1, 4 and 6 each turned (inside its range)
+    """The :data:`Asked` predicate of ABB confdata ``(m, 4)`` of the batch (None: any
+    configuration is the one asked for): same cfx, and axes 1, 4 and 6 each turned (inside its range)
     to within :data:`QUADRANT_TOLERANCE` of its asked quadrant. The first such candidate
     nearest zero is taken."""
     robot = comp.robot
 
-    def asked(q: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    def asked(rows: np.ndarray, q: np.ndarray, usable: np.ndarray) -> np.ndarray:
         k, b, n = q.shape
         out = np.full((k, n), np.nan)
         flat = q.reshape(-1, n)
         match = usable.reshape(-1).copy()
         turned = flat.copy()
         if confdata is not None and np.any(match):
-            want = np.repeat(np.asarray(confdata, dtype=int), b, axis=0)
-            rows = np.flatnonzero(match)
-            turned[rows], on = _on_quadrants(robot, flat[rows], want[rows, :3])
-            cfx = comp.confdata(robot.joints_from_controller(turned[rows]))[:, 3]
-            match[rows] = on & (cfx == want[rows, 3])
+            want = np.repeat(np.asarray(confdata, dtype=int)[rows], b, axis=0)
+            some = np.flatnonzero(match)
+            turned[some], on = _on_quadrants(robot, flat[some], want[some, :3])
+            cfx = comp.confdata(robot.joints_from_controller(turned[some]))[:, 3]
+            match[some] = on & (cfx == want[some, 3])
         norm = np.where(match, np.nansum(turned ** 2, axis=1), np.inf).reshape(k, b)
         pick = np.argmin(norm, axis=1)
         found = np.isfinite(norm[np.arange(k), pick])
@@ -199,14 +200,18 @@ def decide(comp: Compensator, solution: IKSolution, desired: np.ndarray,
     if not len(failed):
         return solution
     robot = comp.robot
-    conf = None if confdata is None else np.asarray(confdata, dtype=int).reshape(m, 4)[failed]
+    conf = None if confdata is None else np.asarray(confdata, dtype=int).reshape(m, 4)
     predicate = asked if asked is not None else confdata_asked(comp, conf)
     own = solution.q[failed].copy()
     own[np.isin(solution.reason[failed], ("unreachable",))] = np.nan
     found = search(comp, desired[failed], own)
-    on_asked_q = predicate(found.q, found.inside)
+    on_asked_q = predicate(failed, found.q, found.inside)
+    picked = np.all(np.isfinite(on_asked_q), axis=1)
+    if np.any(picked):       # a predicate turns axes as its controller does: still inside?
+        outside = robot.outside_ranges(on_asked_q[picked]).any(axis=1)
+        on_asked_q[np.flatnonzero(picked)[outside]] = np.nan
     # the same predicate, ranges aside: is the out-of-range solution the asked one?
-    any_q = predicate(found.q, found.reached)
+    any_q = predicate(failed, found.q, found.reached)
     for i, row in enumerate(failed.tolist()):
         q, reason, j, as_asked = _rule_for_row(found, i, on_asked_q[i], any_q[i],
                                                str(solution.reason[row]))

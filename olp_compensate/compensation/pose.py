@@ -138,17 +138,18 @@ class Compensator:
         return flange, jac
 
     def solve_real(self, base_T_flange: np.ndarray, confdata: np.ndarray | None, *,
-                   retries: bool = True) -> IKSolution:
+                   retries: bool = True, asked=None) -> IKSolution:
         """Joints (URDF axes) at which the calibrated arm reaches ``base_T_flange``
         (m, 4, 4), on ``confdata`` (m, 4) (None: nearest to zero, any configuration), to
         1e-9 m and 1e-9 rad, inside the URDF limits and the controller's axis ranges
         (:meth:`check_axis_ranges`); ``retries`` as :func:`~.ik.solve`. With ``retries``,
         the rows not reached as asked get their status by the configuration rule
-        (:func:`~.config_rule.decide`)."""
+        (:func:`~.config_rule.decide`; ``asked``: its predicate of the configuration asked
+        for, default ``confdata``'s)."""
         solution = self.check_axis_ranges(solve(self.family, self.real_flange_and_jacobian,
                                                 base_T_flange, confdata, self.limits,
                                                 reach=self.reach, retries=retries))
-        return decide(self, solution, base_T_flange, confdata) if retries else solution
+        return decide(self, solution, base_T_flange, confdata, asked) if retries else solution
 
     def check_axis_ranges(self, solution: IKSolution) -> IKSolution:
         """``solution`` with every reached row whose controller axes lie outside the
@@ -217,12 +218,14 @@ class Compensator:
 
     def compensate_flanges(self, desired_real_flange: np.ndarray,
                            requested_flange: np.ndarray | None = None,
-                           confdata: np.ndarray | None = None, *, retries: bool = True):
+                           confdata: np.ndarray | None = None, *, retries: bool = True,
+                           asked=None):
         """Solve the real arm for ``desired_real_flange`` (m, 4, 4); return
         (joints URDF (m, n), nominal flange at those joints (m, 4, 4), IKSolution,
         nominal joints of ``requested_flange`` (URDF, m, n) or None). ``retries`` as
         :func:`~.ik.solve`; with them, the failed rows' status is the configuration rule's
-        (:func:`~.config_rule.decide`), without them it is left for the caller's retry."""
+        (:func:`~.config_rule.decide`, ``asked`` its predicate of the configuration asked
+        for, default ``confdata``'s), without them it is left for the caller's retry."""
         if (requested_flange is not None and confdata is not None
                 and np.shape(requested_flange) == np.shape(desired_real_flange)
                 and np.array_equal(requested_flange, desired_real_flange)):
@@ -232,9 +235,10 @@ class Compensator:
                 self.limits, reach=self.reach, retries=retries)
             solution = self.check_axis_ranges(solution)
             if retries:
-                solution = decide(self, solution, desired_real_flange, confdata)
+                solution = decide(self, solution, desired_real_flange, confdata, asked)
         else:
-            solution = self.solve_real(desired_real_flange, confdata, retries=retries)
+            solution = self.solve_real(desired_real_flange, confdata, retries=retries,
+                                       asked=asked)
             nominal = None
             if requested_flange is not None:
                 nominal = self.solve_nominal(requested_flange, confdata)
