@@ -397,3 +397,23 @@ def test_reported_joints_of_golden_and_task_programs_are_in_range():
             if row.status in ("joint_limit", "branch_changed", "unreachable", "not_converged"):
                 _joints_shown_are_wrapped(row.note, robot)
     assert seen > 20
+
+
+def test_urscript_targets_5_m_away_are_unreachable_and_the_rest_ok():
+    """URScript writes no configuration: a pose 5 m away is 'unreachable' (never
+    'branch_changed'), its neighbours in the script stay 'ok'; joints in notes wrapped."""
+    import test_programs_urscript as ur_case
+    from olp_compensate.compensation.rules_urscript import URSCRIPT
+    from olp_compensate.programs.urscript import parse_urscript
+
+    q = ur_case._walk(3, 2)
+    poses = ur_case._targets_at(q)
+    poses[1] = poses[1].copy()
+    poses[1][:3] = [5.0, 0.0, 0.5]
+    program = parse_urscript(ur_case.script(poses, q), "cell.script")
+    _, report = compensate_pose_program(program, URSCRIPT, nominal_calibration(ur_case.ROBOT))
+    statuses = {r.target: r.status for r in report.rows if r.status != "joint_target"}
+    assert statuses == {"Waypoint_1_p": "ok", "Waypoint_2_p": "unreachable",
+                        "<inline>": "ok"}, report.rows
+    for row in report.rows:
+        _joints_shown_are_wrapped(row.note, ur_case.ROBOT)
