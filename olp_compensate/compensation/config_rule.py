@@ -43,6 +43,8 @@ __all__ = ["Candidates", "search", "decide", "confdata_asked", "turn_toward_rang
 
 SEARCH_STEPS = 60
 """Newton steps of each start of the search (a start that stalls stops after 20)."""
+SEARCH_BLOCK = 2048
+"""Failed targets searched together (nine starts each): bounds the search's memory."""
 QUADRANT_TOLERANCE = np.pi / 4
 """An axis 1, 4 or 6 this far (rad) outside the asked quadrant is still on the asked
 configuration (as the solver's ``quadrant_tolerance``); the quadrant written is then the
@@ -199,11 +201,19 @@ def decide(comp: Compensator, solution: IKSolution, desired: np.ndarray,
     failed = np.flatnonzero(~solution.success)
     if not len(failed):
         return solution
-    robot = comp.robot
     conf = None if confdata is None else np.asarray(confdata, dtype=int).reshape(m, 4)
     predicate = asked if asked is not None else confdata_asked(comp, conf)
+    for start in range(0, len(failed), SEARCH_BLOCK):
+        _decide_rows(comp, solution, desired, failed[start:start + SEARCH_BLOCK], predicate)
+    return solution
+
+
+def _decide_rows(comp: Compensator, solution: IKSolution, desired: np.ndarray,
+                 failed: np.ndarray, predicate: Asked) -> None:
+    """:func:`decide` of the rows ``failed`` of ``solution`` (changed in place)."""
+    robot = comp.robot
     own = solution.q[failed].copy()
-    own[np.isin(solution.reason[failed], ("unreachable",))] = np.nan
+    own[solution.reason[failed] == "unreachable"] = np.nan
     found = search(comp, desired[failed], own)
     on_asked_q = predicate(failed, found.q, found.inside)
     picked = np.all(np.isfinite(on_asked_q), axis=1)
@@ -222,7 +232,6 @@ def decide(comp: Compensator, solution: IKSolution, desired: np.ndarray,
             solution.q[row] = robot.joints_from_controller(q[None])[0]
             solution.position_error_m[row] = found.position_error_m[i, j]
             solution.rotation_error_rad[row] = found.rotation_error_rad[i, j]
-    return solution
 
 
 def _rule_for_row(found: Candidates, i: int, on_asked: np.ndarray, asked_any: np.ndarray,
