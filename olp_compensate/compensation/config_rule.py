@@ -69,6 +69,9 @@ class Candidates:
         'not_converged').
     position_error_m, rotation_error_rad : (k, b) where each start stopped.
     excess : (k, b) how far past the ranges and limits (rad/m, summed over axes).
+    cfx : (k, b) int, the configuration number (branch) of ``q``, -1 where not reached.
+    cfx_of : controller joints (n,) -> their configuration number.
+    own : whether the last start is the solver's own iterate.
     """
 
     q: np.ndarray
@@ -78,6 +81,9 @@ class Candidates:
     position_error_m: np.ndarray
     rotation_error_rad: np.ndarray
     excess: np.ndarray
+    cfx: np.ndarray
+    cfx_of: Callable[[np.ndarray], int]
+    own: bool = False
 
 
 def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
@@ -127,15 +133,21 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
         robot, robot.controller_from_joints(result.q[~reached & given]))
     inside = reached.copy()
     excess = np.full(k * b, np.inf)
+    cfx = np.full(k * b, -1)
     if np.any(reached):
         inside[reached] = ~robot.outside_ranges(q[reached]).any(axis=1)
         excess[reached] = _excess(robot, q[reached])
+        cfx[reached] = comp.confdata(robot.joints_from_controller(q[reached]))[:, 3]
+
+    def cfx_of(q_ctrl: np.ndarray) -> int:
+        return int(comp.confdata(robot.joints_from_controller(q_ctrl[None]))[0, 3])
     position = np.where(given, result.position_error_m, np.inf)
     rotation = np.where(given, result.rotation_error_rad, np.inf)
     return Candidates(q=q.reshape(k, b, n), reached=reached.reshape(k, b),
                       inside=inside.reshape(k, b), reason=reason.reshape(k, b),
                       position_error_m=position.reshape(k, b),
-                      rotation_error_rad=rotation.reshape(k, b), excess=excess.reshape(k, b))
+                      rotation_error_rad=rotation.reshape(k, b), excess=excess.reshape(k, b),
+                      cfx=cfx.reshape(k, b), cfx_of=cfx_of, own=own is not None)
 
 
 def confdata_asked(comp: Compensator, confdata: np.ndarray | None) -> Asked:
@@ -245,7 +257,7 @@ def _rule_for_row(found: Candidates, i: int, on_asked: np.ndarray, asked_any: np
         j = _index_of(q, on_asked, inside)
         return on_asked, str(found.reason[i, j]), j, True
     if np.any(inside):
-        j = _nearest_zero(q, inside)
+        j = _nearest_other(found, i, asked_any)
         return q[j], "branch_changed", j, False
     if np.any(reached):
         if np.all(np.isfinite(asked_any)):
@@ -271,8 +283,20 @@ def _index_of(q: np.ndarray, chosen: np.ndarray, usable: np.ndarray) -> int:
     return int(np.argmin(score))
 
 
-def _nearest_zero(q: np.ndarray, usable: np.ndarray) -> int:
-    return int(np.argmin(np.where(usable, np.nansum(q ** 2, axis=1), np.inf)))
+def _nearest_other(found: Candidates, i: int, asked_any: np.ndarray) -> int:
+    """The in-range candidate of row ``i`` to name: where the asked configuration reaches
+    the pose outside a range (``asked_any``), one of its branch (same cfx: only a turn or
+    a quadrant differs) nearest those joints, else any nearest them; else the one nearest
+    zero. Without ``asked_any``, the solver's own end on the asked configuration stands
+    for it where it reached the pose."""
+    q, inside = found.q[i], found.inside[i]
+    if not np.all(np.isfinite(asked_any)) and found.own and found.reached[i, -1]:
+        asked_any = q[-1]           # where the solver on the asked configuration ended
+    if not np.all(np.isfinite(asked_any)):
+        return int(np.argmin(np.where(inside, np.nansum(q ** 2, axis=1), np.inf)))
+    same = inside & (found.cfx[i] == found.cfx_of(asked_any))
+    usable = same if np.any(same) else inside
+    return int(np.argmin(np.where(usable, np.nansum((q - asked_any) ** 2, axis=1), np.inf)))
 
 
 def _excess(robot, q_ctrl: np.ndarray) -> np.ndarray:
