@@ -417,3 +417,51 @@ def test_urscript_targets_5_m_away_are_unreachable_and_the_rest_ok():
                         "<inline>": "ok"}, report.rows
     for row in report.rows:
         _joints_shown_are_wrapped(row.note, ur_case.ROBOT)
+
+
+def test_krl_targets_at_the_range_ends_on_an_identified_robot():
+    """KRL targets with A1, A4 or A6 within a degree of their range's end, compensated on
+    an identified KR 16: none 'not_converged'; 'branch_changed' keeps the asked S (only a
+    turn differs: the configuration nearest the asked one is named) but next to the
+    shoulder singularity, and reports
+    joints inside every range that put the calibrated arm on the target; notes wrapped."""
+    from olp_compensate.compensation.pose import Compensator as Comp
+
+    robot = krl_case.ROBOT
+    _, cal = identified_world(robot, 11, "TOOL_DATA[1]")
+    rng = np.random.default_rng(3)
+    q = random_joints(robot, 300, rng, margin=0.05)
+    ranges = robot.controller_ranges
+    for a in (0, 3, 5):
+        pick = rng.random(len(q)) < 0.5
+        end = np.where(rng.random(pick.sum()) < 0.5, ranges[a, 0] + np.radians(0.5),
+                       ranges[a, 1] - np.radians(0.5))
+        q[pick, a] = end + np.radians(rng.uniform(-0.4, 0.4, pick.sum()))
+    q = q[np.abs(np.sin(q[:, 4])) > 0.2][:80]
+    src, dat = krl_case.krl_module(krl_case._targets_at(q))
+    program = parse_krl(src, dat, "CELL.src", "CELL.dat", krl_case.CONFIG_DAT, "$config.dat")
+    _, report = compensate_pose_program(program, KRL, cal)
+    comp = Comp(cal)
+    real_tool = np.eye(4)
+    real_tool[:3, 3] = cal.tools["TOOL_DATA[1]"].xyz_m
+    statuses = [r.status for r in report.rows]
+    assert "not_converged" not in statuses and statuses.count("branch_changed") >= 5
+    by_name = {t.name: t for t in program.targets}
+    kept_s = changed = 0
+    for row in report.rows:
+        _joints_shown_are_wrapped(row.note, robot)
+        if row.status != "branch_changed":
+            continue
+        asked = re.search(r"asked for configuration S (\d+) T \d+", row.note)
+        named = re.search(r"only on another configuration: S (\d+) T \d+", row.note)
+        assert asked and named, row.note
+        kept_s += asked.group(1) == named.group(1)
+        changed += 1
+        q_row = np.radians(row.joints)
+        assert not robot.outside_ranges(q_row[None]).any()
+        target = KRL.convention.pose(np.array([n.value for n in by_name[row.target].numbers]))
+        flange, _ = comp.real_flange_and_jacobian(robot.joints_from_controller(q_row[None]))
+        # the real TCP (calibrated tool) on the target (base 0: the robot base)
+        assert np.allclose(flange[0] @ real_tool, target, atol=1e-5), row.target
+    # S changes only where the wrist point is next to axis 1 (S's bit 0 is undetermined)
+    assert kept_s >= 0.8 * changed, (kept_s, changed)
