@@ -7,7 +7,8 @@ asks for, inside every controller axis range and URDF joint limit) gets exactly 
   inside every range (the solver had stopped short): compensated with those joints;
 - ``branch_changed``: another configuration reaches the target inside every range; the
   joints reported are that configuration's (inside the ranges), and it is the one the
-  note names;
+  note names (of those inside, the one of the asked branch nearest the asked joints where
+  there is one: only a turn or a quadrant differs);
 - ``joint_limit``: some configuration reaches the target, but only outside a range; the
   joints reported are those of the asked configuration where it reaches the target (else
   the ones nearest the ranges), each axis turned by whole turns as near its range as it
@@ -19,7 +20,8 @@ asks for, inside every controller axis range and URDF joint limit) gets exactly 
 :func:`decide` applies the rule to the failed rows of an :class:`~.ik.IKSolution`;
 :func:`search` is the shared work: damped Newton of the calibrated arm from the nominal
 closed form of every branch (stretched where out of reach) and from the solver's own last
-iterate, all rows and starts in one batch, at most :data:`SEARCH_STEPS` steps each. What
+iterate, :data:`SEARCH_BLOCK` rows with all their starts in one batch, at most
+:data:`SEARCH_STEPS` steps each. What
 "the configuration asked for" means is a predicate (:data:`Asked`): ABB confdata here
 (:func:`confdata_asked`), a dialect's written configuration in
 :mod:`.dialect_program`. Joints: URDF axes in IK solutions, controller axes (rad/m) in the
