@@ -90,8 +90,8 @@ class Candidates:
 
 def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
     """``q_ctrl (..., n)`` rad with each revolute axis turned by whole turns into its
-    controller range (the turn nearest zero where several fit), or, where no turn fits, to
-    the turn nearest the range; axes without a finite range wrapped to [-180, 180) deg."""
+    controller range (the turn nearest zero where several fit), or, where no turn fits and
+    for axes without a finite range, wrapped to [-180, 180) deg."""
     q = np.array(q_ctrl, dtype=float, copy=True)
     ranges = robot.controller_ranges
     turns = 2 * np.pi * np.arange(-3, 4)
@@ -103,10 +103,11 @@ def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
             q[..., a] = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
             continue
         values = q[..., a, None] + turns                              # (..., 7)
-        past = np.maximum(np.maximum(lo - values, values - hi), 0.0)
-        score = past * 1e3 + np.abs(values) * 1e-3 * (past == 0)
-        pick = np.argmin(np.where(np.isfinite(score), score, np.inf), axis=-1)
-        q[..., a] = np.take_along_axis(values, pick[..., None], axis=-1)[..., 0]
+        inside = (values >= lo - 1e-9) & (values <= hi + 1e-9)
+        pick = np.argmin(np.where(inside, np.abs(values), np.inf), axis=-1)
+        turned = np.take_along_axis(values, pick[..., None], axis=-1)[..., 0]
+        wrapped = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
+        q[..., a] = np.where(np.any(inside, axis=-1), turned, wrapped)
     return q
 
 
