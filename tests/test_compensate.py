@@ -536,14 +536,17 @@ def test_stretched_targets_inside_and_beyond_the_real_arm(irb2400_world):
     assert set(beyond.reason) == {"unreachable"} and beyond.iterations.max() <= 8
 
 
-def test_out_of_reach_as_asked_says_how_far_there_and_where_it_is_reached(irb2400_world):
+def test_asked_on_an_unreachable_configuration_names_the_one_that_reaches(irb2400_world):
     """Poses the calibrated arm reaches in front with its elbow 30 mrad from stretched,
     asked for on the configurations reaching over behind axis 1 (cfx 4 to 7: the shoulder
-    offset puts them 10 mm and more out of reach): the note gives how close the arm comes
-    on the configuration asked for, not the closest approach on any configuration (0 mm,
-    in front), and, where that approach converged, names a configuration on which the
-    pose is reached inside every range; a solve on that configuration reaches it."""
+    offset puts them 10 mm and more out of reach). The configuration rule: another
+    configuration reaches them (by construction, the one the joints are on), so none is
+    'unreachable'; each is 'branch_changed' naming a configuration on which the arm reaches
+    the pose inside every range (checked by an independent solve on it and the model's
+    forward kinematics), with those joints reported, or 'joint_limit' when the in-front
+    joints leave a range."""
     comp = Compensator(irb2400_world.calibration)
+    robot = comp.robot
     theta = np.zeros((1, 6))
     theta[0, 2] = -np.arctan2(comp.family.a2, comp.family.c3)   # the nominal elbow straight
     straight = comp.family.joint_angles(theta)[0, 2]
@@ -557,54 +560,65 @@ def test_out_of_reach_as_asked_says_how_far_there_and_where_it_is_reached(irb240
     assert len(q) == n
     flange, _ = comp.real_flange_and_jacobian(q)
     nominal = closed_form_inverse(comp.family, flange, clip=True)   # (n, 8, 6)
-    poses, asked = [], []
+    poses, asked, truth = [], [], []
     for i in range(n):
         starts = nominal[i][np.all(np.isfinite(nominal[i]), axis=1)]
         behind = comp.confdata(starts)
         behind = behind[behind[:, 3] >= 4]
         poses += [flange[i]] * len(behind)
         asked += list(behind)
-    poses, asked = np.array(poses), np.array(asked)
+        truth += [q[i]] * len(behind)
+    poses, asked, truth = np.array(poses), np.array(asked), np.array(truth)
     _, _, solution, _ = comp.compensate_flanges(poses, None, asked)
     failures = explain_failures(comp, solution, poses, asked)
-    rows = np.flatnonzero(solution.reason == "unreachable")
-    assert len(rows) >= n
-    note = re.compile(r"out of reach: the calibrated arm comes no closer than ([0-9.]+) mm and "
-                      r"[0-9.]+ deg on configuration \[([-0-9,]+)\](?:; reached inside the "
-                      r"ranges on configuration \[([-0-9,]+)\])?")
-    hints = 0
-    for row in rows.tolist():
-        found = note.fullmatch(failures[row].note)
-        assert found, failures[row].note
-        distance_mm, on, there = found.groups()
-        assert float(distance_mm) > 10
-        assert [int(c) for c in on.split(",")] == asked[row].tolist()
-        if there is None:     # the closest approach, from stretched starts, did not converge
+    assert not np.any(solution.success) and "unreachable" not in set(solution.reason)
+    note = re.compile(r"asked for configuration \[([-0-9,]+)\], the calibrated arm reaches the "
+                      r"target inside every axis range only on another configuration: "
+                      r"\[([-0-9,]+)\]")
+    changed = 0
+    for row in range(len(poses)):
+        failure = failures[row]
+        in_range_truth = not robot.outside_ranges(
+            robot.controller_from_joints(truth[row][None])).any()
+        if solution.reason[row] == "joint_limit":
+            assert not in_range_truth, failure.note
             continue
-        hints += 1
-        elsewhere = np.array([[int(c) for c in there.split(",")]])
-        reached = comp.solve_real(poses[row][None], elsewhere)
-        assert reached.success[0] and reached.position_error_m[0] < 1e-9
-    assert hints >= len(rows) // 2
+        assert solution.reason[row] == "branch_changed"
+        found = note.fullmatch(failure.note)
+        assert found, failure.note
+        assert [int(c) for c in found.group(1).split(",")] == asked[row].tolist()
+        named = np.array([[int(c) for c in found.group(2).split(",")]])
+        assert named[0, 3] < 4 and tuple(named[0]) == failure.config
+        # the reported joints are inside every range and put the real arm on the pose
+        assert not robot.outside_ranges(failure.joints[None]).any()
+        reached, _ = comp.real_flange_and_jacobian(robot.joints_from_controller(
+            failure.joints[None]))
+        assert np.allclose(reached[0], poses[row], atol=1e-8)
+        again = comp.solve_real(poses[row][None], named)
+        assert again.success[0] and again.position_error_m[0] < 1e-9
+        changed += 1
+    assert changed >= len(poses) // 2
 
 
-def test_a_target_not_solved_is_not_said_to_be_out_of_reach(irb2400_world):
-    """A solve that ran out of steps 2 um from a pose the arm reaches gives no bound: the
-    note says where the solver stopped, not that the arm comes no closer, and that the
-    search from every configuration's start reaches the pose on the one asked for."""
+def test_a_target_the_solver_stopped_short_of_is_decided_by_the_search(irb2400_world):
+    """A solve that ran out of steps 2 um from a pose the arm reaches on the configuration
+    asked for: the rule's search from every configuration reaches it there, inside every
+    range, so it is 'ok' with the joints that reach it (not a failure)."""
+    from olp_compensate.compensation.config_rule import decide
     from olp_compensate.compensation.ik import IKSolution
 
     comp = Compensator(irb2400_world.calibration)
     q = np.array([[0.3, 0.2, 0.1, 0.5, 0.8, -0.4]])
     flange, _ = comp.real_flange_and_jacobian(q)
     stopped = IKSolution(q=q + 1e-6, success=np.array([False]),
-                         reason=np.array(["not_converged"]), iterations=np.array([50]),
-                         position_error_m=np.array([2e-6]), rotation_error_rad=np.array([0.0]))
+                         reason=np.array(["not_converged"], dtype="<U14"),
+                         iterations=np.array([50]), position_error_m=np.array([2e-6]),
+                         rotation_error_rad=np.array([0.0]))
     (failure,) = explain_failures(comp, stopped, flange, comp.confdata(q))
-    assert failure.note == (f"not solved: the solver stopped short by 0.00 mm and 0.000 deg "
-                            f"on configuration [{','.join(map(str, comp.confdata(q)[0]))}]; "
-                            f"a search from every configuration's start reaches it on this "
-                            f"one, inside the ranges")
+    assert failure is None
+    decided = decide(comp, stopped, flange, comp.confdata(q))
+    assert decided.reason[0] == "ok" and decided.success[0] and decided.on_asked[0]
+    np.testing.assert_allclose(decided.q, q, atol=1e-7)
 
 
 def test_real_arm_kinematics_are_the_calibrated_models(irb2400_world):

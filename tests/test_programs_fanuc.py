@@ -239,7 +239,17 @@ def test_a_configuration_the_pose_cannot_have_is_reported():
     _, report = compensate_pose_program(parse_fanuc_tp(text, "CELL.ls", frames={"UT4": TOOL_MM}),
                                         FANUC_TP, nominal_calibration(ROBOT))
     row = next(r for r in report.rows if r.target == "P[1]")
-    assert row.status == "branch_changed" and "turn" in row.note
+    # another configuration reaches the pose inside every range: 'branch_changed', the note
+    # naming the configuration of the joints reported, which are in range and reach it
+    assert row.status == "branch_changed", row.note
+    q = np.radians(row.joints)
+    assert not ROBOT.outside_ranges(q[None]).any()
+    named = row.note.rsplit("only on another configuration: ", 1)[1]
+    written = FANUC_TP.config(ArmGeometry(ROBOT), q, parse_fanuc_tp(
+        text, "CELL.ls", frames={"UT4": TOOL_MM}).targets[0])
+    assert named == FANUC_TP.config_words(written)
+    assert written[3:] == tuple(turn_number(math.degrees(q[a]))
+                                  for a in (3, 4, 5))
 
 
 def test_turn_axes_are_a_setting():

@@ -30,6 +30,24 @@ Instructions, Functions and Data types*, data type ``confdata``; the same text a
   UR arms have no ABB cfx; the same function gives the analogous bits (shoulder, elbow,
   wrist) of :func:`olp_compensate.compensation.ik.configuration_bits`.
 
+The configuration written (the rule of every dialect): the configuration data written
+with a compensated target is the configuration of the joints written, the joints the
+controller will take for it, never the one the program had when the joints left it:
+
+- ABB cf1, cf4, cf6: the quadrants of the written joints' axes 1, 4 and 6
+  (:func:`written_confdata`), with two cases where the written number stays, both where
+  the controller takes the same joints whichever is written: an axis within
+  :data:`BORDER_RAD` of a quadrant border (what the written numbers resolve; either
+  quadrant holds for it), and an axis the program's own confdata already disagreed with
+  at its nominal joints and that compensation left in the same quadrant (the program's
+  choice is not rewritten: with the nominal calibration no byte changes). cfx is the one
+  asked for (the solver keeps the configuration asked for, and so does the rule of
+  :mod:`.config_rule`);
+- KUKA S and T, FANUC's letters and turn numbers, VAL3's shoulder/elbow/wrist: those of
+  the written joints (:mod:`.dialect_rules`, :mod:`.rules_fanuc`, :mod:`.rules_val3`;
+  KRL's T bit of an axis within 1e-5 rad of 0 keeps the written bit, as here);
+- V+ and URScript write no configuration with a target.
+
 V+ (Adept, Staubli CS7) and similar PUMA-style flags (RIGHTY/LEFTY, ABOVE/BELOW,
 FLIP/NOFLIP); FLIP means joint 5 negative (Servotronix softMC wiki, ``robot.WRISTCMD`` for
 the PUMA model: "FLIP - value of joint 5 is negative"). RIGHTY: the arm plane is offset to
@@ -49,7 +67,36 @@ from .ik.configuration import configuration_margins
 from .ik.families import check_family
 from .ik.inputs import as_joints
 
-__all__ = ["abb_confdata", "select_branch", "vplus_configuration", "vplus_branch"]
+__all__ = ["abb_confdata", "select_branch", "vplus_configuration", "vplus_branch",
+           "written_confdata", "BORDER_RAD"]
+
+BORDER_RAD = 1e-5
+"""An axis this close (rad, 0.0006 deg) to a quadrant border is on either side of it."""
+
+
+def written_confdata(written: np.ndarray, q_ctrl: np.ndarray, nominal_ctrl: np.ndarray
+                     ) -> np.ndarray:
+    """The confdata ``(k, 4)`` int to write with compensated joints ``q_ctrl (k, n)``
+    (controller axes, rad) for targets written with ``written (k, 4)``, whose nominal
+    controller joints were ``nominal_ctrl (k, n)`` (NaN where none): cf1, cf4, cf6 the
+    quadrants of ``q_ctrl``'s axes 1, 4, 6, except the written one where the axis lies
+    within :data:`BORDER_RAD` of that quadrant, or where the written one already differed
+    from the nominal joints' quadrant and compensation did not change the quadrant; cfx
+    as written (see the module's notes)."""
+    quarter = np.pi / 2
+    axes = q_ctrl[:, [0, 3, 5]]
+    quadrant = np.floor(axes / quarter).astype(int)
+    lower = written[:, :3] * quarter
+    near_written = (axes >= lower - BORDER_RAD) & (axes <= lower + quarter + BORDER_RAD)
+    with np.errstate(invalid="ignore"):
+        before = np.floor(nominal_ctrl[:, [0, 3, 5]] / quarter)
+        near_before = np.floor((nominal_ctrl[:, [0, 3, 5]] - BORDER_RAD) / quarter)
+        after_before = np.floor((nominal_ctrl[:, [0, 3, 5]] + BORDER_RAD) / quarter)
+    program_choice = ((before != written[:, :3]) & (near_before != written[:, :3])
+                      & (after_before != written[:, :3]) & (before == quadrant))
+    out = written.copy()
+    out[:, :3] = np.where(near_written | program_choice, written[:, :3], quadrant)
+    return out
 
 
 def abb_confdata(params: OPWParameters | URParameters, q) -> np.ndarray:

@@ -23,11 +23,15 @@ from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
 from ..programs import format_like, splice
 from ..programs.pose_dialects import JOINTS, PoseProgram, PoseTarget
 from ..programs.targets import Edit
-from .dialect_rules import ArmGeometry, DialectRules
-from .ik import closed_form_inverse
+from .config_rule import decide
+from .dialect_rules import ArmGeometry, DialectRules, krl_status, krl_turn
+from .ik import IKSolution, closed_form_inverse
 from .pose import Compensator, explain_failures
 from .program_tools import program_tool as calibrated_program_tool
 from .program_tools import program_tool_note
+from .regions import RegionalCompensator
+from .rules_fanuc import fanuc_letters
+from .rules_val3 import val3_config
 from .report import CompensationReport, TargetReport
 
 _GEOMETRY: dict[int, ArmGeometry] = {}
@@ -227,75 +231,195 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
 def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry,
            rules: DialectRules, jobs: list[_Job], rows: list[TargetReport],
            edits: dict[str, list[Edit]]) -> None:
+    """Solve the jobs; a row (and the edits) for each. The status is the configuration
+    rule's (:mod:`.config_rule`), the configuration asked for being the dialect's written
+    one (:func:`_dialect_asked`), also where the nominal arm has no branch with it."""
     robot = comp.robot
     requested = np.array([j.base @ j.wobj_T_target @ invert_pose(j.tool) for j in jobs])
+    desired = (requested @ np.array([j.tool for j in jobs])
+               @ invert_pose(np.array([j.real_tool for j in jobs])))
+    chosen, previous_of = _choose_all(comp, geometry, rules, jobs, requested)
+    asked = _dialect_asked(rules, geometry, jobs, previous_of)
+    words = _config_namer(rules, geometry, jobs)
+    q_nominal = chosen.copy()
+    unchosen = np.flatnonzero(~np.all(np.isfinite(chosen), axis=1))
+    if len(unchosen):
+        # no branch of the nominal arm has the written configuration: the calibrated arm's
+        # may (then its joints stand in for the controller's), else the rule says why not
+        found = _rule_alone(comp, desired[unchosen], _on_rows(asked, unchosen))
+        explained = explain_failures(comp, found, desired[unchosen], None,
+                                     _on_rows(words, unchosen))
+        for r, i in enumerate(unchosen.tolist()):
+            if found.success[r]:
+                chosen[i] = robot.controller_from_joints(found.q[r][None])[0]
+            else:
+                rows.append(_failure_row(jobs[i], rules, explained[r], robot))
+    keep = np.flatnonzero(np.all(np.isfinite(chosen), axis=1))
+    if not len(keep):
+        return
+    jobs = [jobs[i] for i in keep.tolist()]
+    requested, desired = requested[keep], desired[keep]
+    q_chosen, q_nominal = chosen[keep], q_nominal[keep]
+    confdata = comp.confdata(robot.joints_from_controller(q_chosen))
+    if teacher is not None:                     # where the teaching robot's real tool went
+        desired = _taught(comp, teacher, rules, jobs, q_nominal, requested, desired)
+    options = {} if isinstance(comp, RegionalCompensator) else {"asked": _on_rows(asked, keep)}
+    q, flange, solution, _ = comp.compensate_flanges(desired, None, confdata, **options)
+    failures = explain_failures(comp, solution, desired, confdata, _on_rows(words, keep))
+    for i, job in enumerate(jobs):
+        if not solution.success[i]:
+            rows.append(_failure_row(job, rules, failures[i], robot))
+            continue
+        q_ctrl = robot.controller_from_joints(q[i][None])[0]
+        rows.append(_solved_row(job, rules, geometry, q_ctrl, flange[i], q_nominal[i],
+                                str(solution.reason[i]), robot, edits))
+
+
+def _choose_all(comp: Compensator, geometry: ArmGeometry, rules: DialectRules,
+                jobs: list[_Job], requested: np.ndarray) -> tuple[np.ndarray, list]:
+    """The controller joints (m, n) the dialect's nominal controller takes for each job
+    (NaN where no branch has the written configuration), in program order, and the joints
+    before each (None for the first)."""
+    robot = geometry.robot
     branches = closed_form_inverse(comp.family, requested)                  # (m, 8, n) URDF
     m, k, n = branches.shape
     branches_ctrl = robot.controller_from_joints(branches.reshape(-1, n)).reshape(m, k, n)
     geometry.prepare(branches_ctrl)          # the configuration words of every branch at once
-    chosen, keep = [], []
+    chosen = np.full((m, n), np.nan)
+    previous_of: list = [None] * m
     previous = None
     for i, job in enumerate(jobs):
-        q, reason, *note = rules.choose(geometry, job.target, branches_ctrl[i], previous)
+        previous_of[i] = previous
+        q, _, *note = rules.choose(geometry, job.target, branches_ctrl[i], previous)
         if note and note[0]:
             job.note = "; ".join(x for x in (note[0], job.note) if x)
-        if q is None:
-            changed = any(w in reason for w in ("status", "turn", "configuration"))
-            rows.append(_row(job.target, "branch_changed" if changed else "unreachable", reason,
-                             job.tool_key or "", job.base_key or "",
-                             rules.config_words(rules.written(job.target))))
-            continue
-        chosen.append(q)
-        keep.append(i)
-        previous = q
-    if not keep:
-        return
-    jobs = [jobs[i] for i in keep]
-    requested = requested[keep]
-    q_nominal = np.array(chosen)
-    q_nominal_urdf = robot.joints_from_controller(q_nominal)
-    confdata = comp.confdata(q_nominal_urdf)
-    meant = requested @ np.array([j.tool for j in jobs])                     # TCP poses
-    if teacher is not None:                     # where the teaching robot's real tool went
-        q_nominal_urdf = comp.controller_joints(q_nominal_urdf, requested)
-        taught_tool = np.array([FrameLookup(None, rules, teacher.calibration)  # type: ignore[arg-type]
-                                .real_tool(j.tool_key, j.tool)[0] for j in jobs])
-        real_flange, _ = teacher.real_flange_and_jacobian(q_nominal_urdf)
-        meant = real_flange @ taught_tool
-    desired = meant @ invert_pose(np.array([j.real_tool for j in jobs]))
-    q, flange, solution, _ = comp.compensate_flanges(desired, None, confdata)
-    failures = explain_failures(comp, solution, desired, confdata)
-    for i, job in enumerate(jobs):
-        before = rules.config_words(rules.written(job.target))
-        if not solution.success[i]:
-            failure = failures[i]
-            row = _row(job.target, str(solution.reason[i]),
-                       "; ".join(x for x in (failure.note if failure else "", job.note) if x),
-                       job.tool_key or "", job.base_key or "", before)
-            if failure is not None and np.all(np.isfinite(failure.joints)):
-                row.joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
-            rows.append(row)
-            continue
-        q_ctrl = robot.controller_from_joints(q[i][None])[0]
-        new_target = invert_pose(job.base) @ flange[i] @ job.tool
-        original = np.array([nb.value for nb in job.target.numbers])
-        numbers = rules.convention.numbers(new_target, original)
-        config = rules.config(geometry, q_ctrl, job.target)
-        file = job.target.source[0]
-        edits[file].extend(_number_edits(job.target, numbers, rules))
-        edits[file].extend(rules.config_edits(job.target, config))
-        shift = (new_target[:3, 3] - job.wobj_T_target[:3, 3]) / MM
-        turn = float(np.degrees(rotation_angle_between(new_target[:3, :3],
-                                                       job.wobj_T_target[:3, :3])))
-        change = robot.to_degrees_or_mm((q_ctrl - q_nominal[i])[None])[0]
-        rows.append(TargetReport(
-            target=job.target.name or "<inline>", file=file, line=job.target.source[1],
-            column=job.target.source[2], status=str(solution.reason[i]),
-            tool=job.tool_key or "", wobj=job.base_key or "",
-            correction_mm=tuple(float(v) for v in shift), correction_deg=turn,
-            joint_change=float(np.max(np.abs(change))), config_before=before,
-            config_after=rules.config_words(config),
-            joints=tuple(robot.to_degrees_or_mm(q_ctrl[None])[0].tolist()), note=job.note))
+        if q is not None:
+            chosen[i] = q
+            previous = q
+    return chosen, previous_of
+
+
+def _on_rows(function, rows: np.ndarray):
+    """``function`` of rows of a sub-batch, called with the rows of the whole batch."""
+    def on(sub, *args):
+        return function(rows[sub], *args)
+    return on
+
+
+def _rule_alone(comp: Compensator, desired: np.ndarray, asked) -> IKSolution:
+    """The configuration rule on poses no nominal branch was chosen for (no solve on a
+    branch first: the search is the whole answer)."""
+    k, n = len(desired), comp.robot.n_joints
+    blank = IKSolution(q=np.full((k, n), np.nan), success=np.zeros(k, bool),
+                       reason=np.full(k, "unreachable", dtype="<U14"),
+                       iterations=np.zeros(k, int), position_error_m=np.full(k, np.nan),
+                       rotation_error_rad=np.full(k, np.nan))
+    return decide(comp, blank, desired, None, asked)
+
+
+def _dialect_asked(rules: DialectRules, geometry: ArmGeometry, jobs: list[_Job],
+                   previous_of: list):
+    """The configuration rule's predicate of the written configuration: among a row's
+    candidate joints, the ones the dialect's controller takes (its ``choose``)."""
+    def asked(rows: np.ndarray, q: np.ndarray, usable: np.ndarray) -> np.ndarray:
+        k, b, n = q.shape
+        out = np.full((k, n), np.nan)
+        if np.any(usable):
+            geometry.prepare(q[usable])
+        for i, row in enumerate(rows.tolist()):
+            candidates = q[i][usable[i]]
+            if len(candidates):
+                picked, *_ = rules.choose(geometry, jobs[row].target, candidates,
+                                          previous_of[row])
+                if picked is not None:
+                    out[i] = picked
+        return out
+    return asked
+
+
+def _config_namer(rules: DialectRules, geometry: ArmGeometry, jobs: list[_Job]):
+    """``words(row, q_ctrl)``: the configuration of joints ``q_ctrl`` in the dialect's
+    words (as many values as the target writes, all where it writes none); with None,
+    the written one ('' where none is written)."""
+    def words(row: int, q_ctrl) -> str:
+        target = jobs[row].target
+        if q_ctrl is None:
+            return rules.config_words(rules.written(target))
+        if rules.name == "urscript":
+            return rules.config_words(tuple(q_ctrl))
+        return (rules.config_words(rules.config(geometry, q_ctrl, target))
+                or _full_words(rules.name, geometry, q_ctrl))
+    return words
+
+
+def _full_words(dialect: str, geometry: ArmGeometry, q_ctrl: np.ndarray) -> str:
+    """The whole configuration of ``q_ctrl`` in a dialect's words, for a target that writes
+    none (KRL S and T, FANUC's letters, VAL3's words)."""
+    if dialect == "krl":
+        return f"S {krl_status(geometry, q_ctrl)} T {krl_turn(q_ctrl)}"
+    if dialect == "fanuc_tp":
+        return " ".join(fanuc_letters(geometry, q_ctrl))
+    if dialect == "val3":
+        return " ".join(val3_config(geometry, q_ctrl))
+    return "joints [" + ", ".join(f"{v:.1f}" for v in np.degrees(q_ctrl)) + "] deg"
+
+
+def _failure_row(job: _Job, rules: DialectRules, failure, robot) -> TargetReport:
+    """The row of a job the rule did not let through: its status, note and joints."""
+    before = rules.config_words(rules.written(job.target))
+    row = _row(job.target, failure.status,
+               "; ".join(x for x in (failure.note, job.note) if x),
+               job.tool_key or "", job.base_key or "", before)
+    if np.all(np.isfinite(failure.joints)):
+        row.joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
+    return row
+
+
+def _taught(comp: Compensator, teacher: Compensator, rules: DialectRules, jobs: list[_Job],
+            q_nominal: np.ndarray, requested: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Robot-to-robot transfer: the flange poses putting this robot's real tool where the
+    teaching robot's real tool went at the joints its controller takes for the
+    ``requested`` flange poses (the nominal ones, refined on ``comp``'s controller model
+    where it has one; ``fallback`` where the nominal arm had none)."""
+    out = fallback.copy()
+    known = np.flatnonzero(np.all(np.isfinite(q_nominal), axis=1))
+    if not len(known):
+        return out
+    taught_tool = np.array([FrameLookup(None, rules, teacher.calibration)  # type: ignore[arg-type]
+                            .real_tool(jobs[i].tool_key, jobs[i].tool)[0] for i in known])
+    q_urdf = comp.controller_joints(teacher.robot.joints_from_controller(q_nominal[known]),
+                                    requested[known])
+    real_flange, _ = teacher.real_flange_and_jacobian(q_urdf)
+    meant = real_flange @ taught_tool
+    out[known] = meant @ invert_pose(np.array([jobs[i].real_tool for i in known]))
+    return out
+
+
+def _solved_row(job: _Job, rules: DialectRules, geometry: ArmGeometry, q_ctrl: np.ndarray,
+                flange: np.ndarray, q_nominal: np.ndarray, status: str, robot,
+                edits: dict[str, list[Edit]]) -> TargetReport:
+    """The row of a compensated job; its edits (numbers, and the configuration of the
+    joints written) added to ``edits``."""
+    before = rules.config_words(rules.written(job.target))
+    new_target = invert_pose(job.base) @ flange @ job.tool
+    original = np.array([nb.value for nb in job.target.numbers])
+    numbers = rules.convention.numbers(new_target, original)
+    config = rules.config(geometry, q_ctrl, job.target)
+    file = job.target.source[0]
+    edits[file].extend(_number_edits(job.target, numbers, rules))
+    edits[file].extend(rules.config_edits(job.target, config))
+    shift = (new_target[:3, 3] - job.wobj_T_target[:3, 3]) / MM
+    turn = float(np.degrees(rotation_angle_between(new_target[:3, :3],
+                                                   job.wobj_T_target[:3, :3])))
+    change = robot.to_degrees_or_mm((q_ctrl - q_nominal)[None])[0]
+    return TargetReport(
+        target=job.target.name or "<inline>", file=file, line=job.target.source[1],
+        column=job.target.source[2], status=status,
+        tool=job.tool_key or "", wobj=job.base_key or "",
+        correction_mm=tuple(float(v) for v in shift), correction_deg=turn,
+        joint_change=float(np.max(np.abs(change))) if np.all(np.isfinite(change)) else np.nan,
+        config_before=before, config_after=rules.config_words(config),
+        joints=tuple(robot.to_degrees_or_mm(q_ctrl[None])[0].tolist()), note=job.note)
 
 
 def _decimals(text: str) -> int:

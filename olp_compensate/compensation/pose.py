@@ -17,6 +17,7 @@ All poses are 4x4 in metres; joints are controller axes in rad (m for prismatic 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, branch_of,
                  solve_with_nominal)
 from ..kinematics.model import FixedChain, fixed_chain, forward
 from .controller import Load, controller_model_chain, refine_on_controller
+from .config_rule import decide, turn_toward_ranges
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
            "compensate_poses", "COMPENSATED"]
@@ -151,14 +153,18 @@ class Compensator:
         return flange, jac
 
     def solve_real(self, base_T_flange: np.ndarray, confdata: np.ndarray | None, *,
-                   retries: bool = True) -> IKSolution:
+                   retries: bool = True, asked=None) -> IKSolution:
         """Joints (URDF axes) at which the calibrated arm reaches ``base_T_flange``
         (m, 4, 4), on ``confdata`` (m, 4) (None: nearest to zero, any configuration), to
         1e-9 m and 1e-9 rad, inside the URDF limits and the controller's axis ranges
-        (:meth:`check_axis_ranges`); ``retries`` as :func:`~.ik.solve`."""
-        return self.check_axis_ranges(solve(self.family, self.real_flange_and_jacobian,
-                                            base_T_flange, confdata, self.limits,
-                                            reach=self.reach, retries=retries))
+        (:meth:`check_axis_ranges`); ``retries`` as :func:`~.ik.solve`. With ``retries``,
+        the rows not reached as asked get their status by the configuration rule
+        (:func:`~.config_rule.decide`; ``asked``: its predicate of the configuration asked
+        for, default ``confdata``'s)."""
+        solution = self.check_axis_ranges(solve(self.family, self.real_flange_and_jacobian,
+                                                base_T_flange, confdata, self.limits,
+                                                reach=self.reach, retries=retries))
+        return decide(self, solution, base_T_flange, confdata, asked) if retries else solution
 
     def check_axis_ranges(self, solution: IKSolution) -> IKSolution:
         """``solution`` with every reached row whose controller axes lie outside the
@@ -241,11 +247,14 @@ class Compensator:
 
     def compensate_flanges(self, desired_real_flange: np.ndarray,
                            requested_flange: np.ndarray | None = None,
-                           confdata: np.ndarray | None = None, *, retries: bool = True):
+                           confdata: np.ndarray | None = None, *, retries: bool = True,
+                           asked=None):
         """Solve the real arm for ``desired_real_flange`` (m, 4, 4); return
         (joints URDF (m, n), nominal flange at those joints (m, 4, 4), IKSolution,
         nominal joints of ``requested_flange`` (URDF, m, n) or None). ``retries`` as
-        :func:`~.ik.solve`."""
+        :func:`~.ik.solve`; with them, the failed rows' status is the configuration rule's
+        (:func:`~.config_rule.decide`, ``asked`` its predicate of the configuration asked
+        for, default ``confdata``'s), without them it is left for the caller's retry."""
         if (requested_flange is not None and confdata is not None
                 and np.shape(requested_flange) == np.shape(desired_real_flange)
                 and np.array_equal(requested_flange, desired_real_flange)):
@@ -255,8 +264,11 @@ class Compensator:
                 self.limits, reach=self.reach, retries=retries)
             solution = self.check_axis_ranges(solution)
             nominal = self.controller_joints(nominal, requested_flange)
+            if retries:
+                solution = decide(self, solution, desired_real_flange, confdata, asked)
         else:
-            solution = self.solve_real(desired_real_flange, confdata, retries=retries)
+            solution = self.solve_real(desired_real_flange, confdata, retries=retries,
+                                       asked=asked)
             nominal = None
             if requested_flange is not None:
                 nominal = self.solve_nominal(requested_flange, confdata)
@@ -382,13 +394,17 @@ class FailureReport:
 
     note : the reason in words and numbers (axis, value, limit; configurations asked for
         and found; distance out of reach).
-    joints : (n,) controller axes of the best solution found, rad/m (NaN if none).
+    joints : (n,) controller axes of the joints the rule keeps (see :mod:`.config_rule`),
+        each revolute axis turned as near its range as it goes, rad/m (NaN if none).
     config : ABB confdata (cf1, cf4, cf6, cfx) of ``joints`` (None if none).
+    status : the rule's status ('branch_changed', 'joint_limit', 'unreachable',
+        'not_converged').
     """
 
     note: str
     joints: np.ndarray
     config: tuple[int, int, int, int] | None
+    status: str = ""
 
 
 def _config_words(conf) -> str:
@@ -421,157 +437,84 @@ def _range_words(robot, q_ctrl: np.ndarray) -> list[str]:
     return words
 
 
+ConfigWords = Callable[[int, "np.ndarray | None"], str]
+"""``words(row, q_ctrl)``: the configuration of controller joints ``q_ctrl`` (rad) of row
+``row`` in the program's own words, or, with ``q_ctrl`` None, the one the row asks for."""
+
+
 def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np.ndarray,
-                     confdata: np.ndarray | None) -> list[FailureReport | None]:
+                     confdata: np.ndarray | None, words: ConfigWords | None = None
+                     ) -> list[FailureReport | None]:
     """A :class:`FailureReport` for each row of ``solution`` that failed (None for the
     others): ``desired_flange (m, 4, 4)`` the real flange poses solved for, ``confdata
-    (m, 4)`` the configurations asked for (None: any).
+    (m, 4)`` the configurations asked for (None: any); ``words`` names configurations
+    (default: ABB confdata ``[cf1,cf4,cf6,cfx]``). A solution the configuration rule has
+    not decided yet (:attr:`~.ik.IKSolution.on_asked` None) is decided on a copy first.
+    The notes, by the rule's status (:mod:`.config_rule`):
 
-    - 'joint_limit': which axis, its value, how far past which range; and a configuration
-      on which the calibrated arm reaches the target inside every range, if one exists
-      (the program's configuration is never changed: that is the user's call);
-    - 'branch_changed': the configuration asked for and the one the solution has;
-    - 'unreachable' / 'not_converged': how close the calibrated arm comes (out of
-      reach) or where the solver stopped (not converged), in mm and degrees: on the
-      configuration asked for, the solver's best; with none asked (or none found on it),
-      the closest approach found by damped Newton from the nominal solutions of every
-      configuration; and, where that search reaches the target inside every range, the
-      configuration it reaches it on (the one asked for, where it does).
+    - 'joint_limit': each axis outside its range, its value (turned as near the range as
+      it goes) and the range; whether those joints are on the configuration asked for
+      (else which they are on); and that no configuration reaches it inside the ranges;
+    - 'branch_changed': the configuration asked for and the one that reaches the target
+      inside every range (the joints reported are that one's);
+    - 'unreachable' / 'not_converged': how close the calibrated arm comes over every
+      configuration (out of reach) or where the search stopped (not converged), in mm and
+      degrees.
     """
     robot = comp.robot
+    if solution.on_asked is None:
+        solution = decide(comp, _copy(solution), desired_flange, confdata)
     failed = np.flatnonzero(~solution.success)
     out: list[FailureReport | None] = [None] * len(solution.success)
-    if not len(failed):
-        return out
-    q_best = solution.q[failed].copy()
-    missing = ~np.all(np.isfinite(q_best), axis=1)
-    closest = None
-    if np.any(missing) or np.any(np.isin(solution.reason[failed], ("unreachable", "not_converged"))):
-        closest = _closest_approach(comp, desired_flange[failed],
-                                    None if confdata is None else confdata[failed])
-        q_best[missing] = closest.q[missing]
-    alternatives = _in_range_configurations(comp, desired_flange[failed],
-                                            solution.reason[failed] == "joint_limit")
-    reached_by_search = ({} if closest is None else
-                         _reached_by_search(comp, closest, solution.reason[failed]))
-    for i, row in enumerate(failed.tolist()):
+    for row in failed.tolist():
         reason = str(solution.reason[row])
-        q = q_best[i]
+        q = solution.q[row]
         has_q = bool(np.all(np.isfinite(q)))
-        q_ctrl = robot.controller_from_joints(q[None])[0] if has_q else np.full(robot.n_joints, np.nan)
-        config = tuple(int(c) for c in comp.confdata(q[None])[0]) if has_q else None
-        asked = None if confdata is None else _config_words(confdata[row])
-        if reason == "joint_limit":
-            words = _range_words(robot, q_ctrl) if has_q else []
-            note = "; ".join(words) or "outside the joint limits"
-            if asked is not None:
-                note += f" (on the configuration asked for, {asked})"
-            alt = alternatives.get(i)
-            note += (f"; in range on configuration {_config_words(alt)}" if alt is not None
-                     else "; no configuration reaches it inside the ranges")
-        elif reason == "branch_changed":
-            found = _config_words(config) if config is not None else "another one"
-            note = (f"asked for configuration {asked}, the calibrated arm reaches the target "
-                    f"only on {found}")
+        q_ctrl = (turn_toward_ranges(robot, robot.controller_from_joints(q[None]))[0]
+                  if has_q else np.full(robot.n_joints, np.nan))
+        config = (tuple(int(c) for c in comp.confdata(robot.joints_from_controller(
+            q_ctrl[None]))[0]) if has_q else None)
+        if words is not None:
+            asked = words(row, None) or None
+            found = words(row, q_ctrl) if has_q else "none"
         else:
-            what = "out of reach" if reason == "unreachable" else "not solved"
-            # on the configuration asked for: how close the solver came on it (the closest
-            # approach is over every configuration, and may be on another one)
-            own = (float(solution.position_error_m[row]), float(solution.rotation_error_rad[row]))
-            on_asked = asked is not None and all(np.isfinite(own))
-            if on_asked:
-                dist_m, dist_rad = own
-            elif closest is not None:
-                dist_m, dist_rad = closest.position_error_m[i], closest.rotation_error_rad[i]
-            else:
-                dist_m = dist_rad = np.nan
-            how_close = ("the calibrated arm comes no closer than" if reason == "unreachable"
-                         else "the solver stopped short by")   # not converged: no bound
-            note = (f"{what}: {how_close} {dist_m * 1e3:.2f} mm and "
-                    f"{np.degrees(dist_rad):.3f} deg")
-            if on_asked:
-                note += f" on configuration {asked}"
-            elif asked is not None:
-                note += f" on any configuration (none found on {asked})"
-            alt = reached_by_search.get(i)
-            if alt is not None and asked is not None and _config_words(alt) == asked:
-                note += ("; a search from every configuration's start reaches it on this "
-                         "one, inside the ranges")
-            elif alt is not None:
-                note += f"; reached inside the ranges on configuration {_config_words(alt)}"
-        out[row] = FailureReport(note=note, joints=q_ctrl, config=config)
+            asked = None if confdata is None else _config_words(confdata[row])
+            found = _config_words(config) if config is not None else "none"
+        note = _note(robot, reason, q_ctrl, has_q, bool(solution.on_asked[row]), asked, found,
+                     float(solution.position_error_m[row]),
+                     float(solution.rotation_error_rad[row]))
+        out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
     return out
 
 
-def _closest_approach(comp: Compensator, desired_flange: np.ndarray,
-                      confdata: np.ndarray | None = None) -> IKSolution:
-    """Damped Newton of the calibrated arm towards ``desired_flange (k, 4, 4)`` from the
-    nominal closed form of every branch (stretched where out of reach); for each row the
-    start that ends closest (position error in m, then rotation), or, with ``confdata
-    (k, 4)``, the first that reaches the pose on that configuration where one does."""
-    from .ik import refine  # noqa: PLC0415 (used only for failures)
-
-    k = len(desired_flange)
-    stretched = closed_form_inverse(comp.family, desired_flange, clip=True)      # (k, 8, 6)
-    branches = stretched.shape[1]
-    starts = np.nan_to_num(stretched.reshape(-1, 6))
-    targets = np.repeat(desired_flange, branches, axis=0)
-    result = refine(comp.real_flange_and_jacobian, starts, targets, None, 1e-9, 1e-9, 60)
-    score = (result.position_error_m + 0.1 * result.rotation_error_rad).reshape(k, branches)
-    score = np.where(np.isfinite(score), score, np.inf)
-    pick = np.argmin(score, axis=1)
-    if confdata is not None:
-        as_asked = result.success.copy()
-        as_asked[as_asked] = np.all(comp.confdata(result.q[as_asked])
-                                    == np.repeat(confdata, branches, axis=0)[as_asked], axis=1)
-        as_asked = as_asked.reshape(k, branches)
-        found = np.any(as_asked, axis=1)
-        pick[found] = np.argmax(as_asked[found], axis=1)
-    pick += np.arange(k) * branches
-    return IKSolution(q=result.q[pick], success=result.success[pick],
-                      reason=result.reason[pick], iterations=result.iterations[pick],
-                      position_error_m=result.position_error_m[pick],
-                      rotation_error_rad=result.rotation_error_rad[pick])
+def _note(robot, reason: str, q_ctrl: np.ndarray, has_q: bool, on_asked: bool,
+          asked: str | None, found: str, dist_m: float, dist_rad: float) -> str:
+    """The report note of one failed row (see :func:`explain_failures`)."""
+    if reason == "joint_limit":
+        note = "; ".join(_range_words(robot, q_ctrl) if has_q else []) or \
+            "outside the joint limits"
+        if on_asked:
+            note += f" (on the configuration asked for, {asked})" if asked else ""
+        else:
+            note += f" (on configuration {found}" + (f", not the one asked for, {asked})"
+                                                     if asked else ")")
+        return note + "; no configuration reaches it inside the axis ranges"
+    if reason == "branch_changed":
+        where = f"asked for configuration {asked}, t" if asked else "T"
+        return (f"{where}he calibrated arm reaches the target inside every axis range only "
+                f"on another configuration: {found}")
+    if not np.isfinite(dist_m):
+        return "out of reach: no start of the search reaches near it on any configuration"
+    if reason == "unreachable":
+        return (f"out of reach on every configuration: the calibrated arm comes no closer "
+                f"than {dist_m * 1e3:.2f} mm and {np.degrees(dist_rad):.3f} deg")
+    return (f"not solved on any configuration: the search stopped short by "
+            f"{dist_m * 1e3:.2f} mm and {np.degrees(dist_rad):.3f} deg (on configuration "
+            f"{found})")
 
 
-def _reached_by_search(comp: Compensator, closest: IKSolution, reasons: np.ndarray
-                       ) -> dict[int, tuple[int, int, int, int]]:
-    """For the rows out of reach (or not solved) whose ``closest`` approach reaches the
-    target inside every axis range and joint limit: row -> the configuration it is
-    reached on."""
-    rows = np.flatnonzero(closest.success & np.isin(reasons, ("unreachable", "not_converged")))
-    if not len(rows):
-        return {}
-    found = comp.check_axis_ranges(IKSolution(
-        q=closest.q[rows].copy(), success=closest.success[rows].copy(),
-        reason=closest.reason[rows].copy(), iterations=closest.iterations[rows],
-        position_error_m=closest.position_error_m[rows],
-        rotation_error_rad=closest.rotation_error_rad[rows]))
-    config = comp.confdata(found.q)
-    return {int(rows[j]): tuple(int(c) for c in config[j])
-            for j in np.flatnonzero(found.success)}
-
-
-def _in_range_configurations(comp: Compensator, desired_flange: np.ndarray,
-                             which: np.ndarray) -> dict[int, tuple[int, int, int, int]]:
-    """For the rows ``which`` of ``desired_flange (k, 4, 4)``: a configuration on which the
-    calibrated arm reaches the pose inside every range (row -> confdata), tried in the
-    order of the nominal branches nearest zero."""
-    rows = np.flatnonzero(which)
-    if not len(rows):
-        return {}
-    nominal = closed_form_inverse(comp.family, desired_flange[rows])              # (r, 8, 6)
-    r, branches, n = nominal.shape
-    flat = nominal.reshape(-1, n)
-    ok = np.all(np.isfinite(flat), axis=1)
-    conf = np.full((len(flat), 4), 0, int)
-    conf[ok] = comp.confdata(flat[ok])
-    owner = np.repeat(np.arange(r), branches)
-    trial = comp.solve_real(np.repeat(desired_flange[rows], branches, axis=0)[ok], conf[ok])
-    found: dict[int, tuple[int, int, int, int]] = {}
-    norm = np.sum(np.nan_to_num(flat[ok], nan=1e9) ** 2, axis=1)
-    for j in np.argsort(norm, kind="stable").tolist():
-        i = int(rows[owner[ok][j]])
-        if trial.success[j] and i not in found:
-            found[i] = tuple(int(c) for c in comp.confdata(trial.q[j][None])[0])
-    return found
+def _copy(solution: IKSolution) -> IKSolution:
+    return IKSolution(q=solution.q.copy(), success=solution.success.copy(),
+                      reason=solution.reason.copy(), iterations=solution.iterations.copy(),
+                      position_error_m=solution.position_error_m.copy(),
+                      rotation_error_rad=solution.rotation_error_rad.copy())

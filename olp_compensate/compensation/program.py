@@ -5,8 +5,8 @@ with the nominal calibration nothing changes at all. What is done with each targ
 
 - a Cartesian target (robtarget, V+ transformation) with known tool and work object is
   compensated (:mod:`olp_compensate.compensation.pose`); a calibrated tool of the same name as
-  the program's tooldata is the real tool; its confdata is kept unless the joints left the
-  written quadrant by more than a degree;
+  the program's tooldata is the real tool; its confdata is the quadrants of the joints
+  written (:func:`~.confdata.written_confdata`: the configuration rule);
 - a target used with several tool/work-object pairs is compensated only when every pair
   gives the same numbers (within the written resolution); otherwise it is left as written
   and reported 'ambiguous';
@@ -36,7 +36,7 @@ from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
 from ..programs import Program, loads
 from ..programs.emit import splice
 from ..programs.targets import JointTarget
-from .confdata import vplus_configuration
+from .confdata import vplus_configuration, written_confdata
 from .ik import OPWParameters
 from .pose import COMPENSATED, Compensator, explain_failures
 from .program_edits import program_edits
@@ -49,8 +49,6 @@ __all__ = ["TargetReport", "CompensationReport", "compensate_program", "compensa
            "ModuleResult", "check_options", "KEPT", "EMIT_MODES"]
 
 EMIT_MODES = ("pose", "joints")
-CONFIG_SLACK_RAD = math.radians(1.0)
-"""A written quadrant is kept while its axis is less than this outside it."""
 TOOL_FRAME_SLACK_RAD = math.radians(5.0)
 """A calibrated tool orientation this close to the tooldata's is taken as the real one."""
 _SAME_MM, _SAME_RAD = 5e-4, 1e-6   # two compensations of one target agree within this
@@ -76,25 +74,6 @@ def _real_tool(calibration: Calibration, name: str, tooldata: np.ndarray):
             note += (f" (its measured frame is {math.degrees(apart):.1f} deg from the "
                      f"tooldata's: the tooldata's orientation kept)")
     return pose_from_rotation_translation(rotation, tool.xyz_m), note
-
-
-def _keep_config(original: np.ndarray, computed: np.ndarray, q_ctrl: np.ndarray,
-                 nominal_ctrl: np.ndarray) -> np.ndarray:
-    """The confdata (k, 4) to write: the original, except a quadrant of axis 1, 4 or 6 that
-    compensation moved out of the one the nominal controller was in for the original
-    target and more than :data:`CONFIG_SLACK_RAD` out of the written one (cfx: the solver
-    kept the requested branch). So a written confdata is never rewritten just for being
-    slightly off."""
-    quarter = math.pi / 2
-    lower = original[:, :3] * quarter
-    axes = q_ctrl[:, [0, 3, 5]]
-    outside = (axes < lower - CONFIG_SLACK_RAD) | (axes > lower + quarter + CONFIG_SLACK_RAD)
-    with np.errstate(invalid="ignore"):
-        before = np.floor(nominal_ctrl[:, [0, 3, 5]] / quarter + 1e-12)
-    moved = outside & ~(before == computed[:, :3])
-    kept = original.copy()
-    kept[:, :3] = np.where(moved, computed[:, :3], original[:, :3])
-    return kept
 
 
 def check_options(emit: str, unused: str) -> None:
@@ -338,8 +317,8 @@ def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
     if not vplus:
         rows_c = np.flatnonzero(ok & has_conf)
         if len(rows_c):
-            conf[rows_c] = _keep_config(written[rows_c], conf[rows_c], q_ctrl[rows_c],
-                                        nominal_ctrl[rows_c])
+            conf[rows_c] = written_confdata(written[rows_c], q_ctrl[rows_c],
+                                            nominal_ctrl[rows_c])
     change = np.abs(robot.to_degrees_or_mm(q_ctrl - nominal_ctrl))
     change = np.where(np.all(np.isnan(change), axis=1), np.nan,
                       np.nanmax(np.where(np.isnan(change), -np.inf, change), axis=1))

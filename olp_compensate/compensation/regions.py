@@ -219,7 +219,8 @@ def _take(solution: IKSolution, rows: np.ndarray) -> IKSolution:
     return IKSolution(q=solution.q[rows], success=solution.success[rows],
                       reason=solution.reason[rows], iterations=solution.iterations[rows],
                       position_error_m=solution.position_error_m[rows],
-                      rotation_error_rad=solution.rotation_error_rad[rows])
+                      rotation_error_rad=solution.rotation_error_rad[rows],
+                      on_asked=None if solution.on_asked is None else solution.on_asked[rows])
 
 
 def _merge(parts: list, order: np.ndarray, m: int, with_nominal: bool):
@@ -237,6 +238,8 @@ def _merge(parts: list, order: np.ndarray, m: int, with_nominal: bool):
         reason=joined([s.reason for s in solutions]),
         iterations=joined([s.iterations for s in solutions]),
         position_error_m=joined([s.position_error_m for s in solutions]),
-        rotation_error_rad=joined([s.rotation_error_rad for s in solutions]))
+        rotation_error_rad=joined([s.rotation_error_rad for s in solutions]),
+        on_asked=(None if any(s.on_asked is None for s in solutions)
+                  else joined([s.on_asked for s in solutions])))
     nominal = joined([p[3] for p in parts]) if with_nominal else None
     return joined([p[0] for p in parts]), joined([p[1] for p in parts]), solution, nominal

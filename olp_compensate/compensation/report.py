@@ -285,7 +285,8 @@ def failure_row(row: TargetReport, failure, robot, vplus: bool) -> TargetReport:
     if np.all(np.isfinite(failure.joints)):
         joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
     config = config_text(failure.config) if failure.config is not None and not vplus else ""
-    return dataclasses.replace(row, note=note, joints=joints, config_after=config)
+    return dataclasses.replace(row, status=failure.status or row.status, note=note,
+                               joints=joints, config_after=config)
 
 
 def solved_note(notes: tuple[str, ...], tool_note: str) -> str:

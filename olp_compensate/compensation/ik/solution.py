@@ -26,6 +26,9 @@ class IKSolution:
         requested); 'not_converged' (iteration limit).
     iterations : (m,) int, Newton steps tried.
     position_error_m, rotation_error_rad : (m,) final errors (norms, base frame).
+    on_asked : (m,) bool or None: set by the configuration rule
+        (:func:`olp_compensate.compensation.config_rule.decide`), whether ``q`` is on the
+        configuration asked for; None where the rule was not applied.
     """
 
     q: np.ndarray
@@ -34,3 +37,4 @@ class IKSolution:
     iterations: np.ndarray
     position_error_m: np.ndarray
     rotation_error_rad: np.ndarray
+    on_asked: np.ndarray | None = None

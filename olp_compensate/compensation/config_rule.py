@@ -1,0 +1,314 @@
+"""The configuration rule: the one status decision every compensation path makes.
+
+A target the calibrated arm does not reach as asked (on the configuration the program
+asks for, inside every controller axis range and URDF joint limit) gets exactly one of:
+
+- ``ok``: a search from every configuration finds the asked configuration after all,
+  inside every range (the solver had stopped short): compensated with those joints;
+- ``branch_changed``: another configuration reaches the target inside every range; the
+  joints reported are that configuration's (inside the ranges), and it is the one the
+  note names (of those inside, the one of the asked branch nearest the asked joints where
+  there is one: only a turn or a quadrant differs);
+- ``joint_limit``: some configuration reaches the target, but only outside a range; the
+  joints reported are those of the asked configuration where it reaches the target (else
+  the ones nearest the ranges), each axis turned by whole turns as near its range as it
+  goes;
+- ``unreachable`` (the search stalls short of the pose from every start, or the reach
+  bound proves it) or ``not_converged`` (a start was still closing in when its steps ran
+  out): the joints of the closest approach.
+
+:func:`decide` applies the rule to the failed rows of an :class:`~.ik.IKSolution`;
+:func:`search` is the shared work: damped Newton of the calibrated arm from the nominal
+closed form of every branch (stretched where out of reach) and from the solver's own last
+iterate, :data:`SEARCH_BLOCK` rows with all their starts in one batch, at most
+:data:`SEARCH_STEPS` steps each. What
+"the configuration asked for" means is a predicate (:data:`Asked`): ABB confdata here
+(:func:`confdata_asked`), a dialect's written configuration in
+:mod:`.dialect_program`. Joints: URDF axes in IK solutions, controller axes (rad/m) in the
+search results.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from .ik import IKSolution, closed_form_inverse, refine
+
+if TYPE_CHECKING:
+    from .pose import Compensator
+
+__all__ = ["Candidates", "search", "decide", "confdata_asked", "turn_toward_ranges",
+           "QUADRANT_TOLERANCE", "SEARCH_STEPS"]
+
+SEARCH_STEPS = 60
+"""Newton steps of each start of the search (a start that stalls stops after 20)."""
+SEARCH_BLOCK = 2048
+"""Failed targets searched together (nine starts each): bounds the search's memory."""
+QUADRANT_TOLERANCE = np.pi / 4
+"""An axis 1, 4 or 6 this far (rad) outside the asked quadrant is still on the asked
+configuration (as the solver's ``quadrant_tolerance``); the quadrant written is then the
+one it is in (:mod:`.confdata`)."""
+
+Asked = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+"""``asked(rows (k,) int, q (k, b, n) controller rad, usable (k, b) bool) -> (k, n)``: for
+each of ``rows`` (indices into the batch solved), the joints among its usable candidates
+that are on the configuration the program asks for (turned as the controller turns them),
+NaN where none is."""
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """The calibrated arm's solutions of k poses from b starts each.
+
+    q : (k, b, n) controller axes, rad/m, each revolute axis turned by whole turns as near
+        its range as it goes (see :func:`turn_toward_ranges`); NaN where the start is none.
+    reached : (k, b) bool, the pose reached (1e-9 m, 1e-9 rad).
+    inside : (k, b) bool, reached and inside every controller range and URDF limit.
+    reason : (k, b) str, the Newton's verdict ('ok', 'singular', 'unreachable',
+        'not_converged').
+    position_error_m, rotation_error_rad : (k, b) where each start stopped.
+    excess : (k, b) how far past the ranges and limits (rad/m, summed over axes).
+    cfx : (k, b) int, the configuration number (branch) of ``q``, -1 where not reached.
+    cfx_of : controller joints (n,) -> their configuration number.
+    own : whether the last start is the solver's own iterate.
+    """
+
+    q: np.ndarray
+    reached: np.ndarray
+    inside: np.ndarray
+    reason: np.ndarray
+    position_error_m: np.ndarray
+    rotation_error_rad: np.ndarray
+    excess: np.ndarray
+    cfx: np.ndarray
+    cfx_of: Callable[[np.ndarray], int]
+    own: bool = False
+
+
+def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
+    """``q_ctrl (..., n)`` rad with each revolute axis turned by whole turns into its
+    controller range (the turn nearest zero where several fit), or, where no turn fits and
+    for axes without a finite range, wrapped to [-180, 180) deg."""
+    q = np.array(q_ctrl, dtype=float, copy=True)
+    ranges = robot.controller_ranges
+    turns = 2 * np.pi * np.arange(-3, 4)
+    for a, joint in enumerate(robot.joints):
+        if joint.kind != "revolute":
+            continue
+        lo, hi = ranges[a]
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            q[..., a] = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
+            continue
+        values = q[..., a, None] + turns                              # (..., 7)
+        inside = (values >= lo - 1e-9) & (values <= hi + 1e-9)
+        pick = np.argmin(np.where(inside, np.abs(values), np.inf), axis=-1)
+        turned = np.take_along_axis(values, pick[..., None], axis=-1)[..., 0]
+        wrapped = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
+        q[..., a] = np.where(np.any(inside, axis=-1), turned, wrapped)
+    return q
+
+
+def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
+           ) -> Candidates:
+    """The calibrated arm's solutions of ``desired (k, 4, 4)`` (flange, base frame, m):
+    damped Newton from the nominal closed form of every branch (stretched where the
+    nominal arm falls short) and from ``own (k, n)`` (URDF rad: the solver's last iterate,
+    NaN where none), at most :data:`SEARCH_STEPS` steps each, all in one batch."""
+    robot = comp.robot
+    k = len(desired)
+    starts = closed_form_inverse(comp.family, desired, clip=True)             # (k, 8, n)
+    if own is not None:
+        starts = np.concatenate([starts, np.asarray(own, dtype=float)[:, None]], 1)
+    b, n = starts.shape[1], starts.shape[2]
+    flat = starts.reshape(-1, n)
+    given = np.all(np.isfinite(flat), axis=1)
+    result = refine(comp.real_flange_and_jacobian, np.nan_to_num(flat),
+                    np.repeat(desired, b, axis=0), None, 1e-9, 1e-9, SEARCH_STEPS)
+    reason = np.where(given, result.reason, "unreachable")
+    reached = np.isin(reason, ("ok", "singular"))
+    q = np.full((k * b, n), np.nan)
+    if np.any(reached):
+        q[reached] = turn_toward_ranges(robot, robot.controller_from_joints(result.q[reached]))
+    q[~reached & given] = turn_toward_ranges(
+        robot, robot.controller_from_joints(result.q[~reached & given]))
+    inside = reached.copy()
+    excess = np.full(k * b, np.inf)
+    cfx = np.full(k * b, -1)
+    if np.any(reached):
+        inside[reached] = ~robot.outside_ranges(q[reached]).any(axis=1)
+        excess[reached] = _excess(robot, q[reached])
+        cfx[reached] = comp.confdata(robot.joints_from_controller(q[reached]))[:, 3]
+
+    def cfx_of(q_ctrl: np.ndarray) -> int:
+        return int(comp.confdata(robot.joints_from_controller(q_ctrl[None]))[0, 3])
+    position = np.where(given, result.position_error_m, np.inf)
+    rotation = np.where(given, result.rotation_error_rad, np.inf)
+    return Candidates(q=q.reshape(k, b, n), reached=reached.reshape(k, b),
+                      inside=inside.reshape(k, b), reason=reason.reshape(k, b),
+                      position_error_m=position.reshape(k, b),
+                      rotation_error_rad=rotation.reshape(k, b), excess=excess.reshape(k, b),
+                      cfx=cfx.reshape(k, b), cfx_of=cfx_of, own=own is not None)
+
+
+def confdata_asked(comp: Compensator, confdata: np.ndarray | None) -> Asked:
+    """The :data:`Asked` predicate of ABB confdata ``(m, 4)`` of the batch (None: any
+    configuration is the one asked for): same cfx, and axes 1, 4 and 6 each turned (inside its range)
+    to within :data:`QUADRANT_TOLERANCE` of its asked quadrant. The first such candidate
+    nearest zero is taken."""
+    robot = comp.robot
+
+    def asked(rows: np.ndarray, q: np.ndarray, usable: np.ndarray) -> np.ndarray:
+        k, b, n = q.shape
+        out = np.full((k, n), np.nan)
+        flat = q.reshape(-1, n)
+        match = usable.reshape(-1).copy()
+        turned = flat.copy()
+        if confdata is not None and np.any(match):
+            want = np.repeat(np.asarray(confdata, dtype=int)[rows], b, axis=0)
+            some = np.flatnonzero(match)
+            turned[some], on = _on_quadrants(robot, flat[some], want[some, :3])
+            cfx = comp.confdata(robot.joints_from_controller(turned[some]))[:, 3]
+            match[some] = on & (cfx == want[some, 3])
+        norm = np.where(match, np.nansum(turned ** 2, axis=1), np.inf).reshape(k, b)
+        pick = np.argmin(norm, axis=1)
+        found = np.isfinite(norm[np.arange(k), pick])
+        out[found] = turned.reshape(k, b, n)[np.flatnonzero(found), pick[found]]
+        return out
+
+    return asked
+
+
+def _on_quadrants(robot, q: np.ndarray, quadrants: np.ndarray):
+    """``q (r, n)`` with axes 1, 4, 6 turned (inside their ranges) into the ``quadrants
+    (r, 3)`` asked, give or take :data:`QUADRANT_TOLERANCE`; and (r,) bool where all
+    three fit."""
+    q = q.copy()
+    ok = np.ones(len(q), bool)
+    ranges = robot.controller_ranges
+    quarter = np.pi / 2
+    for j, a in enumerate((0, 3, 5)):
+        lo = quadrants[:, j] * quarter - QUADRANT_TOLERANCE
+        hi = (quadrants[:, j] + 1) * quarter + QUADRANT_TOLERANCE
+        fit = np.zeros(len(q), bool)
+        for turn in (0.0, -2 * np.pi, 2 * np.pi):
+            value = q[:, a] + turn
+            good = (~fit & (value >= lo) & (value <= hi)
+                    & (value >= ranges[a, 0] - 1e-9) & (value <= ranges[a, 1] + 1e-9))
+            q[good, a] = value[good]
+            fit |= good
+        ok &= fit
+    return q, ok
+
+
+def decide(comp: Compensator, solution: IKSolution, desired: np.ndarray,
+           confdata: np.ndarray | None, asked: Asked | None = None) -> IKSolution:
+    """``solution`` (of ``desired (m, 4, 4)`` on ``confdata (m, 4)`` or any) with each
+    failed row's reason, joints (URDF) and errors set by the rule of this module, and
+    :attr:`~.ik.IKSolution.on_asked` filled in (whether the joints kept are on the asked
+    configuration). ``asked``: the predicate of the asked configuration (default
+    :func:`confdata_asked` of ``confdata``). Changed in place and returned."""
+    m = len(solution.success)
+    if solution.on_asked is None:
+        solution.on_asked = solution.success.copy()
+    failed = np.flatnonzero(~solution.success)
+    if not len(failed):
+        return solution
+    conf = None if confdata is None else np.asarray(confdata, dtype=int).reshape(m, 4)
+    predicate = asked if asked is not None else confdata_asked(comp, conf)
+    for start in range(0, len(failed), SEARCH_BLOCK):
+        _decide_rows(comp, solution, desired, failed[start:start + SEARCH_BLOCK], predicate)
+    return solution
+
+
+def _decide_rows(comp: Compensator, solution: IKSolution, desired: np.ndarray,
+                 failed: np.ndarray, predicate: Asked) -> None:
+    """:func:`decide` of the rows ``failed`` of ``solution`` (changed in place)."""
+    robot = comp.robot
+    own = solution.q[failed].copy()
+    own[solution.reason[failed] == "unreachable"] = np.nan
+    found = search(comp, desired[failed], own)
+    on_asked_q = predicate(failed, found.q, found.inside)
+    picked = np.all(np.isfinite(on_asked_q), axis=1)
+    if np.any(picked):       # a predicate turns axes as its controller does: still inside?
+        outside = robot.outside_ranges(on_asked_q[picked]).any(axis=1)
+        on_asked_q[np.flatnonzero(picked)[outside]] = np.nan
+    # the same predicate, ranges aside: is the out-of-range solution the asked one?
+    any_q = predicate(failed, found.q, found.reached)
+    for i, row in enumerate(failed.tolist()):
+        q, reason, j, as_asked = _rule_for_row(found, i, on_asked_q[i], any_q[i],
+                                               str(solution.reason[row]))
+        solution.reason[row] = reason
+        solution.success[row] = reason in ("ok", "singular")
+        solution.on_asked[row] = as_asked
+        if q is not None:
+            solution.q[row] = robot.joints_from_controller(q[None])[0]
+            solution.position_error_m[row] = found.position_error_m[i, j]
+            solution.rotation_error_rad[row] = found.rotation_error_rad[i, j]
+
+
+def _rule_for_row(found: Candidates, i: int, on_asked: np.ndarray, asked_any: np.ndarray,
+                  own_reason: str):
+    """(controller joints or None, reason, index of the start they came from, whether they
+    are on the asked configuration) of row ``i`` of ``found`` by the rule; ``on_asked`` /
+    ``asked_any`` the predicate's joints among the in-range / reached candidates (NaN
+    where none)."""
+    q, inside, reached = found.q[i], found.inside[i], found.reached[i]
+    if np.all(np.isfinite(on_asked)):
+        j = _index_of(q, on_asked, inside)
+        return on_asked, str(found.reason[i, j]), j, True
+    if np.any(inside):
+        j = _nearest_other(found, i, asked_any)
+        return q[j], "branch_changed", j, False
+    if np.any(reached):
+        if np.all(np.isfinite(asked_any)):
+            j = _index_of(q, asked_any, reached)
+            return asked_any, "joint_limit", j, True
+        j = int(np.argmin(np.where(reached, found.excess[i], np.inf)))
+        return q[j], "joint_limit", j, False
+    score = found.position_error_m[i] + 0.1 * found.rotation_error_rad[i]
+    score = np.where(np.isfinite(score), score, np.inf)
+    j = int(np.argmin(score))
+    if not np.isfinite(score[j]):
+        return None, "unreachable", 0, False
+    reason = str(found.reason[i, j])
+    if own_reason == "unreachable" or reason != "not_converged":
+        reason = "unreachable"
+    return q[j], reason, j, False
+
+
+def _index_of(q: np.ndarray, chosen: np.ndarray, usable: np.ndarray) -> int:
+    """The candidate of ``q (b, n)`` (usable only) nearest ``chosen`` modulo whole turns."""
+    gap = np.remainder(q - chosen + np.pi, 2 * np.pi) - np.pi
+    score = np.where(usable, np.nansum(gap ** 2, axis=1), np.inf)
+    return int(np.argmin(score))
+
+
+def _nearest_other(found: Candidates, i: int, asked_any: np.ndarray) -> int:
+    """The in-range candidate of row ``i`` to name: where the asked configuration reaches
+    the pose outside a range (``asked_any``), one of its branch (same cfx: only a turn or
+    a quadrant differs) nearest those joints, else any nearest them; else the one nearest
+    zero. Without ``asked_any``, the solver's own end on the asked configuration stands
+    for it where it reached the pose."""
+    q, inside = found.q[i], found.inside[i]
+    if not np.all(np.isfinite(asked_any)) and found.own and found.reached[i, -1]:
+        asked_any = q[-1]           # where the solver on the asked configuration ended
+    if not np.all(np.isfinite(asked_any)):
+        return int(np.argmin(np.where(inside, np.nansum(q ** 2, axis=1), np.inf)))
+    same = inside & (found.cfx[i] == found.cfx_of(asked_any))
+    usable = same if np.any(same) else inside
+    return int(np.argmin(np.where(usable, np.nansum((q - asked_any) ** 2, axis=1), np.inf)))
+
+
+def _excess(robot, q_ctrl: np.ndarray) -> np.ndarray:
+    """(r,) how far (rad/m, summed over axes) ``q_ctrl (r, n)`` lies past the controller's
+    ranges and the URDF limits."""
+    ranges = robot.controller_ranges
+    past = np.maximum(np.maximum(ranges[:, 0] - q_ctrl, q_ctrl - ranges[:, 1]), 0.0)
+    joints = robot.joints_from_controller(q_ctrl)
+    past_urdf = np.maximum(np.maximum(robot.lower_limits - joints,
+                                      joints - robot.upper_limits), 0.0)
+    return np.nansum(np.nan_to_num(past, posinf=0.0) + np.nan_to_num(past_urdf, posinf=0.0),
+                     axis=1)
