@@ -65,10 +65,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="calibration of the robot the targets were taught on (robot-to-robot "
                         "transfer: the real robot of --model reaches where that robot's real "
                         "tool went); both of the same robot model")
-    p.add_argument("--config", metavar="FRAMES",
-                   help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]; "
-                        "FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) with $MNUFRAME and "
-                        "$MNUTOOL (user and tool frames of group 1)")
+    p.add_argument("--config", metavar="FILE", action="append",
+                   help="a controller file the programs rely on (repeat for several): KRL: "
+                        "the controller's $config.dat with TOOL_DATA[n], BASE_DATA[n] and "
+                        "its points (XHOME); FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) "
+                        "with $MNUFRAME and $MNUTOOL (user and tool frames of group 1), "
+                        "SYSMAST.VA with $SCR_GRP[1].$TURN_AXIS, POSREG.VA with the position "
+                        "registers")
+    p.add_argument("--fanuc-turn-axes", metavar="A,B,C",
+                   help="FANUC: the axes the turn numbers of CONFIG belong to, as the "
+                        "controller's $SCR_GRP[1].$TURN_AXIS (default: SYSMAST.VA's when "
+                        "given with --config, else 4,5,6)")
     p.add_argument("--region", metavar="NAME",
                    help="use this region's local model for every target ('global': the global "
                         "model); default: each target's region by its position, when the "
@@ -125,9 +132,10 @@ def run(args, retain: list | None = None) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise DataError(f"-j/--jobs: expected a positive number of processes, got {args.jobs}")
     units = plan_units(args.program, args.dialect, args.output, EXTENSIONS)
+    args.config = _backup(args.config, getattr(args, "fanuc_turn_axes", None))
     refuse_clashes([*(("program", p) for u in units for p in u.paths), ("--model", args.model),
                     ("--robot", args.robot), ("--taught-on", args.taught_on),
-                    ("--config", args.config)],
+                    *(("--config", c) for c in args.config.paths)],
                    [*(("-o" if args.output else "the default output", o)
                       for u in units for o in u.outputs), ("--report", args.report)])
     # a short batch run over millions of small acyclic records: the cyclic collector's
@@ -138,6 +146,19 @@ def run(args, retain: list | None = None) -> int:
         from .fix_batch import run_batch
 
         return run_batch(args, units)
+
+
+def _backup(config, turn_axes: str | None):
+    """The ``--config`` files and stated conventions as one
+    :class:`~olp_compensate.programs.backup_files.BackupFiles` (workers receive it whole)."""
+    from ..programs.backup_files import BackupFiles, backup_files, parse_turn_axes
+
+    given = backup_files(config)
+    for path in given.paths:
+        if not os.path.isfile(path):
+            raise DataError(f"--config {path}: no such file")
+    axes = parse_turn_axes(turn_axes) if turn_axes is not None else None
+    return BackupFiles(given.paths, axes)
 
 
 def load_calibrations(args):
