@@ -367,7 +367,7 @@ def _external_rows(program: PoseProgram, rules: DialectRules, rows: list[TargetR
         target = by_place.get(((row.file, row.line, row.column), row.target))
         if target is None or row.status not in COMPENSATED:
             continue
-        new = {e.start: e.text for e in edits.get(row.file, ())}
+        new = {e.start: e.replacement for e in edits.get(row.file, ())}
         values = ", ".join(new.get(n.start, n.text).strip() for n in target.numbers)
         config = ", ".join(new.get(n.start, n.text) for n in target.config)
         solved = row.status

@@ -40,7 +40,7 @@ _ARRAY_ITEM = re.compile(r"[ \t]*\[[ \t]*(\d+)[ \t]*\][ \t]*=[ \t]*([^\r\n]*)")
 _ELEMENT = re.compile(r"^[ \t]*\[[ \t]*(\d+)[ \t]*,[ \t]*(\d+)[ \t]*\][ \t]*=([^\r\n]*)", re.M)
 _CARTESIAN = re.compile(r"(?<![\w$])([XYZWPR])[ \t]*:[ \t]*([^\s]*)")
 _JOINT = re.compile(r"(?<![\w$])(J\d)[ \t]*=[ \t]*([^\s]*)")
-_CONFIG = re.compile(r"\bConfig[ \t]*:[ \t]*([^\r\n]*?)[ \t]*$", re.M | re.I)
+_CONFIG = re.compile(r"\bConfig[ \t]*:[ \t]*([^\r\n]*?)[ \t]*(?:\r|\n|$)", re.I)
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 CONFIG_PARTS = re.compile(r"[ \t]*([NF])[ \t]*([UD])[ \t]*([TB])[ \t]*((?:,[ \t]*[-+]?\d+"
                           r"[ \t]*)*)$")
