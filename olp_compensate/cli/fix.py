@@ -32,7 +32,7 @@ DIALECTS = ("rapid", "vplus", "krl", "fanuc", "val3", "urscript")
 EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
               ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
               ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
-              ".script": "urscript"}
+              ".script": "urscript", ".urscript": "urscript"}
 """As :data:`olp_compensate.compensation.files.EXTENSIONS` (a test checks)."""
 ROBOT_COMMENT = re.compile(rb"^[ \t]*[!;][ \t]*olp-robot[ \t]*:[ \t]*([A-Za-z0-9_.+-]+)",
                            re.MULTILINE | re.IGNORECASE)
@@ -46,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="olp-fix", description=__doc__.splitlines()[0])
     p.add_argument("program", nargs="+", metavar="PATH",
                    help="program files (RAPID .mod .modx .prg .sys; V+/AS .pg .v2 .lc .loc "
-                        ".as; KRL .src/.dat; FANUC .ls; VAL3 .dtx; URScript .script), task "
+                        ".as; KRL .src/.dat; FANUC .ls; VAL3 .dtx; URScript .script .urscript), task "
                         "folders or controller backups")
     p.add_argument("--model", required=True, help="calib.json from olp-cal identify/nominal")
     p.add_argument("-o", "--output", help="with one program: the compensated program to "

@@ -218,6 +218,10 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
             rows.append(_row(target, "runtime", "the aggregate leaves some of the pose to the "
                                                 "position at run time"))
             continue
+        if not pairs and target.name in program.runtime_uses:
+            rows.append(_row(target, "runtime", program.runtime_uses[target.name],
+                             config_before=config))
+            continue
         if not pairs:
             rows.append(_row(target, "unused", "not moved to in the files given: tool and base "
                                                "unknown, left as written",

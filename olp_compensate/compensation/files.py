@@ -31,7 +31,7 @@ DIALECTS = TEXT_DIALECTS + POSE_DIALECTS
 EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
               ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
               ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
-              ".script": "urscript"}
+              ".script": "urscript", ".urscript": "urscript"}
 """File extension (any case) -> dialect."""
 
 

@@ -87,6 +87,9 @@ class PoseProgram:
         data, FANUC user frames...), name -> six numbers in the file's units.
     kept : targets read but kept as written, each reported with its reason: (source, name,
         status, note) (a FANUC SCARA configuration, a KRL point moved to through ``:``).
+    runtime_uses : target name -> why a use of it is known only at run time (a URScript
+        relative waypoint moved by through ``pose_sub``): such a target that no motion moves
+        to directly is reported ``runtime`` with that reason, not ``unused``.
     external : files of ``texts`` that are not program files written back (a FANUC
         ``POSREG.VA``, a KRL ``$config.dat``): file -> (status, what its targets are).
         Their targets are solved and reported with that status (``register``,
@@ -102,6 +105,7 @@ class PoseProgram:
     notes: list[str] = field(default_factory=list)
     kept: list[tuple[tuple[str, int, int], str, str, str]] = field(default_factory=list)
     external: dict[str, tuple[str, str]] = field(default_factory=dict)
+    runtime_uses: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
