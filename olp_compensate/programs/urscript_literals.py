@@ -88,14 +88,20 @@ def check_elements(text: str, clean: str, file: str, starts: list[int]) -> None:
 def check_blocks(text: str, clean: str, file: str, starts: list[int]) -> None:
     """Refuse a script whose blocks (``def``, ``thread``, ``if``, ``while``, ``for``) are
     not all closed by ``end``: a file cut short."""
-    openers = list(_OPENER.finditer(clean))
-    closers = len(_CLOSER.findall(clean))
-    if len(openers) > closers:
-        last = openers[-1]
-        line = line_column(text, last.start(1), starts)[0]
+    events = sorted([(m.start(1), m) for m in _OPENER.finditer(clean)] +
+                    [(m.start(), None) for m in _CLOSER.finditer(clean)], key=lambda e: e[0])
+    open_blocks: list[re.Match] = []
+    for _, opener in events:
+        if opener is not None:
+            open_blocks.append(opener)
+        elif open_blocks:
+            open_blocks.pop()
+    if open_blocks:
+        first = open_blocks[0]
+        line = line_column(text, first.start(1), starts)[0]
         end = len(text.rstrip())
-        raise ParseError(f"{len(openers) - closers} block(s) never closed by 'end' (the last "
-                         f"opened, '{last.group(1)}', at line {line}): the script is cut short",
+        raise ParseError(f"{len(open_blocks)} block(s) never closed by 'end' (the outermost, "
+                         f"'{first.group(1)}' at line {line}): the script is cut short",
                          file, *line_column(text, end, starts))
 
 
