@@ -183,6 +183,11 @@ def check_not_cut_short(dialect: str, paths, names) -> None:
     that is complete but holds no location data (an AS dump of system or auxiliary data, a
     KRL data list without positions) passes: it is written back as it is."""
     data = [Path(p).read_bytes() for p in paths]
+    if dialect == "vplus" and all(d.strip() for d in data) and all(
+            not line.strip() or line.lstrip().startswith(b".*")
+            for d in data for line in d.splitlines()):
+        raise DataError(f"{names[0]}: an AS save holding only its header ('.*' comment lines): "
+                        f"no program nor location data in it; nothing written")
     cut = all(not d.strip() for d in data) or (
         dialect == "vplus" and not any(V_PLUS_END.search(d) for d in data))
     if cut:

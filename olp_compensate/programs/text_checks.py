@@ -47,12 +47,12 @@ def _utf16(text: str) -> int | None:
 def check_text(text: str, file: str, hint: str = "") -> None:
     """Refuse a text that is UTF-16 or binary (a NUL byte, or many control bytes: an
     encrypted module, an image, a controller's binary ``.tp``...) before a reader sees it,
-    in one line that does not echo its bytes. ``hint``: what to do instead, appended."""
+    in one line that does not echo its bytes. ``hint``: what to do instead of a binary
+    file, appended."""
     at = _utf16(text)
     if at is not None:
         raise ParseError("the file is UTF-16 text (its bytes alternate with NULs): save it "
-                         "as ASCII, Latin-1 or UTF-8" + (f"; {hint}" if hint else ""),
-                         file, *position(text, at))
+                         "as ASCII, Latin-1 or UTF-8", file, *position(text, at))
     head = text[:1 << 16]
     controls = len(_CONTROL.findall(head))
     nul = text.find("\x00")
@@ -84,3 +84,22 @@ def check_not_non_finite(text: str, lo: int, hi: int, file: str, what: str = "")
     if m is not None:
         raise ParseError(f"{(what + ' = ') if what else ''}{m.group()} is not a finite number",
                          file, *position(text, m.start()))
+
+
+def check_xml(text: str, file: str, what: str = "XML") -> None:
+    """Refuse a text that is not one well-formed XML document (cut short inside an element,
+    several top-level elements, stray bytes), at the place the XML parser stops. Bytes are
+    read as Latin-1 whatever the declaration says (the readers keep every byte)."""
+    from xml.parsers import expat
+
+    parser = expat.ParserCreate(encoding="iso-8859-1")
+    try:
+        parser.Parse(text.encode("latin-1"), True)
+    except expat.ExpatError as exc:
+        reason = expat.ErrorString(exc.code)
+        hint = {"junk after document element": "several top-level elements: a fragment, not "
+                                               "a whole file",
+                "no element found": "the file ends before its elements close: cut short",
+                "unclosed token": "the file ends inside an element: cut short"}.get(reason, "")
+        raise ParseError(f"not well-formed {what}: {reason}" + (f" ({hint})" if hint else ""),
+                         file, exc.lineno, exc.offset + 1) from None

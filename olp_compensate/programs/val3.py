@@ -44,6 +44,7 @@ from ..kinematics.conventions import euler_xyz_from_matrix, matrix_from_euler_xy
 from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
                             line_starts_of)
 from .targets import Number
+from .text_checks import check_text, check_xml
 
 POSE_FIELDS = ("x", "y", "z", "rx", "ry", "rz")
 JOINT_FIELDS = ("j1", "j2", "j3", "j4", "j5", "j6", "j7")
@@ -208,6 +209,8 @@ def parse_val3(texts: dict[str, str] | str, file: str = "<dtx>") -> PoseProgram:
     tools: dict[str, tuple[np.ndarray, str | None]] = {}
     points: list[tuple[PoseTarget, str | None]] = []
     for name, text in texts.items():
+        check_text(text, name)
+        check_xml(text, name, "VAL3 data (.dtx)")
         starts = line_starts_of(text)
         clean = _mask_comments(text)
         for entry in _entries(text, clean, name, starts):

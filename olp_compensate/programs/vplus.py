@@ -37,8 +37,9 @@ import re
 import lark
 from lark.exceptions import UnexpectedInput
 
-from .grammar import (PositionedBuilder, LineIndex, check_text, convert_lark_error, current_sink,
+from .grammar import (PositionedBuilder, LineIndex, convert_lark_error, current_sink,
                       error_at, newline_style, parser)
+from .text_checks import check_text
 from .targets import (EULER_ZYZ_DEG, CartesianTarget, JointTarget, MotionUse, Program,
                       Routine, RuntimeTarget, SourceLocation, ToolData)
 from .vplus_expressions import (first_name, location_expression, skip_blanks, term_at,
