@@ -381,6 +381,7 @@ def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>
         texts[dat_file] = dat_text
     for name, text in {**texts, **configs}.items():
         check_text(text, name)
+        _check_complete(text, name)
     program = PoseProgram(dialect="krl", texts=texts, targets=[], motions=[])
     types: dict[str, str] = {}
     fdat: dict[str, dict[str, Number]] = {}
@@ -396,6 +397,23 @@ def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>
         _motions(src_text, src_file, program, _Frames(fdat))
     _resolve_names(program, config_points)
     return program
+
+
+_BLOCKS = (("DEFDAT", "ENDDAT"), ("DEFFCT", "ENDFCT"), ("DEF", "END"))
+
+
+def _check_complete(text: str, file: str) -> None:
+    """Refuse a module cut short: a ``DEF``, ``DEFFCT`` or ``DEFDAT`` without its ``END``,
+    ``ENDFCT`` or ``ENDDAT``."""
+    clean = strip_comments(text)
+    for opener, closer in _BLOCKS:
+        opened = re.findall(rf"^[ \t]*(?:GLOBAL[ \t]+)?{opener}\b", clean, re.I | re.M)
+        closed = re.findall(rf"^[ \t]*{closer}\b", clean, re.I | re.M)
+        if len(opened) > len(closed):
+            starts = line_starts_of(text)
+            line, column = line_column(text, len(text.rstrip()), starts)
+            raise ParseError(f"{opener} without {closer}: the file is cut short", file, line,
+                             column)
 
 
 def _resolve_names(program: PoseProgram, config_points: PoseProgram) -> None:
