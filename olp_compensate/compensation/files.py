@@ -180,6 +180,18 @@ def _fanuc_backup(backup: BackupFiles) -> _FanucBackup:
                         f"CONFIG turn numbers read for the axes {words} ({note})")
 
 
+def _val3_programs(files: ProgramFiles) -> dict[str, str]:
+    """The ``.pgx`` programs beside a VAL3 data file (its project's folder), by the names
+    the report gives them (beside the data file's name)."""
+    out = {}
+    for path, name in zip(files.paths, files.names):
+        for pgx in sorted(Path(path).parent.iterdir()):
+            if pgx.suffix.lower() == ".pgx" and pgx.is_file():
+                out[str(Path(name).parent / pgx.name) if Path(name).parent != Path(".")
+                    else pgx.name] = _read(pgx)
+    return out
+
+
 def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
     """(PoseProgram, DialectRules) of the files of a pose dialect."""
     names = files.names
@@ -206,7 +218,7 @@ def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
         from ..programs.val3 import parse_val3
         from .rules_val3 import VAL3
 
-        return parse_val3(dict(zip(names, texts))), VAL3
+        return parse_val3(dict(zip(names, texts)), programs=_val3_programs(files)), VAL3
     from ..programs.urscript import parse_urscript
     from .rules_urscript import URSCRIPT
 
