@@ -258,3 +258,37 @@ def test_a_posreg_value_that_is_not_a_number_is_refused_at_its_place():
     line = bad.split("\r\n")[3]
     assert (info.value.line, info.value.column) == (4, line.index("2.0e+x") + 1)
     assert "not a finite number" in str(info.value)
+
+
+def _record_spans(text: str) -> list[tuple[int, int]]:
+    """(first line, last line) of every ``P[n]{ ... };`` record: this test's own scanner."""
+    lines = text.replace("\r\n", "\n").split("\n")
+    out, start = [], None
+    for n, line in enumerate(lines, 1):
+        if re.match(r"\s*P\[\s*\d+[^\]]*\]\s*\{", line):
+            start = n
+        if start is not None and line.strip().startswith("};"):
+            out.append((start, n))
+            start = None
+    return out
+
+
+@pytest.mark.parametrize("text", [
+    SCARA,
+    ls_program([(np.array([1500.0, 0.0, 1000.0, 180.0, 0.0, 0.0]), ("N", "U", "T"), (0, 0, 0)),
+                (np.array([1400.0, 200.0, 900.0, 180.0, 0.0, 30.0]), ("N", "U", "T"), (0, 0, 0)),
+                (np.array([1300.0, -200.0, 800.0, 180.0, 0.0, -30.0]), ("N", "U", "T"), (0, 0, 0))],
+               extra_mn=["J PR[3] 100% FINE    ;"]),
+], ids=["scara", "cell"])
+def test_every_position_record_has_a_row(text):
+    from pathlib import Path
+
+    golden = (Path(__file__).parent / "programs" / "fanuc_frames_and_motions" / "input.ls")
+    for source in (text, golden.read_bytes().decode("latin-1")):
+        _, report = compensate_pose_program(parse_fanuc_tp(source, "C.ls", frames={
+            "UT4": TOOL_MM}), FANUC_TP, nominal_calibration(ROBOT))
+        lines = [r.line for r in report.rows if r.file == "C.ls"]
+        spans = _record_spans(source)
+        assert spans
+        for first, last in spans:
+            assert any(first <= line <= last for line in lines), (first, last)
