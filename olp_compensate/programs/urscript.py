@@ -290,7 +290,8 @@ def parse_urscript(text: str, file: str = "<script>") -> PoseProgram:
     reader.assignments()
     reader.motions()
     reader.hints()
-    other_literals(text, reader.clean, file, reader.starts, program)
+    other_literals(text, reader.clean, file, reader.starts, program, reader.tcp_names,
+                   reader.runtime_names)
     relative_waypoints(reader.clean, text, reader.starts, program)
     if not any(m.tool for m in program.motions) and program.motions:
         program.notes.append("no set_tcp in the script: the targets are taken as flange poses "

@@ -105,9 +105,16 @@ def check_blocks(text: str, clean: str, file: str, starts: list[int]) -> None:
                          file, *line_column(text, end, starts))
 
 
+_ASSIGNED = re.compile(r"(?:^|[\r\n])[ \t]*(?:global[ \t]+|local[ \t]+)?([A-Za-z_]\w*)[ \t]*="
+                       r"[ \t]*$")
+
+
 def other_literals(text: str, clean: str, file: str, starts: list[int],
-                   program: PoseProgram) -> None:
-    """A row (``program.kept``) for each ``p[...]`` that is not one of the targets read."""
+                   program: PoseProgram, tcp_names=frozenset(), runtime_names=None) -> None:
+    """A row (``program.kept``) for each ``p[...]`` that is not one of the targets read.
+    ``tcp_names``: names given to ``set_tcp``; ``runtime_names``: name -> why its value is
+    known only at run time (assigned several times...)."""
+    runtime_names = runtime_names or {}
     covered = {n.start for t in program.targets for n in t.numbers}
     defaults = {m.start(1): m.group(1) for m in _DEF.finditer(clean)}
     for m in _P_OPEN.finditer(clean):
@@ -121,6 +128,14 @@ def other_literals(text: str, clean: str, file: str, starts: list[int],
             continue
         call, call_at = _enclosing_call(clean, m.start())
         status, what = _what(clean, m.start(), end, call, call_at, defaults)
+        assigned = _ASSIGNED.search(clean, max(0, m.start() - 200), m.start())
+        if call is None and assigned is not None and status == "frame":
+            name = assigned.group(1)
+            if name in runtime_names:
+                status, what = "runtime", f"a value of {name}: {runtime_names[name]}"
+            elif name not in tcp_names:
+                status, what = "unused", f"assigned to {name}, which no motion moves to; " \
+                                         f"kept as written"
         where = (file, *line_column(text, m.start(), starts))
         program.kept.append((where, clean[m.start():end] if end - m.start() <= 60 else
                              clean[m.start():m.start() + 57] + "...", status, what))
