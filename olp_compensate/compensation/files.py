@@ -10,6 +10,7 @@ new bytes of each file and one report whose rows name the files as the user know
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -144,9 +145,27 @@ class _FanucBackup:
     turn_note: str = ""
 
 
+_BACKUPS: dict = {}
+"""Backups read in this process, by their files' paths, sizes and times (a folder's
+programs share one backup: read once)."""
+
+
 def _fanuc_backup(backup: BackupFiles) -> _FanucBackup:
     """The frames, position registers and turn axes of a FANUC backup's ``.VA`` files,
     each file recognised by what it holds; the stated turn axes win over SYSMAST.VA's."""
+    try:
+        stats = tuple((p, os.stat(p).st_size, os.stat(p).st_mtime_ns) for p in backup.paths)
+    except OSError:
+        stats = None
+    if stats is not None and (stats, backup.turn_axes) in _BACKUPS:
+        return _BACKUPS[stats, backup.turn_axes]
+    read = _read_fanuc_backup(backup)
+    if stats is not None:
+        _BACKUPS[stats, backup.turn_axes] = read
+    return read
+
+
+def _read_fanuc_backup(backup: BackupFiles) -> _FanucBackup:
     from ..programs.fanuc_backup import read_position_registers, read_turn_axes
     from ..programs.fanuc_frames import read_system_frames
     from ..programs.text_checks import check_text

@@ -12,7 +12,8 @@ configuration (``SYSMAST.VA``) and the position registers (``POSREG.VA``), read 
         [2] = 4
         [3] = 6
 
-  (or on one line, ``... $TURN_AXIS ... = 1, 4, 6``). An axis 0 (no axis) ends the list.
+  (or on one line, ``... $TURN_AXIS ... = 1, 4, 6``), in ``SYSMAST.VA`` or (some backups)
+  ``SYMOTN.VA``. Trailing axes 0 (no axis) are dropped; a 0 before an axis is refused.
 - ``$POSREG[g,n]``: position register n of group g, Cartesian (``Group: 1  Config: N U T,
   0, 0, 0`` then ``X: .. Y: .. Z: ..`` mm and ``W: .. P: .. R: ..`` deg) or joint
   (``J1 = .. deg`` ...); ``Uninitialized`` or ``********`` values are registers the
@@ -100,10 +101,19 @@ def _variables(text: str) -> dict[str, tuple[int, int]]:
             for m, nxt in zip(found, found[1:] + [None])}
 
 
+def _line_column(text: str, offset: int) -> tuple[int, int]:
+    """1-based (line, column) of ``offset`` without indexing the whole text (a SYMOTN.VA
+    is over a megabyte and only a few places are asked)."""
+    line_start = max(text.rfind("\n", 0, offset), text.rfind("\r", 0, offset)) + 1
+    lines = text.count("\n", 0, offset)
+    if lines == 0 and "\r" in text[:offset]:
+        lines = text.count("\r", 0, offset)
+    return lines + 1, offset - line_start + 1
+
+
 def read_turn_axes(text: str, file: str = "SYSMAST.VA") -> TurnAxes | None:
     """Group 1's ``$TURN_AXIS`` of a ``.VA`` text, or None when the file has none."""
     check_text(text, file)
-    starts = line_starts_of(text)
     for m in _TURN_FIELD.finditer(text):
         if int(m.group(1)) != 1:
             continue
@@ -114,41 +124,44 @@ def read_turn_axes(text: str, file: str = "SYSMAST.VA") -> TurnAxes | None:
             values = [(v.group(), base + v.start()) for v in re.finditer(r"[^,\s]+",
                                                                          inline.group(1))]
         else:
-            k = bisect_line(starts, m.end())
-            while k < len(starts):
-                lo = starts[k]
-                hi = starts[k + 1] if k + 1 < len(starts) else len(text)
-                item = _ARRAY_ITEM.match(text[lo:hi].rstrip("\r\n"))
+            lines = text[m.end():m.end() + 4096].splitlines(keepends=True)
+            lo = m.end() + (len(lines[0]) if lines else 0)
+            for line in lines[1:]:
+                item = _ARRAY_ITEM.match(line.rstrip("\r\n"))
                 if item is None:
                     break
                 values.append((item.group(2).strip(), lo + item.start(2)))
-                k += 1
-        axes = []
-        for value, at in values:
-            if not re.fullmatch(r"\d", value):
-                raise ParseError(f"$SCR_GRP[1].$TURN_AXIS: {value!r} is not an axis number "
-                                 f"(1..9, 0 for none)", file, *line_column(text, at, starts))
-            if value == "0":
-                break
-            axes.append(int(value))
-        if not axes:
-            raise ParseError("$SCR_GRP[1].$TURN_AXIS names no axis", file,
-                             *line_column(text, m.start(), starts))
-        line = line_column(text, m.start(), starts)[0]
-        return TurnAxes(tuple(axes), f"{file}:{line}")
+                lo += len(line)
+        return _turn_axes(text, file, m.start(), values)
     return None
 
 
-def bisect_line(starts: list[int], offset: int) -> int:
-    """Index of the first line starting after ``offset``."""
-    import bisect
-
-    return bisect.bisect_right(starts, offset)
+def _turn_axes(text: str, file: str, at: int, values) -> TurnAxes:
+    """The axes of ``values`` ((text, offset) of each element), checked."""
+    axes = []
+    none_at = None
+    for value, offset in values:
+        if not re.fullmatch(r"\d", value):
+            raise ParseError(f"$SCR_GRP[1].$TURN_AXIS: {value!r} is not an axis number "
+                             f"(1..9, 0 for none)", file, *_line_column(text, offset))
+        if value == "0":
+            none_at = none_at if none_at is not None else offset
+            continue
+        if none_at is not None:
+            raise ParseError("$SCR_GRP[1].$TURN_AXIS: a turn number without an axis (0) "
+                             "before one with an axis is not read", file,
+                             *_line_column(text, none_at))
+        axes.append(int(value))
+    if not axes:
+        raise ParseError("$SCR_GRP[1].$TURN_AXIS names no axis", file, *_line_column(text, at))
+    return TurnAxes(tuple(axes), f"{file}:{_line_column(text, at)[0]}")
 
 
 def read_position_registers(text: str, file: str = "POSREG.VA") -> PositionRegisters | None:
     """Group 1's ``$POSREG`` of a ``.VA`` text, or None when the file has none."""
     check_text(text, file)
+    if "$POSREG" not in text.upper():
+        return None
     span = _variables(text).get("$POSREG")
     if span is None:
         return None
