@@ -70,7 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "the controller's $config.dat with TOOL_DATA[n], BASE_DATA[n] and "
                         "its points (XHOME); FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) "
                         "with $MNUFRAME and $MNUTOOL (user and tool frames of group 1), "
-                        "SYSMAST.VA with $SCR_GRP[1].$TURN_AXIS, POSREG.VA with the position "
+                        "SYSMAST.VA (or SYMOTN.VA) with $SCR_GRP[1].$TURN_AXIS, POSREG.VA with the "
+                        "position "
                         "registers")
     p.add_argument("--fanuc-turn-axes", metavar="A,B,C",
                    help="FANUC: the axes the turn numbers of CONFIG belong to, as the "

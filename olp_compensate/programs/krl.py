@@ -350,11 +350,11 @@ def _motion(program: PoseProgram, instruction: str, where, arg, frames: _Frames,
         left_text = l_name or "{...}"
         why = (_runtime(program, instruction, l_name, l_inline, l_kind, functions)
                or _runtime(program, instruction, r_name, r_inline, r_kind, functions))
-        if why is None and (l_name is None or r_inline is None):
-            why = (f"{left_text} : {r_name or '{...}'} is composed with the geometric "
-                   f"operator; only 'point : {{literal}}' is written back (into the literal)")
         if why is not None:
             why = f"{left_text} : {r_name or '{...}'}: {why}"
+        elif l_name is None or r_inline is None:
+            why = (f"{left_text} : {r_name or '{...}'} is composed with the geometric "
+                   f"operator; only 'point : {{literal}}' is written back (into the literal)")
         return PoseMotion(instruction=instruction, target=r_name, source=where,
                           tool=frames.tool, base=frames.base, inline=r_inline, runtime=why,
                           left=l_name)
