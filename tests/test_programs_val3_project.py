@@ -31,6 +31,8 @@ PGX = """<?xml version="1.0" encoding="utf-8"?>
     movel(pPlace[i], tVacuum, mNomSpeed)
   endFor
   call place(pPlace[1])
+  call place(pPick[1])
+  movej(jPark, flange, mNomSpeed)
 end]]></Code>
   </Program>
   <Program name="place">
@@ -58,6 +60,8 @@ def project(seed=7):
     block += ["    </Data>",
               '    <Data name="tVacuum" access="public" xsi:type="array" type="tool" size="1">',
               f'      <Value key="0" {_attrs(VACUUM_MM)} fatherId="flange[0]" />', "    </Data>"]
+    block.append('    <Data name="jPark" access="private" xsi:type="array" type="jointRx" '
+                 'size="1" />')
     full = dtx.replace("  </Datas>", "\r\n".join(block) + "\r\n  </Datas>")
     alone = dtx_attributes(places, tool_mm=VACUUM_MM).replace('name="tGripper"',
                                                                'name="tVacuum"')
@@ -76,7 +80,9 @@ def test_motions_of_the_pgx_choose_each_points_tool(tmp_path):
         rows.setdefault(r.target, []).append(r)
     (pick,) = rows["pPick[0]"]
     assert pick.status in ("ok", "singular") and pick.tool == "tGripper[0]", pick
-    assert [r.status for r in rows["pPick[1]"]] == ["unused"]
+    (passed,) = rows["pPick[1]"]                  # only passed to another program
+    assert passed.status == "runtime" and "passed to place() (start.pgx:16)" in passed.note
+    assert "jPark" not in str(rows)               # a jointRx declared without values
     for k in range(3):
         (place,) = rows[f"pPlace[{k}]"]
         assert place.status in ("ok", "singular") and place.tool == "tVacuum[0]", place

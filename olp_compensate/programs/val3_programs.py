@@ -26,6 +26,8 @@ _PROGRAM = re.compile(r"<Program\b[^>]*\bname\s*=\s*\"([^\"]*)\"")
 _DECLARED = re.compile(r"<(?:Local|Parameter)\b[^>]*\bname\s*=\s*\"([^\"]*)\"")
 _MOTION = re.compile(r"(?<![\w.])(movej|movel|movec)[ \t]*\(")
 _NAME = re.compile(r"([A-Za-z_]\w*)(?:[ \t]*\[[ \t]*([^\]]*?)[ \t]*\])?\Z")
+_CALL = re.compile(r"(?<![\w.])call[ \t]+([A-Za-z_]\w*)[ \t]*\(")
+_JOINT_DATA = re.compile(r"<Data\b(?=[^>]*\btype\s*=\s*\"jointRx\")[^>]*\bname\s*=\s*\"([^\"]*)\"")
 
 
 def _blank_comments(code: str) -> str:
@@ -72,6 +74,7 @@ def read_programs(programs: dict[str, str], program: PoseProgram,
     """Append to ``program.motions`` the motions of the ``.pgx`` texts (file -> text).
     ``fathers``: each point of the data files (``pPick[0]``) -> its frame reference."""
     refs = {t.name: t for t in program.targets if t.name}
+    joint_data = {n for text in program.texts.values() for n in _JOINT_DATA.findall(text)}
     arrays: dict[str, list[str]] = {}
     for name in refs:
         arrays.setdefault(name.split("[", 1)[0], []).append(name)
@@ -85,6 +88,7 @@ def read_programs(programs: dict[str, str], program: PoseProgram,
             code = _blank_comments(code_match.group(1))
             owner = _PROGRAM.findall(text, 0, code_match.start())
             owner_name = owner[-1] if owner else "?"
+            _calls(code, text, file, offset, starts, program, arrays, refs)
             for m in _MOTION.finditer(code):
                 args = _args(code, m.end() - 1)
                 call = m.group(1)
@@ -95,6 +99,9 @@ def read_programs(programs: dict[str, str], program: PoseProgram,
                     continue
                 tool = _tool(code[slice(*args[n_points])], declared)
                 for a, b in args[:n_points]:
+                    name, _ = _ref(code[a:b])
+                    if name in joint_data and f"{name}[0]" not in refs:
+                        continue          # a jointRx declared without values: no literal
                     program.motions.append(_motion(call, code[a:b], where, tool, refs, arrays,
                                                    fathers, declared, owner_name))
 
@@ -133,3 +140,21 @@ def _motion(call, text, where, tool, refs, arrays, fathers, declared, owner) -> 
 def _common_father(elements, fathers) -> str | None:
     found = {fathers.get(e) or "world[0]" for e in elements}
     return found.pop() if len(found) == 1 else None
+
+
+def _calls(code, text, file, offset, starts, program, arrays, refs) -> None:
+    """Points passed to another program (``call pick(pPoint[i])``): moved to there through
+    a parameter, a run-time use of each (every element for a variable index)."""
+    for m in _CALL.finditer(code):
+        line = line_column(text, offset + m.start(), starts)[0]
+        for a, b in _args(code, m.end() - 1):
+            name, index = _ref(code[a:b])
+            if name is None or name not in arrays:
+                continue
+            elements = ([f"{name}[{int(index)}]"] if re.fullmatch(r"\d+", index)
+                        else arrays[name])
+            for element in elements:
+                if element in refs:
+                    program.runtime_uses.setdefault(
+                        element, f"passed to {m.group(1)}() ({file}:{line}): moved to there "
+                                 f"through a parameter, known only at run time")
