@@ -223,3 +223,23 @@ def test_binary_and_utf16_files_are_refused():
     with pytest.raises(ParseError, match="binary") as info:
         parse_krl("DEF m( )\n\x00\x01LIN XP1\nEND\n", dat, "m.src", "m.dat")
     assert (info.value.file, info.value.line, info.value.column) == ("m.src", 2, 1)
+
+
+def test_assignments_in_the_src_are_run_time_and_their_literals_have_rows():
+    src = ("DEF m( )\nDECL INT n\n$TOOL = {FRAME: X 0,Y 0,Z 120,A 0,B 0,C 0}\n"
+           "TOOL_DATA[n] = TOOL_DATA[11] :{X 0,Y 0,Z 5,A 0,B 0,C 0}\n"
+           "XP1 = {X 900,Y 10,Z 800,A 0,B 90,C 0}\nLIN XP1\nXP2.Z = XP2.Z + 10\nLIN XP2\n"
+           "LIN XP3\nEND\n")
+    dat = ("DEFDAT m\nDECL E6POS XP1={X 1000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL E6POS XP2={X 1000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL E6POS XP3={X 1000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\nENDDAT\n")
+    _, report = compensate_pose_program(parse_krl(src, dat, "m.src", "m.dat"), KRL,
+                                        nominal_calibration(ROBOT))
+    rows = {(r.file, r.line): r for r in report.rows}
+    assert rows["m.src", 3].status == "frame" and rows["m.src", 4].status == "frame"
+    assert rows["m.src", 5].status == "runtime" and "assigned to XP1" in rows["m.src", 5].note
+    assert rows["m.src", 6].status == "runtime" and "XP1 is assigned" in rows["m.src", 6].note
+    assert rows["m.src", 8].status == "runtime" and "line 7" in rows["m.src", 8].note
+    assert rows["m.dat", 4].status != "runtime"               # XP3: moved to as declared
+    for line, column in _target_literals(src):
+        assert ("m.src", line) in rows, line

@@ -43,13 +43,15 @@ MOTIONS = ("PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC")
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _FIELD = re.compile(rf"([A-Za-z_][A-Za-z0-9_]*)\s+({_NUMBER}|'[BbHh][0-9A-Fa-f]*'|#\w+|\"[^\"]*\")")
 _PREFIX = r"^[ \t]*(?:GLOBAL[ \t]+)?(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?(?:CONST[ \t]+)?"
-_DECL = re.compile(_PREFIX + r"([A-Za-z_]\w*)[ \t]+([A-Za-z_$]\w*)"
+_DECL = re.compile(_PREFIX + r"([A-Za-z_]\w*)[ \t]+([A-Za-z_$][\w$]*)"
                    r"[ \t]*(\[[^\]]*\])?[ \t]*=[ \t]*\{", re.I | re.M)
-_DECL_ARRAY = re.compile(_PREFIX + r"([A-Za-z_]\w*)[ \t]+([A-Za-z_$]\w*)"
+_DECL_ARRAY = re.compile(_PREFIX + r"([A-Za-z_]\w*)[ \t]+([A-Za-z_$][\w$]*)"
                          r"[ \t]*\[[^\]]*\][ \t]*(?:$|[;\r\n])", re.I | re.M)
 _NOT_TYPES = {"IF", "WHILE", "UNTIL", "WAIT", "ELSE", "RETURN", "DECL", "GLOBAL", "CONST",
               "REPEAT", "SWITCH", "CASE", "FOR", "LOOP", "ENUM", "STRUC", "SIGNAL"}
-_ELEMENT = re.compile(r"^[ \t]*([A-Za-z_$]\w*)[ \t]*\[([^\]]*)\][ \t]*=[ \t]*\{", re.M)
+_ELEMENT = re.compile(r"^[ \t]*([A-Za-z_$][\w$]*)[ \t]*\[([^\]]*)\][ \t]*=[ \t]*\{", re.M)
+_ASSIGNMENT = re.compile(r"^[ \t]*([A-Za-z_$][\w$]*)((?:[ \t]*\[[^\]\r\n]*\])?(?:\.[A-Za-z_$][\w$]*)*)"
+                         r"[ \t]*=(?!=)[ \t]*([^\r\n]*)", re.M)
 _FDAT_ACT = re.compile(r"\bFDAT_ACT\s*=\s*([A-Za-z_]\w*)", re.I)
 _BAS_PARAMS = re.compile(r"\bBAS\s*\(\s*#(PTP_PARAMS|CP_PARAMS|TOOL|BASE)\s*(?:,\s*(\d+))?", re.I)
 _TOOL_SET = re.compile(r"\$TOOL\s*=\s*(TOOL_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME)", re.I)
@@ -395,11 +397,58 @@ def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>
     if src_text is not None:
         _declarations(src_text, src_file, program, types, fdat, program.frames, strucs)
         _motions(src_text, src_file, program, _Frames(fdat))
+        _assignments(src_text, src_file, program)
     _resolve_names(program, config_points)
     return program
 
 
 _BLOCKS = (("DEFDAT", "ENDDAT"), ("DEFFCT", "ENDFCT"), ("DEF", "END"))
+
+
+def _assignments(text: str, file: str, program: PoseProgram) -> None:
+    """Assignments in a ``.src``: a motion to a name the program assigns (``XP1 = ...``,
+    ``XP1.Z = ...``) moves to a value known at run time; a frame or pose literal assigned
+    that is no target read gets a row (a tool, base or load frame: ``frame``; else
+    ``runtime``)."""
+    clean = strip_comments(text)
+    starts = line_starts_of(text)
+    covered = {n.start for t in program.targets if t.source[0] == file for n in t.numbers}
+    assigned: dict[str, int] = {}
+    for m in _ASSIGNMENT.finditer(clean):
+        name, rest, value = m.group(1), m.group(2), m.group(3)
+        line = line_column(text, m.start(1), starts)[0]
+        if name.upper() in _NOT_TYPES or name.upper() in ("FOR", "IF"):
+            continue
+        if not (rest.startswith("[") and _LITERAL_INDEX.search(rest.split(".")[0].strip())
+                and value.lstrip().startswith("{") and "." not in rest):
+            assigned.setdefault(name.upper(), line)
+        for brace in re.finditer(r"\{", value):
+            lo = m.start(3) + brace.start()
+            if lo in covered or clean[lo - 1:lo] == "{" or not _is_frame_literal(clean, lo):
+                continue
+            hi = _aggregate_end(clean, lo, file, starts)
+            if any(lo <= c < hi for c in covered):
+                continue
+            system = name.startswith("$") or name.upper() in ("TOOL_DATA", "BASE_DATA")
+            status = "frame" if system else "runtime"
+            what = (f"a frame assigned to {name}{rest} by the program at run time, not a "
+                    f"target; kept as written" if system else
+                    f"assigned to {name}{rest} by the program at run time (line {line}); "
+                    f"kept as written")
+            program.kept.append(((file, *line_column(text, lo, starts)), f"{name}{rest}",
+                                 status, what))
+    for k, motion in enumerate(program.motions):
+        base = (motion.target or "").split("[")[0].split(".")[0].upper()
+        if motion.runtime is None and motion.inline is None and base in assigned:
+            program.motions[k] = motion._replace(runtime=(
+                f"{motion.target} is assigned by the program (line {assigned[base]}): the "
+                f"value moved to is known only at run time"))
+
+
+def _is_frame_literal(clean: str, lo: int) -> bool:
+    """Whether the aggregate at ``lo`` holds X or A1 directly (a pose or axis literal)."""
+    return re.match(r"\{[ \t]*(?:[A-Za-z_]\w*[ \t]*:[ \t]*)?(?:X|A1)[ \t]+[-+.\d]", clean[lo:lo + 40],
+                    re.I) is not None
 
 
 def _check_complete(text: str, file: str) -> None:

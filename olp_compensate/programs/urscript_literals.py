@@ -136,7 +136,10 @@ def other_literals(text: str, clean: str, file: str, starts: list[int],
             elif name not in tcp_names:
                 status, what = "unused", f"assigned to {name}, which no motion moves to; " \
                                          f"kept as written"
-        where = (file, *line_column(text, m.start(), starts))
+        at = m.start()
+        if assigned is not None and call is None:      # the value of a name: at its number
+            at = next((k for k in range(m.end(), end) if not clean[k].isspace()), at)
+        where = (file, *line_column(text, at, starts))
         program.kept.append((where, clean[m.start():end] if end - m.start() <= 60 else
                              clean[m.start():m.start() + 57] + "...", status, what))
 
