@@ -336,7 +336,8 @@ class _Builder(PositionedBuilder):
         runtime = RuntimeTarget(self.text[start:end], SourceLocation(*loc), why, base_name,
                                 routine, (start, end))
         self.runtime.append(runtime)
-        self.motions.append(MotionUse(name, loc, "to", runtime=runtime, **common))
+        # the BASE in force applies to the location the expression is built on too
+        self.motions.append(MotionUse(name, loc, "to", runtime=runtime, wobj=base, **common))
 
     def _block_step(self, kw, a0, a1, routine) -> None:
         """A Kawasaki block-teaching step: its taught joints ``#[j1,...,jn]``."""
