@@ -149,17 +149,21 @@ def _row(target: PoseTarget, status: str, note: str, tool: str = "", base: str =
                         config_before=config_before, note=note)
 
 
-def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
-          rows: list[TargetReport]) -> list[_Job]:
-    """The targets to solve; rows for the others (unused, joints, run-time, unknown
-    instructions, unresolved frames, several tools)."""
-    by_name: dict[str, list[int]] = defaultdict(list)
-    for k, t in enumerate(program.targets):
-        if t.name is not None:
-            by_name[t.name.upper()].append(k)
-    uses: dict[int, set] = defaultdict(set)
-    first_use: dict[int, int] = {}
-    composed: dict[int, int] = {}                  # right operand -> left operand of ':'
+@dataclass
+class _Uses:
+    """What the motions do with each target (index into ``program.targets``): its
+    (tool, base) pairs, the order of its first use, and the left operand it is composed
+    with (KRL ``left : {target}``)."""
+
+    uses: dict[int, set]
+    first_use: dict[int, int]
+    composed: dict[int, int]
+
+
+def _motion_uses(program: PoseProgram, by_name, rows: list[TargetReport]) -> _Uses:
+    """The uses of every target by the motions; rows for run-time motions, motions to
+    names declared nowhere, targets kept with a reason and unknown instructions."""
+    out = _Uses(defaultdict(set), {}, {})
     for order, motion in enumerate(program.motions):
         if motion.runtime is not None:
             rows.append(TargetReport(target=motion.target or "<inline>", file=motion.source[0],
@@ -167,19 +171,19 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
                                      status="runtime", tool=motion.tool or "",
                                      wobj=motion.base or "", note=motion.runtime))
             if motion.inline is not None:
-                uses[motion.inline].add(("runtime", None))
+                out.uses[motion.inline].add(("runtime", None))
             for name in motion.candidates:          # an array indexed at run time
                 for k in by_name.get(name.upper(), []):
-                    uses[k].add((motion.tool, motion.base))
-                    first_use.setdefault(k, order)
+                    out.uses[k].add((motion.tool, motion.base))
+                    out.first_use.setdefault(k, order)
             continue
         if motion.left is not None and motion.inline is not None:
             left = _left_operand(program, by_name, motion, rows)
             if left is None:
-                uses[motion.inline].add(("runtime", None))
+                out.uses[motion.inline].add(("runtime", None))
                 continue
-            composed[motion.inline] = left
-            uses[left].add(OPERAND)
+            out.composed[motion.inline] = left
+            out.uses[left].add(OPERAND)
         found = ([motion.inline] if motion.inline is not None
                  else by_name.get((motion.target or "").upper(), []))
         if not found:
@@ -189,8 +193,8 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
                                      wobj=motion.base or "",
                                      note=f"{motion.target} is declared in no file given"))
         for k in found:
-            uses[k].add((motion.tool, motion.base))
-            first_use.setdefault(k, order)
+            out.uses[k].add((motion.tool, motion.base))
+            out.first_use.setdefault(k, order)
     for where, name, status, note in program.kept:
         rows.append(TargetReport(target=name, file=where[0], line=where[1], column=where[2],
                                  status=status, note=note))
@@ -198,9 +202,41 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
         rows.append(TargetReport(target=instruction, file=where[0], line=where[1],
                                  column=where[2], status="unknown_instruction",
                                  note=f"{instruction}: a motion whose target could not be read"))
+    return out
+
+
+def _not_solved(program: PoseProgram, target: PoseTarget, pairs: set,
+                config: str) -> TargetReport | None:
+    """The row of a target decided without solving (joints, unused, ambiguous...), or
+    None for a target to solve with its one pair."""
+    if target.kind == JOINTS:
+        return _row(target, "joint_target", "axis values kept as written")
+    if not target.numbers:
+        return _row(target, "runtime", "the aggregate leaves some of the pose to the "
+                                       "position at run time")
+    if not pairs and target.name in program.runtime_uses:
+        return _row(target, "runtime", program.runtime_uses[target.name], config_before=config)
+    if not pairs:
+        return _row(target, "unused", "not moved to in the files given: tool and base "
+                                      "unknown, left as written", config_before=config)
+    if len(pairs) > 1:
+        return _row(target, "ambiguous", "used with several tools/bases needing different "
+                                         "corrections; left as written", config_before=config)
+    return None
+
+
+def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
+          rows: list[TargetReport]) -> list[_Job]:
+    """The targets to solve; rows for the others (unused, joints, run-time, unknown
+    instructions, unresolved frames, several tools)."""
+    by_name: dict[str, list[int]] = defaultdict(list)
+    for k, t in enumerate(program.targets):
+        if t.name is not None:
+            by_name[t.name.upper()].append(k)
+    found = _motion_uses(program, by_name, rows)
     jobs = []
     for k, target in enumerate(program.targets):
-        pairs = uses.get(k, set())
+        pairs = found.uses.get(k, set())
         config = rules.config_words(rules.written(target))
         if ("runtime", None) in pairs:
             continue
@@ -211,26 +247,9 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
                                  "(geometric operator): kept as written, the correction is "
                                  "written into the right operand", config_before=config))
                 continue
-        if target.kind == JOINTS:
-            rows.append(_row(target, "joint_target", "axis values kept as written"))
-            continue
-        if not target.numbers:
-            rows.append(_row(target, "runtime", "the aggregate leaves some of the pose to the "
-                                                "position at run time"))
-            continue
-        if not pairs and target.name in program.runtime_uses:
-            rows.append(_row(target, "runtime", program.runtime_uses[target.name],
-                             config_before=config))
-            continue
-        if not pairs:
-            rows.append(_row(target, "unused", "not moved to in the files given: tool and base "
-                                               "unknown, left as written",
-                             config_before=config))
-            continue
-        if len(pairs) > 1:
-            rows.append(_row(target, "ambiguous", "used with several tools/bases needing "
-                                                  "different corrections; left as written",
-                             config_before=config))
+        row = _not_solved(program, target, pairs, config)
+        if row is not None:
+            rows.append(row)
             continue
         (tool_key, base_key), = pairs
         tool, why_tool = frames.program_frame(tool_key, "tool")
@@ -241,22 +260,20 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
             continue
         real, real_note = frames.real_tool(tool_key, tool)
         note = "; ".join(x for x in (why_tool, why_base, real_note) if x)
-        values = np.array([n.value for n in target.numbers])
+        wobj_T_target = rules.convention.pose(np.array([n.value for n in target.numbers]))
         left = None
-        if k in composed:
-            left_target = program.targets[composed[k]]
+        if k in found.composed:
+            left_target = program.targets[found.composed[k]]
             left = rules.convention.pose(np.array([n.value for n in left_target.numbers]))
+            wobj_T_target = left @ wobj_T_target
             note = "; ".join(x for x in (f"{left_target.name} : this target (geometric "
                                          f"operator), the correction written here", note) if x)
-        wobj_T_target = rules.convention.pose(values)
-        if left is not None:
-            wobj_T_target = left @ wobj_T_target
         jobs.append(_Job(index=k, target=target, tool_key=tool_key, base_key=base_key,
                          base=base, tool=tool, real_tool=real,
                          wobj_T_target=wobj_T_target, note=note, left=left))
     # in program order (the order the controller meets them): the previous joints of a
     # target are those of the target moved to before it
-    jobs.sort(key=lambda job: first_use.get(job.index, len(program.motions)))
+    jobs.sort(key=lambda job: found.first_use.get(job.index, len(program.motions)))
     return jobs
 
 

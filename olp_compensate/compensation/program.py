@@ -35,11 +35,12 @@ from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                       pose_from_rotation_translation, rotation_angle_between)
 from ..programs import Program, loads
 from ..programs.emit import splice
-from ..programs.targets import CartesianTarget, JointTarget
+from ..programs.targets import JointTarget
 from .confdata import vplus_configuration
 from .ik import OPWParameters
 from .pose import COMPENSATED, Compensator, explain_failures
 from .program_edits import program_edits
+from .frame_rows import frame_rows
 from .report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
                      config_texts, failure_row, joint_target_row, motion_row, row_name,
                      solved_note, written_row)
@@ -172,29 +173,11 @@ def module_rows_and_edits(program: Program, res, comp: Compensator, *, emit: str
     write = _rows_solved(res, job, solved, comp.robot, vplus, rows) if job else {}
     rows.extend(motion_row(use, "runtime" if use.runtime is not None else "unresolved", why)
                 for use, why in res.unresolved)
-    rows.extend(_problem_rows(program))
-    rows.extend(_frame_rows(program, res))
+    rows.extend(_problem_rows(program) + frame_rows(program, res))
     rows.sort(key=LINE_COLUMN)
     warnings = list(res.warnings)
     edits = program_edits(program, comp, res, job, write, solved, emit, vplus, warnings)
     return rows, warnings, edits
-
-
-def _frame_rows(program: Program, res) -> list[TargetReport]:
-    """A ``frame`` row for each V+/AS transformation used only as a TOOL or BASE operand
-    (a frame, not a target: kept as written, and every literal still has its row)."""
-    if not getattr(res, "frames", ()):
-        return []
-    names = {n.upper() for n in res.frames}
-    moved = {id(t) for t in res.entry_targets}
-    out = []
-    for t in program.targets:
-        if isinstance(t, CartesianTarget) and t.name.upper() in names and id(t) not in moved:
-            file, line, column = t.source
-            out.append(TargetReport(target=t.name, file=file, line=line, column=column,
-                                    status="frame", note="a transformation used as a TOOL or "
-                                    "BASE frame, not a target; kept as written"))
-    return out
 
 
 def _rows_not_solved(res, unused: str, not_moved: str) -> tuple[list, list[int]]:

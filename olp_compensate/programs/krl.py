@@ -32,9 +32,9 @@ import re
 from ..errors import ParseError
 from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
                             is_finite_number, line_column, line_starts_of)
-from .krl_structs import frame_assignments, frame_fields, struc_fields
+from .krl_structs import frame_assignments, frame_fields, is_frame_literal, struc_fields
 from .targets import Number
-from .text_checks import check_not_non_finite, check_number_end, check_text
+from .text_checks import check_closed, check_not_non_finite, check_number_end, check_text
 
 POSE_TYPES = {"E6POS", "POS", "FRAME"}
 AXIS_TYPES = {"E6AXIS", "AXIS"}
@@ -383,7 +383,7 @@ def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>
         texts[dat_file] = dat_text
     for name, text in {**texts, **configs}.items():
         check_text(text, name)
-        _check_complete(text, name)
+        check_closed(text, strip_comments(text), name, _BLOCKS)
     program = PoseProgram(dialect="krl", texts=texts, targets=[], motions=[])
     types: dict[str, str] = {}
     fdat: dict[str, dict[str, Number]] = {}
@@ -424,7 +424,7 @@ def _assignments(text: str, file: str, program: PoseProgram) -> None:
             assigned.setdefault(name.upper(), line)
         for brace in re.finditer(r"\{", value):
             lo = m.start(3) + brace.start()
-            if lo in covered or clean[lo - 1:lo] == "{" or not _is_frame_literal(clean, lo):
+            if lo in covered or clean[lo - 1:lo] == "{" or not is_frame_literal(clean, lo):
                 continue
             hi = _aggregate_end(clean, lo, file, starts)
             if any(lo <= c < hi for c in covered):
@@ -443,26 +443,6 @@ def _assignments(text: str, file: str, program: PoseProgram) -> None:
             program.motions[k] = motion._replace(runtime=(
                 f"{motion.target} is assigned by the program (line {assigned[base]}): the "
                 f"value moved to is known only at run time"))
-
-
-def _is_frame_literal(clean: str, lo: int) -> bool:
-    """Whether the aggregate at ``lo`` holds X or A1 directly (a pose or axis literal)."""
-    return re.match(r"\{[ \t]*(?:[A-Za-z_]\w*[ \t]*:[ \t]*)?(?:X|A1)[ \t]+[-+.\d]", clean[lo:lo + 40],
-                    re.I) is not None
-
-
-def _check_complete(text: str, file: str) -> None:
-    """Refuse a module cut short: a ``DEF``, ``DEFFCT`` or ``DEFDAT`` without its ``END``,
-    ``ENDFCT`` or ``ENDDAT``."""
-    clean = strip_comments(text)
-    for opener, closer in _BLOCKS:
-        opened = re.findall(rf"^[ \t]*(?:GLOBAL[ \t]+)?{opener}\b", clean, re.I | re.M)
-        closed = re.findall(rf"^[ \t]*{closer}\b", clean, re.I | re.M)
-        if len(opened) > len(closed):
-            starts = line_starts_of(text)
-            line, column = line_column(text, len(text.rstrip()), starts)
-            raise ParseError(f"{opener} without {closer}: the file is cut short", file, line,
-                             column)
 
 
 def _resolve_names(program: PoseProgram, config_points: PoseProgram) -> None:

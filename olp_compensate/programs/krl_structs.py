@@ -114,3 +114,9 @@ def frame_assignments(clean: str, read_fields, frames: dict, notes: list[str],
             frames.pop(key, None)
             notes.append(f"{where(m.start(1))}: {key} = {source} : {{...}}: {source} is not in "
                          f"the files given, so {key} is known only at run time")
+
+
+def is_frame_literal(clean: str, lo: int) -> bool:
+    """Whether the aggregate at ``lo`` holds X or A1 directly (a pose or axis literal)."""
+    return re.match(r"\{[ \t]*(?:[A-Za-z_]\w*[ \t]*:[ \t]*)?(?:X|A1)[ \t]+[-+.\d]",
+                    clean[lo:lo + 40], re.I) is not None

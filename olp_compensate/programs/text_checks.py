@@ -103,3 +103,15 @@ def check_xml(text: str, file: str, what: str = "XML") -> None:
                 "unclosed token": "the file ends inside an element: cut short"}.get(reason, "")
         raise ParseError(f"not well-formed {what}: {reason}" + (f" ({hint})" if hint else ""),
                          file, exc.lineno, exc.offset + 1) from None
+
+
+def check_closed(text: str, clean: str, file: str, blocks) -> None:
+    """Refuse a text cut short: a block opener of ``blocks`` ((opener, closer) keywords
+    at line starts, ``GLOBAL`` allowed before the opener, any case) without its closer.
+    ``clean``: the text with its comments blanked (offsets kept)."""
+    for opener, closer in blocks:
+        opened = re.findall(rf"^[ \t]*(?:GLOBAL[ \t]+)?{opener}\b", clean, re.I | re.M)
+        closed = re.findall(rf"^[ \t]*{closer}\b", clean, re.I | re.M)
+        if len(opened) > len(closed):
+            raise ParseError(f"{opener} without {closer}: the file is cut short", file,
+                             *position(text, len(text.rstrip())))
