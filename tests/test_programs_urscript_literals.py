@@ -119,3 +119,11 @@ def test_binary_and_utf16_scripts_are_refused():
     with pytest.raises(ParseError, match="binary") as info:
         parse_urscript(binary, "cell.script")
     assert (info.value.line, info.value.column) == (2, 29)
+
+
+def test_a_crlf_script_cut_short_is_refused_too():
+    text = "def a():\r\n  if x:\r\n    movel(p[0,0,0,0,0,0])\r\n  end\r\n"
+    with pytest.raises(ParseError, match="'def' at line 1") as info:
+        parse_urscript(text, "a.script")
+    assert (info.value.line, info.value.column) == (4, 6)
+    parse_urscript(text + "end\r\n", "a.script")

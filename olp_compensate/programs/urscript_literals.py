@@ -22,7 +22,7 @@ _P_OPEN = re.compile(r"(?<![\w.])p[ \t]*\[")
 _CALL_NAME = re.compile(r"(?<![\w.])([A-Za-z_]\w*)[ \t]*\($")
 _DEF = re.compile(r"^[ \t]*def[ \t]+([A-Za-z_]\w*)[ \t]*\(", re.M)
 """A function definition: its parameters' default values are run-time targets."""
-_OPENER = re.compile(r"^[ \t]*(def|thread|if|while|for)\b[^\r\n]*:[ \t]*$", re.M)
+_OPENER = re.compile(r"^[ \t]*(def|thread|if|while|for)\b[^\r\n]*:[ \t]*\r?$", re.M)
 _CLOSER = re.compile(r"^[ \t]*end\b", re.M)
 _POSE_SUB = re.compile(r"\bpose_sub[ \t]*\([ \t]*([A-Za-z_]\w*)[ \t]*,[ \t]*([A-Za-z_]\w*)"
                        r"[ \t]*\)")
