@@ -50,3 +50,15 @@ def test_a_save_holding_only_its_header_has_no_program(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "holding only its header" in err and "cut short" not in err
     assert not (tmp_path / "out.as").exists()
+
+
+def test_every_location_line_has_a_row():
+    """Each line of the .TRANS section (this test's scanner) is in the report."""
+    section = PROGRAM.split(".TRANS")[1]
+    first = PROGRAM[:PROGRAM.index(".TRANS")].count("\n") + 2
+    lines = [first + k for k, line in enumerate(section.split("\n")[1:])
+             if line.strip() and not line.startswith(".END")]
+    assert len(lines) == 4
+    (_, ), report = compensate_task([loads(PROGRAM, "vplus", "op.as")],
+                                    nominal_calibration(ROBOT))
+    assert set(lines) <= {r.line for r in report.rows}

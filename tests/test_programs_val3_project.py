@@ -4,6 +4,8 @@ data-file path, itself checked on the virtual robot), run-time motions are named
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from olp_compensate.calibration.calibration import nominal_calibration
@@ -122,3 +124,28 @@ def test_a_dtx_of_bare_points_is_refused():
                              '<valuePoint index="1"><tpValue x="2" /></valuePoint>\n'})
     assert (info.value.line, info.value.column) == (2, 1)
     np.testing.assert_equal(info.value.file, "f.dtx")
+
+
+def _value_places(text: str) -> list[int]:
+    """Lines of every ``<Value`` of a pointRx or jointRx container: this test's scanner."""
+    out, kind = [], None
+    for n, line in enumerate(text.split("\r\n"), 1):
+        container = re.search(r'<Data\b[^>]*\btype="(\w+)"', line)
+        if container:
+            kind = container.group(1) if not line.rstrip().endswith("/>") else None
+        elif "</Data>" in line:
+            kind = None
+        elif "<Value" in line and kind in ("pointRx", "jointRx"):
+            out.append(n)
+    return out
+
+
+def test_every_point_and_joint_value_has_a_row(tmp_path):
+    dtx, _ = project()
+    _, report = compensate_pose_program(
+        parse_val3({"cell.dtx": dtx}, programs={"start.pgx": PGX}), VAL3,
+        nominal_calibration(ROBOT))
+    lines = {r.line for r in report.rows if r.file == "cell.dtx"}
+    places = _value_places(dtx)
+    assert len(places) == 6                    # jHome, pPick[0..1], pPlace[0..2]
+    assert set(places) <= lines, sorted(set(places) - lines)
