@@ -18,7 +18,7 @@ _CONTROL = re.compile(r"[\x00-\x08\x0e-\x1a\x1c-\x1f\x7f]")
 BINARY_SHARE = 0.01
 """A text whose first 64 KiB hold more than this share of control bytes is binary."""
 _UTF16_BOMS = ("\xff\xfe", "\xfe\xff")
-_NON_FINITE = re.compile(r"[-+]?(?:nan|inf(?:inity)?)\b", re.I)
+_NON_FINITE = re.compile(r"(?<![\w.])[-+]?(?:nan|inf(?:inity)?)\b", re.I)
 _NUMBER_TAIL = re.compile(r"[A-Za-z0-9_.]")
 
 
