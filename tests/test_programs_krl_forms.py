@@ -243,3 +243,20 @@ def test_assignments_in_the_src_are_run_time_and_their_literals_have_rows():
     assert rows["m.dat", 4].status != "runtime"               # XP3: moved to as declared
     for line, column in _target_literals(src):
         assert ("m.src", line) in rows, line
+
+
+def test_tool_and_base_set_in_the_src_take_their_own_frames():
+    """``$TOOL = {..}`` (as RoboDK's posts write) is that frame, never the tool in force
+    before it; ``$TOOL`` set from anything computed leaves its targets unresolved."""
+    src = ("DEF m( )\nBAS(#TOOL,1)\nLIN XP1\n$TOOL = {FRAME: X 12.0,Y -5.0,Z 180.0,A 0,B 0,C 0}\n"
+           "LIN XP2\n$TOOL = TOOL_DATA[n]\nLIN XP3\nEND\n")
+    dat = ("DEFDAT m\nDECL E6POS XP1={X 1000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL E6POS XP2={X 1000,Y 50,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL E6POS XP3={X 1000,Y 90,Z 900,A 0,B 90,C 0,S 2,T 2}\nENDDAT\n")
+    program = parse_krl(src, dat, "m.src", "m.dat", CONFIG)
+    assert program.frames["$TOOL@L4"] == (12.0, -5.0, 180.0, 0.0, 0.0, 0.0)
+    _, report = compensate_pose_program(program, KRL, nominal_calibration(ROBOT))
+    rows = {r.target: r for r in report.rows}
+    assert rows["XP1"].tool == "TOOL_DATA[1]" and rows["XP2"].tool == "$TOOL@L4"
+    assert rows["XP2"].status != "unresolved"              # solved with that frame
+    assert rows["XP3"].status == "unresolved" and "TOOL_DATA[n]" in rows["XP3"].note

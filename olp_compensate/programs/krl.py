@@ -32,6 +32,8 @@ import re
 from ..errors import ParseError
 from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
                             is_finite_number, line_column, line_starts_of)
+from .krl_frames import FIELD as _FIELD
+from .krl_frames import POSE_FIELDS, ToolBase
 from .krl_structs import frame_assignments, frame_fields, is_frame_literal, struc_fields
 from .targets import Number
 from .text_checks import check_closed, check_not_non_finite, check_number_end, check_text
@@ -40,8 +42,6 @@ POSE_TYPES = {"E6POS", "POS", "FRAME"}
 AXIS_TYPES = {"E6AXIS", "AXIS"}
 MOTIONS = ("PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC")
 
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_FIELD = re.compile(rf"([A-Za-z_][A-Za-z0-9_]*)\s+({_NUMBER}|'[BbHh][0-9A-Fa-f]*'|#\w+|\"[^\"]*\")")
 _PREFIX = r"^[ \t]*(?:GLOBAL[ \t]+)?(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?(?:CONST[ \t]+)?"
 _DECL = re.compile(_PREFIX + r"([A-Za-z_]\w*)[ \t]+([A-Za-z_$][\w$]*)"
                    r"[ \t]*(\[[^\]]*\])?[ \t]*=[ \t]*\{", re.I | re.M)
@@ -52,19 +52,12 @@ _NOT_TYPES = {"IF", "WHILE", "UNTIL", "WAIT", "ELSE", "RETURN", "DECL", "GLOBAL"
 _ELEMENT = re.compile(r"^[ \t]*([A-Za-z_$][\w$]*)[ \t]*\[([^\]]*)\][ \t]*=[ \t]*\{", re.M)
 _ASSIGNMENT = re.compile(r"^[ \t]*([A-Za-z_$][\w$]*)((?:[ \t]*\[[^\]\r\n]*\])?(?:\.[A-Za-z_$][\w$]*)*)"
                          r"[ \t]*=(?!=)[ \t]*([^\r\n]*)", re.M)
-_FDAT_ACT = re.compile(r"\bFDAT_ACT\s*=\s*([A-Za-z_]\w*)", re.I)
-_BAS_PARAMS = re.compile(r"\bBAS\s*\(\s*#(PTP_PARAMS|CP_PARAMS|TOOL|BASE)\s*(?:,\s*(\d+))?", re.I)
-_TOOL_SET = re.compile(r"\$TOOL\s*=\s*(TOOL_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME)", re.I)
-_BASE_SET = re.compile(r"\$BASE\s*=\s*(BASE_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME|\$WORLD)", re.I)
-_WITH_FDAT = re.compile(r"\bSTOOL2\s*\(\s*([A-Za-z_]\w*)\s*\)|\b([A-Za-z_]\w*)\.(?:BASE_NO|TOOL_NO)\b",
-                        re.I)
 _MOTION = re.compile(r"^[ \t]*(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\b[ \t]*", re.I | re.M)
 _LITERAL_INDEX = re.compile(r"\[\s*\d+\s*(?:,\s*\d+\s*)*\]$")
 _NAME_ARG = re.compile(r"([A-Za-z_$][\w$]*(?:\[[^\]]*\])?(?:\.[A-Za-z_]\w*)*)")
 _DEFFCT = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?DEFFCT[ \t]+\w+[ \t]+([A-Za-z_]\w*)[ \t]*\(",
                      re.I | re.M)
 
-POSE_FIELDS = ("X", "Y", "Z", "A", "B", "C")
 AXIS_FIELDS = ("A1", "A2", "A3", "A4", "A5", "A6")
 
 
@@ -196,55 +189,6 @@ def read_frames(text: str, file: str) -> dict[str, tuple[float, ...]]:
     return frames
 
 
-class _Frames:
-    """The tool and base in force while the ``.src`` is read in text order."""
-
-    def __init__(self, fdat: dict[str, dict[str, Number]]):
-        self.fdat = fdat
-        self.active: str | None = None
-        self.tool: str | None = None
-        self.base: str | None = None
-
-    def load_fdat(self) -> None:
-        fields = self.fdat.get((self.active or "").upper())
-        if fields is None:
-            return
-        if "TOOL_NO" in fields:
-            self.tool = f"TOOL_DATA[{int(fields['TOOL_NO'].value)}]"
-        if "BASE_NO" in fields:
-            self.base = f"BASE_DATA[{int(fields['BASE_NO'].value)}]"
-        ipo = fields.get("IPO_FRAME")
-        if ipo is not None and ipo.text.upper() == "#TCP":
-            self.tool = "external TCP (IPO_FRAME #TCP)"
-
-    def with_clause(self, statement: str) -> None:
-        """A spline motion's ``WITH $TOOL=STOOL2(FP1), $BASE=...(FP1.BASE_NO)``: the FDAT
-        named there gives its tool and base."""
-        m = _WITH_FDAT.search(statement)
-        if m:
-            self.active = m.group(1) or m.group(2)
-            self.load_fdat()
-
-    def statement(self, line: str) -> None:
-        m = _FDAT_ACT.search(line)
-        if m:
-            self.active = m.group(1)
-        for m in _BAS_PARAMS.finditer(line):
-            kind, number = m.group(1).upper(), m.group(2)
-            if kind in ("PTP_PARAMS", "CP_PARAMS"):
-                self.load_fdat()
-            elif kind == "TOOL" and number is not None:
-                self.tool = f"TOOL_DATA[{int(number)}]"
-            elif kind == "BASE" and number is not None:
-                self.base = f"BASE_DATA[{int(number)}]"
-        m = _TOOL_SET.search(line)
-        if m:
-            self.tool = f"TOOL_DATA[{int(m.group(2))}]" if m.group(2) else "TOOL_DATA[0]"
-        m = _BASE_SET.search(line)
-        if m:
-            self.base = f"BASE_DATA[{int(m.group(2))}]" if m.group(2) else "BASE_DATA[0]"
-
-
 def _statement_text(clean: str, start: int) -> str:
     """The statement starting at ``start``, continued over lines that end with a comma
     (a ``WITH`` clause spread over several lines)."""
@@ -258,7 +202,7 @@ def _statement_text(clean: str, start: int) -> str:
         end = nl + 1
 
 
-def _motions(text: str, file: str, program: PoseProgram, frames: _Frames) -> None:
+def _motions(text: str, file: str, program: PoseProgram, frames: ToolBase) -> None:
     """The motions of a ``.src`` text, with the tool and base in force at each."""
     clean = strip_comments(text)
     starts0 = line_starts_of(text)
@@ -267,9 +211,9 @@ def _motions(text: str, file: str, program: PoseProgram, frames: _Frames) -> Non
     starts = line_starts_of(text)
     motion_at = {m.start(): m for m in _MOTION.finditer(clean)}
     line_bounds = list(zip(starts, starts[1:] + [len(clean)]))
-    for lo, hi in line_bounds:
+    for number, (lo, hi) in enumerate(line_bounds, 1):
         line = clean[lo:hi]
-        frames.statement(line)
+        frames.statement(line, number)
         m = _MOTION.match(clean, lo)
         if m is None or m.start() not in motion_at or m.end() > hi + 1:
             continue
@@ -344,7 +288,7 @@ def _runtime(program: PoseProgram, instruction: str, name: str | None, inline: i
     return None
 
 
-def _motion(program: PoseProgram, instruction: str, where, arg, frames: _Frames,
+def _motion(program: PoseProgram, instruction: str, where, arg, frames: ToolBase,
             functions: dict[str, int]) -> PoseMotion:
     """The motion to one operand (a name, an inline aggregate, a call, or ``left : right``)."""
     if len(arg) == 2:                                      # left : right
@@ -396,7 +340,7 @@ def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>
         _declarations(dat_text, dat_file, program, types, fdat, program.frames, strucs)
     if src_text is not None:
         _declarations(src_text, src_file, program, types, fdat, program.frames, strucs)
-        _motions(src_text, src_file, program, _Frames(fdat))
+        _motions(src_text, src_file, program, ToolBase(fdat, program.frames))
         _assignments(src_text, src_file, program)
     _resolve_names(program, config_points)
     return program
