@@ -16,6 +16,7 @@ from olp_compensate.compensation.files import ProgramFiles, compensate_files
 from olp_compensate.compensation.rules_fanuc import FANUC_TP, fanuc_letters, turn_number
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.conventions import invert_pose
+from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.backup_files import BackupFiles, parse_turn_axes
 from olp_compensate.programs.fanuc_backup import read_position_registers, read_turn_axes
 from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
@@ -292,3 +293,26 @@ def test_every_position_record_has_a_row(text):
         assert spans
         for first, last in spans:
             assert any(first <= line <= last for line in lines), (first, last)
+
+
+def test_a_backup_of_several_makers_gives_each_its_own_files(turn_cell, tmp_path):
+    """``--config SYSFRAME.VA --config $config.dat`` over a folder of FANUC and KRL
+    programs: each dialect reads its own files and skips the other maker's."""
+    krl_config = _write(tmp_path, "$config.dat", "DEFDAT $CONFIG\nTOOL_DATA[1]={X 0,Y 0,Z 100,"
+                                                 "A 0,B 0,C 0}\nENDDAT\n")
+    both = [turn_cell["sysframe"], krl_config, turn_cell["sysmast"]]
+    files = ProgramFiles("fanuc", (turn_cell["ls"],), ("CELL.ls",))
+    result = compensate_files(files, nominal_calibration(ROBOT), frames_path=both)
+    assert result.data[0] == turn_cell["text"].encode("latin-1")
+    assert all(r.status == "ok" for r in result.report.rows if r.target in ("P[1]", "P[2]"))
+    src = _write(tmp_path, "m.src", "DEF m( )\nBAS(#TOOL,1)\nLIN XP1\nEND\n")
+    dat = _write(tmp_path, "m.dat", "DEFDAT m\nDECL E6POS XP1={X 1000,Y 0,Z 900,A 0,B 90,"
+                                    "C 0}\nENDDAT\n")
+    result = compensate_files(ProgramFiles("krl", (src, dat), ("m.src", "m.dat")),
+                              nominal_calibration(load_robot("kuka_kr16_2")), frames_path=both)
+    (row,) = [r for r in result.report.rows if r.target == "XP1"]
+    assert row.tool == "TOOL_DATA[1]" and row.status != "unresolved"
+    with pytest.raises(ParseError, match="holds none of"):
+        compensate_files(files, nominal_calibration(ROBOT),
+                         frames_path=[_write(tmp_path, "NUMREG.VA", "[*NUMREG*]$NUMREG  "
+                                             "Storage: SHADOW\n  [1] = 1\n")])

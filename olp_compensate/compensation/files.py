@@ -184,6 +184,8 @@ def _read_fanuc_backup(backup: BackupFiles) -> _FanucBackup:
         posreg = read_position_registers(text, path)
         if posreg is not None:
             registers, found = posreg, True
+        if not found and Path(path).suffix.lower() != ".va":
+            continue                     # another maker's file (a KRL $config.dat)
         if not found:
             raise ParseError("holds none of $MNUFRAME/$MNUTOOL (SYSFRAME.VA), "
                              "$SCR_GRP[1].$TURN_AXIS (SYSMAST.VA) nor $POSREG (POSREG.VA)",
@@ -220,7 +222,8 @@ def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
 
         by_ext = {Path(n).suffix.lower(): (n, t) for n, t in zip(names, texts)}
         src, dat = by_ext.get(".src", (None, None)), by_ext.get(".dat", (None, None))
-        configs = {path: _read(Path(path)) for path in backup_files(frames_path).paths}
+        configs = {path: _read(Path(path)) for path in backup_files(frames_path).paths
+                   if Path(path).suffix.lower() != ".va"}        # FANUC's, not KRL's
         program = parse_krl(src[1], dat[1], src[0] or "<src>", dat[0] or "<dat>", configs)
         return program, KRL
     if files.dialect == "fanuc":
