@@ -266,8 +266,11 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
             left_target = program.targets[found.composed[k]]
             left = rules.convention.pose(np.array([n.value for n in left_target.numbers]))
             wobj_T_target = left @ wobj_T_target
-            note = "; ".join(x for x in (f"{left_target.name} : this target (geometric "
-                                         f"operator), the correction written here", note) if x)
+            note = "; ".join(x for x in (
+                f"{left_target.name} : this target (geometric operator), the correction "
+                f"written here; branch: by this literal's own configuration, else the one "
+                f"nearest the previous target ({left_target.name}'s S and T are not used)",
+                note) if x)
         jobs.append(_Job(index=k, target=target, tool_key=tool_key, base_key=base_key,
                          base=base, tool=tool, real_tool=real,
                          wobj_T_target=wobj_T_target, note=note, left=left))
