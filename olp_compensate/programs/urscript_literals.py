@@ -19,6 +19,8 @@ from ..errors import ParseError
 from .pose_dialects import PoseProgram, line_column
 
 _P_OPEN = re.compile(r"(?<![\w.])p[ \t]*\[")
+_P_SIMPLE = re.compile(r"(?<![\w.])p[ \t]*\[([^\[\]()\r\n]*)\]")
+"""A pose literal on one line without brackets inside (nearly every one)."""
 _CALL_NAME = re.compile(r"(?<![\w.])([A-Za-z_]\w*)[ \t]*\($")
 _DEF = re.compile(r"^[ \t]*def[ \t]+([A-Za-z_]\w*)[ \t]*\(", re.M)
 """A function definition: its parameters' default values are run-time targets."""
@@ -50,7 +52,8 @@ def _enclosing_call(clean: str, at: int) -> tuple[str | None, int]:
     """(name of the call whose argument list holds offset ``at``, its offset) or (None, -1)."""
     depth = 0
     k = at - 1
-    while k >= 0:
+    stop = max(0, at - 4000)         # a call's arguments are near: no walk to the file start
+    while k >= stop:
         c = clean[k]
         if c in ")]":
             depth += 1
@@ -68,18 +71,16 @@ def _enclosing_call(clean: str, at: int) -> tuple[str | None, int]:
 def check_elements(text: str, clean: str, file: str, starts: list[int]) -> None:
     """Refuse a pose literal element that starts like a number but is not one (``2E+``,
     ``1.2.3``) or is ``nan``/``inf``, at its place."""
-    for m in _P_OPEN.finditer(clean):
-        end = _close(clean, m.end() - 1)
-        if end < 0:
-            continue
-        k = m.end()
-        for part in clean[m.end():end - 1].split(","):
+    for m in _P_SIMPLE.finditer(clean):
+        k = m.start(1)
+        for part in m.group(1).split(","):
             token = part.strip()
             at = k + len(part) - len(part.lstrip())
             k += len(part) + 1
+            if _ELEMENT_NUMBER.fullmatch(token):
+                continue
             bad = (_NON_FINITE.fullmatch(token) or
-                   (_LOOKS_NUMERIC.match(token) and not _ELEMENT_NUMBER.fullmatch(token)
-                    and re.fullmatch(r"[-+\w.]+", token)))
+                   (_LOOKS_NUMERIC.match(token) and re.fullmatch(r"[-+\w.]+", token)))
             if bad:
                 raise ParseError(f"malformed number {token!r} in a pose literal", file,
                                  *line_column(text, at, starts))
@@ -118,13 +119,13 @@ def other_literals(text: str, clean: str, file: str, starts: list[int],
     covered = {n.start for t in program.targets for n in t.numbers}
     defaults = {m.start(1): m.group(1) for m in _DEF.finditer(clean)}
     for m in _P_OPEN.finditer(clean):
-        end = _close(clean, m.end() - 1)
+        simple = _P_SIMPLE.match(clean, m.start())
+        end = simple.end() if simple is not None else _close(clean, m.end() - 1)
         if end < 0:
             continue
-        inside = [k for k in range(m.end(), end) if not clean[k].isspace()]
-        if inside and inside[0] in covered:
-            continue
-        if any(k in covered for k in range(m.end(), end)):
+        first = m.end() + len(clean[m.end():end]) - len(clean[m.end():end].lstrip())
+        if first in covered or (simple is None and any(k in covered
+                                                       for k in range(m.end(), end))):
             continue
         call, call_at = _enclosing_call(clean, m.start())
         status, what = _what(clean, m.start(), end, call, call_at, defaults)
