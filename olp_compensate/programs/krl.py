@@ -27,6 +27,8 @@ loops are not followed: a tool chosen inside a branch stays chosen after it). ``
 
 from __future__ import annotations
 
+import bisect
+import functools
 import re
 
 from ..errors import ParseError
@@ -61,8 +63,10 @@ _DEFFCT = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?DEFFCT[ \t]+\w+[ \t]+([A-Za-z_]\w
 AXIS_FIELDS = ("A1", "A2", "A3", "A4", "A5", "A6")
 
 
+@functools.lru_cache(maxsize=8)
 def strip_comments(text: str) -> str:
-    """``text`` with every KRL comment (``;`` to the end of the line) blanked, offsets kept."""
+    """``text`` with every KRL comment (``;`` to the end of the line) blanked, offsets kept
+    (the last few texts are kept: each pass over a module asks for the same)."""
     return blank_comments(text, ";")
 
 
@@ -355,38 +359,45 @@ def _assignments(text: str, file: str, program: PoseProgram) -> None:
     that is no target read gets a row (a tool, base or load frame: ``frame``; else
     ``runtime``)."""
     clean = strip_comments(text)
-    starts = line_starts_of(text)
-    covered = {n.start for t in program.targets if t.source[0] == file for n in t.numbers}
-    assigned: dict[str, int] = {}
+    starts: list[int] = []
+
+    def place(offset: int) -> tuple[int, int]:
+        if not starts:
+            starts.extend(line_starts_of(text))
+        return line_column(text, offset, starts)
+
+    covered = sorted(n.start for t in program.targets if t.source[0] == file
+                     for n in t.numbers)
+    assigned: dict[str, int] = {}                       # name -> offset of its first assignment
     for m in _ASSIGNMENT.finditer(clean):
         name, rest, value = m.group(1), m.group(2), m.group(3)
-        line = line_column(text, m.start(1), starts)[0]
-        if name.upper() in _NOT_TYPES or name.upper() in ("FOR", "IF"):
+        if name.upper() in _NOT_TYPES:
             continue
         if not (rest.startswith("[") and _LITERAL_INDEX.search(rest.split(".")[0].strip())
                 and value.lstrip().startswith("{") and "." not in rest):
-            assigned.setdefault(name.upper(), line)
+            assigned.setdefault(name.upper(), m.start(1))
         for brace in re.finditer(r"\{", value):
             lo = m.start(3) + brace.start()
-            if lo in covered or clean[lo - 1:lo] == "{" or not is_frame_literal(clean, lo):
+            if clean[lo - 1:lo] == "{" or not is_frame_literal(clean, lo):
                 continue
+            place(lo)                                      # the line starts, once
             hi = _aggregate_end(clean, lo, file, starts)
-            if any(lo <= c < hi for c in covered):
+            k = bisect.bisect_left(covered, lo)
+            if k < len(covered) and covered[k] < hi:      # a target read already
                 continue
             system = name.startswith("$") or name.upper() in ("TOOL_DATA", "BASE_DATA")
-            status = "frame" if system else "runtime"
             what = (f"a frame assigned to {name}{rest} by the program at run time, not a "
                     f"target; kept as written" if system else
-                    f"assigned to {name}{rest} by the program at run time (line {line}); "
-                    f"kept as written")
-            program.kept.append(((file, *line_column(text, lo, starts)), f"{name}{rest}",
-                                 status, what))
+                    f"assigned to {name}{rest} by the program at run time (line "
+                    f"{place(m.start(1))[0]}); kept as written")
+            program.kept.append(((file, *place(lo)), f"{name}{rest}",
+                                 "frame" if system else "runtime", what))
     for k, motion in enumerate(program.motions):
         base = (motion.target or "").split("[")[0].split(".")[0].upper()
         if motion.runtime is None and motion.inline is None and base in assigned:
             program.motions[k] = motion._replace(runtime=(
-                f"{motion.target} is assigned by the program (line {assigned[base]}): the "
-                f"value moved to is known only at run time"))
+                f"{motion.target} is assigned by the program (line "
+                f"{place(assigned[base])[0]}): the value moved to is known only at run time"))
 
 
 def _resolve_names(program: PoseProgram, config_points: PoseProgram) -> None:
