@@ -161,8 +161,12 @@ def test_runtime_unknown_and_unresolved_are_reported_never_dropped():
     by_status = {}
     for r in report.rows:
         by_status.setdefault(r.status, []).append(r)
-    assert len(by_status["runtime"]) == 3, by_status
+    # three motions, and the two offset literals inside pose_trans and pose_add (issue 26)
+    assert len(by_status["runtime"]) == 5, by_status
     assert any("pose_add" in r.note for r in by_status["runtime"])
+    offsets = [r for r in by_status["runtime"] if r.target.startswith("p[")]
+    assert sorted(r.target for r in offsets) == ["p[0, 0, -.05, 0, 0, 0]", "p[0, 0, .1, 0, 0, 0]"]
+    assert all("operand of pose_" in r.note for r in offsets)
     assert [r.target for r in by_status["unresolved"]] == ["Waypoint_9_p"]
     assert report.exit_code == 2
 

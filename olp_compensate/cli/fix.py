@@ -33,7 +33,7 @@ DIALECTS = ("rapid", "vplus", "krl", "fanuc", "val3", "urscript")
 EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
               ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
               ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
-              ".script": "urscript"}
+              ".script": "urscript", ".urscript": "urscript"}
 """As :data:`olp_compensate.compensation.files.EXTENSIONS` (a test checks)."""
 ROBOT_COMMENT = re.compile(rb"^[ \t]*[!;][ \t]*olp-robot[ \t]*:[ \t]*([A-Za-z0-9_.+-]+)",
                            re.MULTILINE | re.IGNORECASE)
@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="olp-fix", description=__doc__.splitlines()[0])
     p.add_argument("program", nargs="+", metavar="PATH",
                    help="program files (RAPID .mod .modx .prg .sys; V+/AS .pg .v2 .lc .loc "
-                        ".as; KRL .src/.dat; FANUC .ls; VAL3 .dtx; URScript .script), task "
+                        ".as; KRL .src/.dat; FANUC .ls; VAL3 .dtx; URScript .script .urscript), task "
                         "folders or controller backups")
     p.add_argument("--model", required=True, help="calib.json from olp-cal identify/nominal")
     p.add_argument("-o", "--output", help="with one program: the compensated program to "
@@ -67,10 +67,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "transfer: the real robot of --model reaches where that robot's real "
                         "tool went); both of the same robot model")
     add_model_options(p)
-    p.add_argument("--config", metavar="FRAMES",
-                   help="KRL: the controller's $config.dat with TOOL_DATA[n] and BASE_DATA[n]; "
-                        "FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) with $MNUFRAME and "
-                        "$MNUTOOL (user and tool frames of group 1)")
+    p.add_argument("--config", metavar="FILE", action="append",
+                   help="a controller file the programs rely on (repeat for several): KRL: "
+                        "the controller's $config.dat with TOOL_DATA[n], BASE_DATA[n] and "
+                        "its points (XHOME); FANUC: the backup's SYSFRAME.VA (or SYSTEM.VA) "
+                        "with $MNUFRAME and $MNUTOOL (user and tool frames of group 1), "
+                        "SYSMAST.VA (or SYMOTN.VA) with $SCR_GRP[1].$TURN_AXIS, POSREG.VA with the "
+                        "position "
+                        "registers")
+    p.add_argument("--fanuc-turn-axes", metavar="A,B,C",
+                   help="FANUC: the axes the turn numbers of CONFIG belong to, as the "
+                        "controller's $SCR_GRP[1].$TURN_AXIS (default: SYSMAST.VA's when "
+                        "given with --config, else 4,5,6)")
     p.add_argument("--region", metavar="NAME",
                    help="use this region's local model for every target ('global': the global "
                         "model); default: each target's region by its position, when the "
@@ -130,9 +138,11 @@ def run(args, retain: list | None = None) -> int:
     units = plan_units(args.program, args.dialect, args.output, EXTENSIONS, skipped)
     for line in skipped:
         print(f"olp-fix: warning: {line}", file=sys.stderr)
+    args.config = _backup(args.config, getattr(args, "fanuc_turn_axes", None))
     refuse_clashes([*(("program", p) for u in units for p in u.paths), ("--model", args.model),
                     ("--robot", args.robot), ("--taught-on", args.taught_on),
-                    ("--config", args.config), ("--controller", args.controller)],
+                    *(("--config", c) for c in args.config.paths),
+                    ("--controller", args.controller)],
                    [*(("-o" if args.output else "the default output", o)
                       for u in units for o in u.outputs), ("--report", args.report)])
     # a short batch run over millions of small acyclic records: the cyclic collector's
@@ -143,6 +153,19 @@ def run(args, retain: list | None = None) -> int:
         from .fix_batch import run_batch
 
         return run_batch(args, units)
+
+
+def _backup(config, turn_axes: str | None):
+    """The ``--config`` files and stated conventions as one
+    :class:`~olp_compensate.programs.backup_files.BackupFiles` (workers receive it whole)."""
+    from ..programs.backup_files import BackupFiles, backup_files, parse_turn_axes
+
+    given = backup_files(config)
+    for path in given.paths:
+        if not os.path.isfile(path):
+            raise DataError(f"--config {path}: no such file")
+    axes = parse_turn_axes(turn_axes) if turn_axes is not None else None
+    return BackupFiles(given.paths, axes)
 
 
 def load_calibrations(args):
@@ -167,6 +190,11 @@ def check_not_cut_short(dialect: str, paths, names) -> None:
     that is complete but holds no location data (an AS dump of system or auxiliary data, a
     KRL data list without positions) passes: it is written back as it is."""
     data = [Path(p).read_bytes() for p in paths]
+    if dialect == "vplus" and all(d.strip() for d in data) and all(
+            not line.strip() or line.lstrip().startswith(b".*")
+            for d in data for line in d.splitlines()):
+        raise DataError(f"{names[0]}: an AS save holding only its header ('.*' comment lines): "
+                        f"no program nor location data in it; nothing written")
     cut = all(not d.strip() for d in data) or (
         dialect == "vplus" and not any(V_PLUS_END.search(d) for d in data))
     if cut:

@@ -110,8 +110,15 @@ def _stated(args, dialect, paths, names):
     programs = ([loads(text, "rapid", name) for name, text in texts.items()]
                 if dialect == "rapid" else ())
     frames = None
-    if dialect == "krl" and args.config:
-        frames = Path(args.config).read_bytes().decode("latin-1")
+    if dialect == "krl":
+        from ..programs.backup_files import backup_files
+
+        # the $config.dat among the --config files: the one that declares LOAD_DATA
+        for path in backup_files(args.config).paths:
+            text = Path(path).read_bytes().decode("latin-1")
+            if "LOAD_DATA" in text.upper():
+                frames = text
+                break
     return program_loads(dialect, texts, programs, frames)
 
 

@@ -26,7 +26,7 @@ from ..programs.targets import Edit
 from .config_rule import decide
 from .dialect_rules import ArmGeometry, DialectRules, krl_status, krl_turn
 from .ik import IKSolution, closed_form_inverse
-from .pose import Compensator, explain_failures
+from .pose import COMPENSATED, Compensator, explain_failures
 from .program_tools import program_tool as calibrated_program_tool
 from .program_tools import program_tool_note
 from .regions import RegionalCompensator
@@ -116,6 +116,7 @@ class _Job:
     real_tool: np.ndarray
     wobj_T_target: np.ndarray
     note: str
+    left: np.ndarray | None = None       # KRL ``left : target``: the left operand's pose, m
 
 
 def compensate_pose_program(program: PoseProgram, rules: DialectRules,
@@ -135,6 +136,7 @@ def compensate_pose_program(program: PoseProgram, rules: DialectRules,
     edits: dict[str, list[Edit]] = defaultdict(list)
     if jobs:
         _solve(comp, teacher, geometry, rules, jobs, rows, edits)
+        _external_rows(program, rules, rows, edits)
     texts = {file: (splice(text, edits[file]) if edits.get(file) else text)
              for file, text in program.texts.items()}
     rows.sort(key=lambda r: (r.file, r.line, r.column))
@@ -152,16 +154,21 @@ def _row(target: PoseTarget, status: str, note: str, tool: str = "", base: str =
                         config_before=config_before, note=note)
 
 
-def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
-          rows: list[TargetReport]) -> list[_Job]:
-    """The targets to solve; rows for the others (unused, joints, run-time, unknown
-    instructions, unresolved frames, several tools)."""
-    by_name: dict[str, list[int]] = defaultdict(list)
-    for k, t in enumerate(program.targets):
-        if t.name is not None:
-            by_name[t.name.upper()].append(k)
-    uses: dict[int, set] = defaultdict(set)
-    first_use: dict[int, int] = {}
+@dataclass
+class _Uses:
+    """What the motions do with each target (index into ``program.targets``): its
+    (tool, base) pairs, the order of its first use, and the left operand it is composed
+    with (KRL ``left : {target}``)."""
+
+    uses: dict[int, set]
+    first_use: dict[int, int]
+    composed: dict[int, int]
+
+
+def _motion_uses(program: PoseProgram, by_name, rows: list[TargetReport]) -> _Uses:
+    """The uses of every target by the motions; rows for run-time motions, motions to
+    names declared nowhere, targets kept with a reason and unknown instructions."""
+    out = _Uses(defaultdict(set), {}, {})
     for order, motion in enumerate(program.motions):
         if motion.runtime is not None:
             rows.append(TargetReport(target=motion.target or "<inline>", file=motion.source[0],
@@ -169,8 +176,19 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
                                      status="runtime", tool=motion.tool or "",
                                      wobj=motion.base or "", note=motion.runtime))
             if motion.inline is not None:
-                uses[motion.inline].add(("runtime", None))
+                out.uses[motion.inline].add(("runtime", None))
+            for name in motion.candidates:          # an array indexed at run time
+                for k in by_name.get(name.upper(), []):
+                    out.uses[k].add((motion.tool, motion.base))
+                    out.first_use.setdefault(k, order)
             continue
+        if motion.left is not None and motion.inline is not None:
+            left = _left_operand(program, by_name, motion, rows)
+            if left is None:
+                out.uses[motion.inline].add(("runtime", None))
+                continue
+            out.composed[motion.inline] = left
+            out.uses[left].add(OPERAND)
         found = ([motion.inline] if motion.inline is not None
                  else by_name.get((motion.target or "").upper(), []))
         if not found:
@@ -180,34 +198,63 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
                                      wobj=motion.base or "",
                                      note=f"{motion.target} is declared in no file given"))
         for k in found:
-            uses[k].add((motion.tool, motion.base))
-            first_use.setdefault(k, order)
+            out.uses[k].add((motion.tool, motion.base))
+            out.first_use.setdefault(k, order)
+    for where, name, status, note in program.kept:
+        rows.append(TargetReport(target=name, file=where[0], line=where[1], column=where[2],
+                                 status=status, note=note))
     for where, instruction in program.unknown:
         rows.append(TargetReport(target=instruction, file=where[0], line=where[1],
                                  column=where[2], status="unknown_instruction",
                                  note=f"{instruction}: a motion whose target could not be read"))
+    return out
+
+
+def _not_solved(program: PoseProgram, target: PoseTarget, pairs: set,
+                config: str) -> TargetReport | None:
+    """The row of a target decided without solving (joints, unused, ambiguous...), or
+    None for a target to solve with its one pair."""
+    if target.kind == JOINTS:
+        return _row(target, "joint_target", "axis values kept as written")
+    if not target.numbers:
+        return _row(target, "runtime", "the aggregate leaves some of the pose to the "
+                                       "position at run time")
+    if not pairs and target.name in program.runtime_uses:
+        return _row(target, "runtime", program.runtime_uses[target.name], config_before=config)
+    if not pairs:
+        return _row(target, "unused", "not moved to in the files given: tool and base "
+                                      "unknown, left as written", config_before=config)
+    if len(pairs) > 1:
+        return _row(target, "ambiguous", "used with several tools/bases needing different "
+                                         "corrections; left as written", config_before=config)
+    return None
+
+
+def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
+          rows: list[TargetReport]) -> list[_Job]:
+    """The targets to solve; rows for the others (unused, joints, run-time, unknown
+    instructions, unresolved frames, several tools)."""
+    by_name: dict[str, list[int]] = defaultdict(list)
+    for k, t in enumerate(program.targets):
+        if t.name is not None:
+            by_name[t.name.upper()].append(k)
+    found = _motion_uses(program, by_name, rows)
     jobs = []
     for k, target in enumerate(program.targets):
-        pairs = uses.get(k, set())
+        pairs = found.uses.get(k, set())
         config = rules.config_words(rules.written(target))
         if ("runtime", None) in pairs:
             continue
-        if target.kind == JOINTS:
-            rows.append(_row(target, "joint_target", "axis values kept as written"))
-            continue
-        if not target.numbers:
-            rows.append(_row(target, "runtime", "the aggregate leaves some of the pose to the "
-                                                "position at run time"))
-            continue
-        if not pairs:
-            rows.append(_row(target, "unused", "not moved to in the files given: tool and base "
-                                               "unknown, left as written",
-                             config_before=config))
-            continue
-        if len(pairs) > 1:
-            rows.append(_row(target, "ambiguous", "used with several tools/bases needing "
-                                                  "different corrections; left as written",
-                             config_before=config))
+        if OPERAND in pairs:
+            pairs = pairs - {OPERAND}
+            if not pairs:
+                rows.append(_row(target, "unused", "moved to only as the left operand of ':' "
+                                 "(geometric operator): kept as written, the correction is "
+                                 "written into the right operand", config_before=config))
+                continue
+        row = _not_solved(program, target, pairs, config)
+        if row is not None:
+            rows.append(row)
             continue
         (tool_key, base_key), = pairs
         tool, why_tool = frames.program_frame(tool_key, "tool")
@@ -218,14 +265,48 @@ def _jobs(program: PoseProgram, rules: DialectRules, frames: FrameLookup,
             continue
         real, real_note = frames.real_tool(tool_key, tool)
         note = "; ".join(x for x in (why_tool, why_base, real_note) if x)
-        values = np.array([n.value for n in target.numbers])
+        wobj_T_target = rules.convention.pose(np.array([n.value for n in target.numbers]))
+        left = None
+        if k in found.composed:
+            left_target = program.targets[found.composed[k]]
+            left = rules.convention.pose(np.array([n.value for n in left_target.numbers]))
+            wobj_T_target = left @ wobj_T_target
+            note = "; ".join(x for x in (
+                f"{left_target.name} : this target (geometric operator), the correction "
+                f"written here; branch: by this literal's own configuration, else the one "
+                f"nearest the previous target ({left_target.name}'s S and T are not used)",
+                note) if x)
         jobs.append(_Job(index=k, target=target, tool_key=tool_key, base_key=base_key,
                          base=base, tool=tool, real_tool=real,
-                         wobj_T_target=rules.convention.pose(values), note=note))
+                         wobj_T_target=wobj_T_target, note=note, left=left))
     # in program order (the order the controller meets them): the previous joints of a
     # target are those of the target moved to before it
-    jobs.sort(key=lambda job: first_use.get(job.index, len(program.motions)))
+    jobs.sort(key=lambda job: found.first_use.get(job.index, len(program.motions)))
     return jobs
+
+
+OPERAND = ("operand", None)
+"""The use of a target as the left operand of a KRL geometric operator ``left : {...}``."""
+
+
+def _left_operand(program: PoseProgram, by_name, motion, rows: list[TargetReport]):
+    """Index of the target a ``left : {...}`` motion composes with, or None (a row says
+    why the motion is not solved)."""
+    found = by_name.get(motion.left.upper(), [])
+    why = None
+    if not found:
+        why = f"{motion.left} is declared in no file given"
+    elif len(found) > 1:
+        why = f"{motion.left} is declared more than once"
+    elif program.targets[found[0]].kind == JOINTS or not program.targets[found[0]].numbers:
+        why = f"{motion.left} is not a complete frame (X, Y, Z, A, B, C)"
+    if why is None:
+        return found[0]
+    rows.append(TargetReport(target=f"{motion.left} : {{...}}", file=motion.source[0],
+                             line=motion.source[1], column=motion.source[2],
+                             status="unresolved", tool=motion.tool or "",
+                             wobj=motion.base or "", note=f"geometric operator: {why}"))
+    return None
 
 
 def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry,
@@ -403,7 +484,8 @@ def _solved_row(job: _Job, rules: DialectRules, geometry: ArmGeometry, q_ctrl: n
     before = rules.config_words(rules.written(job.target))
     new_target = invert_pose(job.base) @ flange @ job.tool
     original = np.array([nb.value for nb in job.target.numbers])
-    numbers = rules.convention.numbers(new_target, original)
+    written = new_target if job.left is None else invert_pose(job.left) @ new_target
+    numbers = rules.convention.numbers(written, original)
     config = rules.config(geometry, q_ctrl, job.target)
     file = job.target.source[0]
     edits[file].extend(_number_edits(job.target, numbers, rules))
@@ -420,6 +502,30 @@ def _solved_row(job: _Job, rules: DialectRules, geometry: ArmGeometry, q_ctrl: n
         joint_change=float(np.max(np.abs(change))) if np.all(np.isfinite(change)) else np.nan,
         config_before=before, config_after=rules.config_words(config),
         joints=tuple(robot.to_degrees_or_mm(q_ctrl[None])[0].tolist()), note=job.note)
+
+
+def _external_rows(program: PoseProgram, rules: DialectRules, rows: list[TargetReport],
+                   edits: dict[str, list[Edit]]) -> None:
+    """Rows of targets in a file that is not written (``program.external``, a FANUC
+    ``POSREG.VA``): a compensated one takes that file's status (``register``...), its note
+    the values to set."""
+    if not program.external:
+        return
+    by_place = {(t.source, t.name): t for t in program.targets
+                if t.source[0] in program.external}
+    for k, row in enumerate(rows):
+        target = by_place.get(((row.file, row.line, row.column), row.target))
+        if target is None or row.status not in COMPENSATED:
+            continue
+        new = {e.start: e.replacement for e in edits.get(row.file, ())}
+        values = ", ".join(new.get(n.start, n.text).strip() for n in target.numbers)
+        config = ", ".join(new.get(n.start, n.text) for n in target.config)
+        solved = row.status
+        row.status, what = program.external[row.file]
+        row.note = "; ".join(x for x in (
+            f"{row.target} is {what}: set it to ({values})"
+            + (f" with configuration '{config}'" if config else "")
+            + f" (solved: {solved}; {row.file} is not written)", row.note) if x)
 
 
 def _decimals(text: str) -> int:

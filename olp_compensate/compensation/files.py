@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ import numpy as np
 
 from ..calibration.calibration import Calibration
 from ..errors import DataError, ModelError, ParseError
+from ..programs.backup_files import BackupFiles, backup_files
 from .pose import Compensator
 from .report import CompensationReport
 
@@ -34,7 +36,7 @@ DIALECTS = TEXT_DIALECTS + POSE_DIALECTS
 EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
               ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
               ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
-              ".script": "urscript"}
+              ".script": "urscript", ".urscript": "urscript"}
 """File extension (any case) -> dialect."""
 
 
@@ -101,8 +103,11 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
     emit, unused : as :func:`.program.compensate_program` (RAPID and V+ only).
     taught_on : the calibration of the robot the targets were taught on: the pose to reach
         is where that robot's real tool went (robot-to-robot transfer).
-    frames_path : KRL ``$config.dat`` with ``TOOL_DATA`` and ``BASE_DATA``; FANUC
-        ``SYSFRAME.VA`` (or ``SYSTEM.VA``) with ``$MNUFRAME`` and ``$MNUTOOL``.
+    frames_path : the controller's files (a path, several, or a
+        :class:`~olp_compensate.programs.backup_files.BackupFiles` with stated conventions):
+        KRL ``$config.dat`` with ``TOOL_DATA``, ``BASE_DATA`` and its points; FANUC
+        ``SYSFRAME.VA`` (or ``SYSTEM.VA``) with ``$MNUFRAME`` and ``$MNUTOOL``,
+        ``SYSMAST.VA`` with the turn axes, ``POSREG.VA`` with the position registers.
     jobs : processes a big RAPID module's targets may be shared among (at most two, see
         :func:`~.module_columns.compensate_rapid_task`); the result is the same.
     """
@@ -221,6 +226,82 @@ def check_taught_joints(report: CompensationReport, robot) -> None:
                              f"say so: '; olp-robot: NAME')")
 
 
+@dataclass(frozen=True)
+class _FanucBackup:
+    frames: object = None              # SystemFrames
+    registers: object = None           # PositionRegisters
+    turn_axes: tuple[int, ...] = (4, 5, 6)
+    turn_note: str = ""
+
+
+_BACKUPS: dict = {}
+"""Backups read in this process, by their files' paths, sizes and times (a folder's
+programs share one backup: read once)."""
+
+
+def _fanuc_backup(backup: BackupFiles) -> _FanucBackup:
+    """The frames, position registers and turn axes of a FANUC backup's ``.VA`` files,
+    each file recognised by what it holds; the stated turn axes win over SYSMAST.VA's."""
+    try:
+        stats = tuple((p, os.stat(p).st_size, os.stat(p).st_mtime_ns) for p in backup.paths)
+    except OSError:
+        stats = None
+    if stats is not None and (stats, backup.turn_axes) in _BACKUPS:
+        return _BACKUPS[stats, backup.turn_axes]
+    read = _read_fanuc_backup(backup)
+    if stats is not None:
+        _BACKUPS[stats, backup.turn_axes] = read
+    return read
+
+
+def _read_fanuc_backup(backup: BackupFiles) -> _FanucBackup:
+    from ..programs.fanuc_backup import read_position_registers, read_turn_axes
+    from ..programs.fanuc_frames import read_system_frames
+    from ..programs.text_checks import check_text
+
+    frames = registers = turn = None
+    for path in backup.paths:
+        text = _read(Path(path))
+        check_text(text, path)
+        upper = text.upper()
+        found = False
+        if "$MNUFRAME" in upper or "$MNUTOOL" in upper:
+            frames, found = read_system_frames(text, path), True
+        axes = read_turn_axes(text, path)
+        if axes is not None:
+            turn, found = axes, True
+        posreg = read_position_registers(text, path)
+        if posreg is not None:
+            registers, found = posreg, True
+        if not found and Path(path).suffix.lower() != ".va":
+            continue                     # another maker's file (a KRL $config.dat)
+        if not found:
+            raise ParseError("holds none of $MNUFRAME/$MNUTOOL (SYSFRAME.VA), "
+                             "$SCR_GRP[1].$TURN_AXIS (SYSMAST.VA) nor $POSREG (POSREG.VA)",
+                             path, 1, 1)
+    if backup.turn_axes is not None:
+        axes, note = backup.turn_axes, "stated (--fanuc-turn-axes)"
+    elif turn is not None:
+        axes, note = turn.axes, f"$SCR_GRP[1].$TURN_AXIS, {turn.source}"
+    else:
+        return _FanucBackup(frames, registers)
+    words = ", ".join(f"J{a}" for a in axes)
+    return _FanucBackup(frames, registers, axes,
+                        f"CONFIG turn numbers read for the axes {words} ({note})")
+
+
+def _val3_programs(files: ProgramFiles) -> dict[str, str]:
+    """The ``.pgx`` programs beside a VAL3 data file (its project's folder), by the names
+    the report gives them (beside the data file's name)."""
+    out = {}
+    for path, name in zip(files.paths, files.names):
+        for pgx in sorted(Path(path).parent.iterdir()):
+            if pgx.suffix.lower() == ".pgx" and pgx.is_file():
+                out[str(Path(name).parent / pgx.name) if Path(name).parent != Path(".")
+                    else pgx.name] = _read(pgx)
+    return out
+
+
 def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
     """(PoseProgram, DialectRules) of the files of a pose dialect."""
     names = files.names
@@ -230,23 +311,25 @@ def _parse_pose_dialect(files: ProgramFiles, texts: list[str], frames_path):
 
         by_ext = {Path(n).suffix.lower(): (n, t) for n, t in zip(names, texts)}
         src, dat = by_ext.get(".src", (None, None)), by_ext.get(".dat", (None, None))
-        config = None if frames_path is None else _read(Path(frames_path))
-        program = parse_krl(src[1], dat[1], src[0] or "<src>", dat[0] or "<dat>", config,
-                            str(frames_path) if frames_path else "$config.dat")
+        configs = {path: _read(Path(path)) for path in backup_files(frames_path).paths
+                   if Path(path).suffix.lower() != ".va"}        # FANUC's, not KRL's
+        program = parse_krl(src[1], dat[1], src[0] or "<src>", dat[0] or "<dat>", configs)
         return program, KRL
     if files.dialect == "fanuc":
-        from ..programs.fanuc_frames import read_system_frames
         from ..programs.fanuc_tp import parse_fanuc_tp
         from .rules_fanuc import fanuc_rules
 
-        system = (None if frames_path is None else
-                  read_system_frames(_read(Path(frames_path)), str(frames_path)))
-        return parse_fanuc_tp(texts[0], names[0], system_frames=system), fanuc_rules()
+        backup = _fanuc_backup(backup_files(frames_path))
+        program = parse_fanuc_tp(texts[0], names[0], system_frames=backup.frames,
+                                 registers=backup.registers)
+        if backup.turn_note:
+            program.notes.append(backup.turn_note)
+        return program, fanuc_rules(backup.turn_axes)
     if files.dialect == "val3":
         from ..programs.val3 import parse_val3
         from .rules_val3 import VAL3
 
-        return parse_val3(dict(zip(names, texts))), VAL3
+        return parse_val3(dict(zip(names, texts)), programs=_val3_programs(files)), VAL3
     from ..programs.urscript import parse_urscript
     from .rules_urscript import URSCRIPT
 

@@ -40,6 +40,7 @@ from .confdata import vplus_configuration, written_confdata
 from .ik import OPWParameters
 from .pose import COMPENSATED, Compensator, explain_failures
 from .program_edits import program_edits
+from .frame_rows import frame_rows
 from .program_tools import program_tool, program_tool_note
 from .report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
                      config_texts, failure_row, joint_target_row, motion_row, row_name,
@@ -152,7 +153,7 @@ def module_rows_and_edits(program: Program, res, comp: Compensator, *, emit: str
     write = _rows_solved(res, job, solved, comp.robot, vplus, rows) if job else {}
     rows.extend(motion_row(use, "runtime" if use.runtime is not None else "unresolved", why)
                 for use, why in res.unresolved)
-    rows.extend(_problem_rows(program))
+    rows.extend(_problem_rows(program) + frame_rows(program, res))
     rows.sort(key=LINE_COLUMN)
     warnings = list(res.warnings)
     edits = program_edits(program, comp, res, job, write, solved, emit, vplus, warnings)

@@ -25,8 +25,10 @@ from .pose import COMPENSATED
 
 __all__ = ["TargetReport", "CompensationReport", "KEPT", "config_text", "config_texts"]
 
-KEPT = ("joint_target",)
-"""Statuses of targets that need no compensation (the program is still fully compensated)."""
+KEPT = ("joint_target", "frame")
+"""Statuses of targets that need no compensation (the program is still fully compensated):
+joints already; ``frame``, a pose literal that is a tool or frame, not a target (URScript
+``set_tcp(p[...])``, ``force_mode`` task frames)."""
 
 CSV_CHUNK = 4096
 """Report rows written per piece of :meth:`CompensationReport.csv_chunks`."""

@@ -37,11 +37,13 @@ from __future__ import annotations
 import re
 
 from ..errors import ParseError
+from .fanuc_backup import PositionRegisters, config_numbers
 from .fanuc_frames import SystemFrames
 from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget,
                             is_finite_number, line_column,
                             line_starts_of)
 from .targets import Number
+from .text_checks import check_not_non_finite, check_number_end, check_text
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _SECTION = re.compile(r"^/(PROG|ATTR|APPL|MN|POS|END)\b", re.M)
@@ -52,9 +54,6 @@ _ANY_FIELD = re.compile(rf"(?<![\w\[])([A-Z]{{1,3}}\d?)[ \t]*=[ \t]*{_NUMBER}")
 _UNTAUGHT = re.compile(r"(?<![\w\[])(?:[XYZWPR]|J\d)[ \t]*=[ \t]*\*+")
 _CONFIG = re.compile(r"\bCONFIG[ \t]*:[ \t]*'([^']*)'")
 _FIELD = re.compile(rf"(?<![\w\[])([XYZWPR]|J\d|E\d)[ \t]*=[ \t]*({_NUMBER})[ \t]*(mm|deg)?")
-_CONFIG_PARTS = re.compile(r"[ \t]*([NF])[ \t]*([UD])[ \t]*([TB])[ \t]*((?:,[ \t]*[-+]?\d+"
-                           r"[ \t]*)*)$")
-_TURN = re.compile(r"[-+]?\d+")
 _LINE = re.compile(r"^[ \t]*\d+[ \t]*:[ \t]*([^\r\n]*)", re.M)
 _CONTINUATION = re.compile(r"^[ \t]*:[ \t]*([^\r\n]*)", re.M)
 _MOTION = re.compile(r"([JLCA])[ \t]+")
@@ -125,8 +124,10 @@ def _positions(text: str, file: str, starts: list[int], lo: int, hi: int,
                                f"kept as written"
             continue
         numbers = {}
+        check_not_non_finite(text, g_lo, g_hi, file)
         for f in _FIELD.finditer(text, g_lo, g_hi):
             value = f.group(2)
+            check_number_end(text, f.end(2), file)
             if not is_finite_number(value):
                 line, column = line_column(text, f.start(2), starts)
                 raise ParseError(f"{value} is not a finite number", file, line, column)
@@ -141,7 +142,17 @@ def _positions(text: str, file: str, starts: list[int], lo: int, hi: int,
         where = (file, *line_column(text, m.start(), starts))
         frame = (None if uf == "F" else f"UF{int(uf)}", None if ut == "F" else f"UT{int(ut)}")
         if all(f in numbers for f in POSE_FIELDS):
-            config, config_text = _config(text, file, starts, g_lo, g_hi)
+            config_spans = _config(text, file, starts, g_lo, g_hi)
+            if config_spans is None:
+                first = numbers["X"]
+                at = (file, *line_column(text, first.start, starts))
+                words = _CONFIG.search(text, g_lo, g_hi).group(1)
+                why = (f"{name} has a SCARA configuration '{words}': the FANUC rules read "
+                       f"six-axis arms (N/F U/D T/B); kept as written")
+                program.kept.append((at, name, "unresolved", why))
+                unreadable[name] = why
+                continue
+            config, config_text = config_spans
             first = numbers["X"]
             where = (file, *line_column(text, first.start, starts))
             program.targets.append(PoseTarget(
@@ -172,22 +183,12 @@ def _positions(text: str, file: str, starts: list[int], lo: int, hi: int,
 
 
 def _config(text: str, file: str, starts: list[int], lo: int, hi: int):
-    """(letters and turns as Numbers, the whole CONFIG string as a Number), or ((), None)."""
+    """(letters and turns as Numbers, the whole CONFIG string as a Number), ((), None)
+    without CONFIG, None for a SCARA's configuration (``'L, 0, 0, -1'``)."""
     m = _CONFIG.search(text, lo, hi)
     if m is None:
         return (), None
-    inner = m.group(1)
-    parts = _CONFIG_PARTS.match(inner)
-    if parts is None:
-        line, column = line_column(text, m.start(1), starts)
-        raise ParseError(f"CONFIG '{inner}' is not 'N|F U|D T|B, turn, ...'", file, line, column)
-    base = m.start(1)
-    letters = tuple(Number(base + parts.start(i), base + parts.end(i), parts.group(i))
-                    for i in (1, 2, 3))
-    t0 = base + parts.start(4)
-    turns = tuple(Number(t0 + t.start(), t0 + t.end(), t.group())
-                  for t in _TURN.finditer(parts.group(4)))
-    return letters + turns, Number(m.start(1), m.end(1), inner)
+    return config_numbers(text, file, starts, m.start(1), m.group(1))
 
 
 class _Numbers:
@@ -258,14 +259,14 @@ def _motion(text, file, starts, instruction, where, at, line_end, program, frame
     kind = p.group(1)
     options = text[close:line_end]
     runtime = None
-    if kind == "PR":
-        runtime = f"PR[{index}] is a position register, known only at run time"
-    elif not index.isdigit():
-        runtime = f"P[{index}] is indexed at run time"
-    else:
-        option = _RUNTIME_OPTIONS.search(options)
-        if option is not None:
-            runtime = f"{option.group(1)} moves the point by an offset known at run time"
+    option = _RUNTIME_OPTIONS.search(options)
+    if not index.isdigit():
+        runtime = f"{kind}[{index}] is indexed at run time"
+    elif option is not None:
+        runtime = f"{option.group(1)} moves the point by an offset known at run time"
+    elif kind == "PR":
+        runtime = (f"PR[{index}] is a position register, known only at run time (give the "
+                   f"backup's POSREG.VA with --config to read its value)")
     name = f"{kind}[{int(index)}]" if index.isdigit() else f"{kind}[{index}]"
     if runtime is None and name in unreadable:
         runtime = unreadable[name]
@@ -278,10 +279,14 @@ def _motion(text, file, starts, instruction, where, at, line_end, program, frame
 
 def parse_fanuc_tp(text: str, file: str = "<ls>",
                    frames: dict[str, tuple[float, ...]] | None = None,
-                   system_frames: SystemFrames | None = None) -> PoseProgram:
+                   system_frames: SystemFrames | None = None,
+                   registers: PositionRegisters | None = None) -> PoseProgram:
     """Read a FANUC ``.ls`` program (decoded text). ``frames``: user frames and tools the
     controller holds, ``"UF<n>"``/``"UT<n>"`` -> (x, y, z mm, w, p, r deg);
-    ``system_frames``: those of a ``SYSFRAME.VA`` (``frames`` wins where both name one)."""
+    ``system_frames``: those of a ``SYSFRAME.VA`` (``frames`` wins where both name one);
+    ``registers``: the position registers of a ``POSREG.VA`` (motions to a register the
+    program never sets are solved with its value, reported as ``register`` rows)."""
+    check_text(text, file, "a binary .tp program cannot be read; save it as .ls")
     program = PoseProgram(dialect="fanuc_tp", texts={file: text}, targets=[], motions=[])
     if system_frames is not None:
         program.frames.update(system_frames.frames)
@@ -291,12 +296,17 @@ def parse_fanuc_tp(text: str, file: str = "<ls>",
     sections = _sections(text)
     if "MN" not in sections and "POS" not in sections:
         raise ParseError("not a FANUC .ls program: neither /MN nor /POS found", file, 1, 1)
+    if "END" not in sections:
+        line, column = line_column(text, len(text.rstrip()), starts)
+        raise ParseError("no /END: the program is cut short", file, line, column)
     frames_of: dict[str, tuple[str, str]] = {}
     unreadable: dict[str, str] = {}
     if "POS" in sections:
         frames_of = _positions(text, file, starts, *sections["POS"], program, unreadable)
     if "MN" in sections:
         _motions(text, file, starts, *sections["MN"], program, frames_of, unreadable)
+        if registers is not None:
+            _read_registers(text, starts, *sections["MN"], program, registers)
     if system_frames is not None:
         if "MN" in sections:
             _drop_reassigned(text, file, starts, *sections["MN"], program, system_frames,
@@ -338,3 +348,41 @@ def _frame_notes(program: PoseProgram, system_frames: SystemFrames) -> None:
                    f"targets with {key} are left unresolved unless calib.json has a tool "
                    f"{key} (or tool{key[2:]})")
         program.notes.append(f"{why}: {targets}")
+
+
+_PR_SET = re.compile(r"^[ \t]*\d+[ \t]*:[ \t]*PR[ \t]*\[[ \t]*(\d+)[ \t]*(?:[,:][^\]\r\n]*)?\]"
+                     r"[ \t]*=", re.M)
+
+
+def _read_registers(text: str, starts: list[int], lo: int, hi: int, program: PoseProgram,
+                    registers: PositionRegisters) -> None:
+    """Motions to ``PR[n]`` with the register's value from ``registers``: solved where the
+    program never sets the register; run-time (the register and why named) otherwise."""
+    assigned = {}
+    for m in _PR_SET.finditer(text, lo, hi):
+        assigned.setdefault(f"PR[{int(m.group(1))}]", line_column(text, m.start(), starts)[0])
+    used: dict[str, None] = {}
+    for k, motion in enumerate(program.motions):
+        name = motion.target or ""
+        if not name.startswith("PR[") or motion.runtime is None or \
+                "position register" not in motion.runtime:
+            continue
+        if name in assigned:
+            why = (f"{name} is set by the program (line {assigned[name]}): its value is "
+                   f"known only at run time")
+        elif name in registers.uninitialized:
+            line, column = registers.uninitialized[name]
+            why = f"{name} is uninitialized in {registers.file} ({registers.file}:{line}:{column})"
+        elif name not in registers.registers:
+            why = f"{name} is not in {registers.file}: known only at run time"
+        else:
+            why = None
+            used[name] = None
+        program.motions[k] = motion._replace(runtime=why)
+    for name in used:
+        program.targets.append(registers.registers[name])
+    if used:
+        program.texts[registers.file] = registers.text
+        program.external[registers.file] = (
+            "register", "a position register: its value is on the controller, not in the "
+                        "program")

@@ -251,25 +251,13 @@ def convert_lark_error(exc: UnexpectedInput, text: str, file: str) -> ParseError
     return ParseError(str(exc).splitlines()[0], file, line, col)
 
 
-_CONTROL = re.compile(r"[\x00-\x08\x0e-\x1a\x1c-\x1f\x7f]")
-BINARY_SHARE = 0.01
-"""A text whose first 64 KiB hold more than this share of control bytes is binary."""
-
-
 def check_text(text: str, file: str) -> None:
-    """Reject binary input (a NUL byte, or many control bytes: an encrypted module, an
-    image...) before the parser sees it, in one line that does not echo its bytes."""
-    head = text[:1 << 16]
-    controls = len(_CONTROL.findall(head))
-    nul = text.find("\x00")
-    if nul < 0 and controls <= BINARY_SHARE * len(head):
-        return
-    first = nul if nul >= 0 else _CONTROL.search(head).start()
-    line, column = LineIndex(text).line_col(first)
-    raise ParseError(f"binary or encrypted file ({controls} control bytes in the first "
-                     f"{len(head)}; first at this position): not a program in plain text "
-                     f"(an encrypted RAPID module cannot be read; compensate its plain "
-                     f"source)", file, line, column)
+    """Reject binary or UTF-16 input before the parser sees it, in one line that does not
+    echo its bytes (:func:`.text_checks.check_text`, shared by every dialect)."""
+    from .text_checks import check_text as check
+
+    check(text, file, "an encrypted RAPID module cannot be read; compensate its plain "
+                      "source")
 
 
 def newline_style(text: str) -> str:

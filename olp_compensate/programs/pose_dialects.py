@@ -57,6 +57,10 @@ class PoseMotion(NamedTuple):
     source : (file, line, column) of the instruction.
     runtime : why the motion's target is only known at run time (``PTP_REL``, a system
         variable, a computed expression), or None.
+    candidates : names of the targets a run-time motion may move to (every element of an
+        array indexed by a variable): each is compensated with this motion's tool and base.
+    left : the left operand of a KRL geometric operator ``left : {inline}``: the motion
+        moves to ``left`` composed with the inline target (its name, or None).
     """
 
     instruction: str
@@ -66,6 +70,8 @@ class PoseMotion(NamedTuple):
     base: str | None = None
     inline: int | None = None
     runtime: str | None = None
+    candidates: tuple[str, ...] = ()
+    left: str | None = None
 
 
 @dataclass
@@ -79,6 +85,15 @@ class PoseProgram:
         understood (reported, never silently dropped).
     frames : named frame data the program itself defines (KRL ``$config.dat`` tool and base
         data, FANUC user frames...), name -> six numbers in the file's units.
+    kept : targets read but kept as written, each reported with its reason: (source, name,
+        status, note) (a FANUC SCARA configuration, a KRL point moved to through ``:``).
+    runtime_uses : target name -> why a use of it is known only at run time (a URScript
+        relative waypoint moved by through ``pose_sub``): such a target that no motion moves
+        to directly is reported ``runtime`` with that reason, not ``unused``.
+    external : files of ``texts`` that are not program files written back (a FANUC
+        ``POSREG.VA``, a KRL ``$config.dat``): file -> (status, what its targets are).
+        Their targets are solved and reported with that status (``register``,
+        ``config_point``) and the values to set; their text is never written.
     """
 
     dialect: str
@@ -88,6 +103,9 @@ class PoseProgram:
     unknown: list[tuple[tuple[str, int, int], str]] = field(default_factory=list)
     frames: dict[str, tuple[float, ...]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    kept: list[tuple[tuple[str, int, int], str, str, str]] = field(default_factory=list)
+    external: dict[str, tuple[str, str]] = field(default_factory=dict)
+    runtime_uses: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

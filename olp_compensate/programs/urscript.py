@@ -37,6 +37,9 @@ from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, b
                             line_column,
                             line_starts_of)
 from .targets import Number
+from .text_checks import check_text
+from .urscript_literals import (check_blocks, check_elements, other_literals,
+                                relative_waypoints)
 
 MOTIONS = ("movej", "movel", "movep", "movec")
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -279,11 +282,17 @@ class _Reader:
 
 def parse_urscript(text: str, file: str = "<script>") -> PoseProgram:
     """Read a URScript program (decoded text)."""
+    check_text(text, file)
     program = PoseProgram(dialect="urscript", texts={file: text}, targets=[], motions=[])
     reader = _Reader(text, file, program)
+    check_elements(text, reader.clean, file, reader.starts)
+    check_blocks(text, reader.clean, file, reader.starts)
     reader.assignments()
     reader.motions()
     reader.hints()
+    other_literals(text, reader.clean, file, reader.starts, program, reader.tcp_names,
+                   reader.runtime_names)
+    relative_waypoints(reader.clean, text, reader.starts, program)
     if not any(m.tool for m in program.motions) and program.motions:
         program.notes.append("no set_tcp in the script: the targets are taken as flange poses "
                              "(the TCP set in the installation is not read)")

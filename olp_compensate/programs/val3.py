@@ -44,6 +44,7 @@ from ..kinematics.conventions import euler_xyz_from_matrix, matrix_from_euler_xy
 from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
                             line_starts_of)
 from .targets import Number
+from .text_checks import check_text, check_xml
 
 POSE_FIELDS = ("x", "y", "z", "rx", "ry", "rz")
 JOINT_FIELDS = ("j1", "j2", "j3", "j4", "j5", "j6", "j7")
@@ -198,9 +199,11 @@ def _compose(local: dict[str, tuple[np.ndarray, str | None]], root: str) -> dict
     return out
 
 
-def parse_val3(texts: dict[str, str] | str, file: str = "<dtx>") -> PoseProgram:
+def parse_val3(texts: dict[str, str] | str, file: str = "<dtx>",
+               programs: dict[str, str] | None = None) -> PoseProgram:
     """Read VAL3 data files: ``texts`` file name -> decoded text (or one text and its
-    ``file`` name)."""
+    ``file`` name); ``programs``: the project's ``.pgx`` texts (file -> text), whose motions
+    say which point is reached with which tool (:mod:`.val3_programs`)."""
     if isinstance(texts, str):
         texts = {file: texts}
     program = PoseProgram(dialect="val3", texts=dict(texts), targets=[], motions=[])
@@ -208,6 +211,8 @@ def parse_val3(texts: dict[str, str] | str, file: str = "<dtx>") -> PoseProgram:
     tools: dict[str, tuple[np.ndarray, str | None]] = {}
     points: list[tuple[PoseTarget, str | None]] = []
     for name, text in texts.items():
+        check_text(text, name)
+        check_xml(text, name, "VAL3 data (.dtx)")
         starts = line_starts_of(text)
         clean = _mask_comments(text)
         for entry in _entries(text, clean, name, starts):
@@ -239,6 +244,11 @@ def parse_val3(texts: dict[str, str] | str, file: str = "<dtx>") -> PoseProgram:
                                      f"(0); written as attributes where they change")
     program.frames.update(_compose(frames, WORLD))
     program.frames.update(_compose(tools, FLANGE))
+    if programs:
+        from .val3_programs import read_programs
+
+        read_programs(programs, program, {t.name: father for t, father in points})
+        return program
     tool_key = None
     if len(tools) == 1:
         tool_key = next(iter(tools))

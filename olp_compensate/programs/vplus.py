@@ -37,8 +37,9 @@ import re
 import lark
 from lark.exceptions import UnexpectedInput
 
-from .grammar import (PositionedBuilder, LineIndex, check_text, convert_lark_error, current_sink,
+from .grammar import (PositionedBuilder, LineIndex, convert_lark_error, current_sink,
                       error_at, newline_style, parser)
+from .text_checks import check_text
 from .targets import (EULER_ZYZ_DEG, CartesianTarget, JointTarget, MotionUse, Program,
                       Routine, RuntimeTarget, SourceLocation, ToolData)
 from .vplus_expressions import (first_name, location_expression, skip_blanks, term_at,
@@ -335,7 +336,8 @@ class _Builder(PositionedBuilder):
         runtime = RuntimeTarget(self.text[start:end], SourceLocation(*loc), why, base_name,
                                 routine, (start, end))
         self.runtime.append(runtime)
-        self.motions.append(MotionUse(name, loc, "to", runtime=runtime, **common))
+        # the BASE in force applies to the location the expression is built on too
+        self.motions.append(MotionUse(name, loc, "to", runtime=runtime, wobj=base, **common))
 
     def _block_step(self, kw, a0, a1, routine) -> None:
         """A Kawasaki block-teaching step: its taught joints ``#[j1,...,jn]``."""
