@@ -286,8 +286,6 @@ def diagnose(robot: Robot, meas: Measurements,
             extended = apply_bands(current, scan, bands)
             kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
     target = bands.heldout if bands is not None and bands.bands else scan.base
-    remainder = predictability(inputs.q, tuple(j.kind for j in robot.joints),
-                               target.residuals, folds, meas.temperature_c, meas.time_s)
     before, x_before = problem_at(geometric.calibration, meas, inputs)
     after, x_after = problem_at(extended.calibration, meas, inputs)
     predicted_before = before.predict(x_before, jacobian=False)[-1]
@@ -297,6 +295,9 @@ def diagnose(robot: Robot, meas: Measurements,
                 else robot.urdf_from_controller)
     dpoint_dq = np.einsum("ij,mjk,kl->mil", rotation, chain.dpoint_dq, coupling)
     residual_after = after.measured - predicted_after
+    remainder = predictability(inputs.q, tuple(j.kind for j in robot.joints),
+                               -target.residuals, folds, meas.temperature_c, meas.time_s,
+                               map_target=residual_after)
     residual_sigma = remainder.rms_after / np.sqrt(3)
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,

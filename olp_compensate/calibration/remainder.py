@@ -2,7 +2,8 @@
 predicts, and the noise floor that no model of the joints predicts.
 
 The flexible model (:class:`ResidualMap`) is ridge regression on random Fourier features
-(Rahimi & Recht 2007) of the inputs: sin and cos of every revolute controller axis (a
+(Rahimi & Recht 2007) and on the products of up to three of the inputs (a trigonometric
+polynomial: gravity torques and their coupling through the arm are of this kind), inputs: sin and cos of every revolute controller axis (a
 prismatic axis: its value over its span), plus, for the predictability estimate only,
 temperature and time scaled to [-1, 1] when the measurements carry them. Features
 ``sqrt(2 / D) cos(x W / ell + b)`` (W standard normal, b uniform, fixed seed) approximate
@@ -16,12 +17,15 @@ Gram matrices and one eigen-decomposition per training set and length.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import combinations_with_replacement
 
 import numpy as np
 
-FEATURES = 300
+FEATURES = 200
 """Random Fourier features D."""
-LENGTHS = (0.35, 0.7, 1.4, 2.8)
+POLY_DEGREE = 3
+"""Highest degree of the products of the inputs."""
+LENGTHS = (0.5, 1.0, 2.0)
 """Kernel lengths tried, in units of the inputs (sin/cos lie in [-1, 1])."""
 PENALTIES = np.logspace(-5, 2, 8)
 """Ridge penalties tried, relative to the number of training rows."""
@@ -94,10 +98,20 @@ def _inputs(q: np.ndarray, kinds, center, span, extra: np.ndarray | None = None)
     return x if extra is None else np.hstack([x, extra])
 
 
+def _monomials(x: np.ndarray, degree: int) -> np.ndarray:
+    """Every product of 2..``degree`` of the columns of x (with repetition)."""
+    cols = [np.prod(x[:, list(c)], axis=1) for d in range(2, degree + 1)
+            for c in combinations_with_replacement(range(x.shape[1]), d)]
+    return np.column_stack(cols) if cols else np.zeros((len(x), 0))
+
+
 def _design(x: np.ndarray, frequencies, phases, length: float) -> np.ndarray:
+    """Random Fourier features, the trigonometric polynomial of degree POLY_DEGREE (the
+    products of the sin/cos inputs: gravity and coupling terms are of this kind), the
+    inputs and a constant."""
     d = frequencies.shape[1]
     z = np.sqrt(2.0 / d) * np.cos(x @ frequencies / length + phases)
-    return np.hstack([z, x, np.ones((len(x), 1))])
+    return np.hstack([z, _monomials(x, POLY_DEGREE), x, np.ones((len(x), 1))])
 
 
 @dataclass(frozen=True)
@@ -165,10 +179,12 @@ def _scaled(values: np.ndarray) -> np.ndarray:
 
 
 def predictability(q_ctrl: np.ndarray, kinds: tuple[str, ...], target: np.ndarray,
-                   folds: list[np.ndarray], temperature=None, time=None) -> Predictability:
+                   folds: list[np.ndarray], temperature=None, time=None,
+                   map_target: np.ndarray | None = None) -> Predictability:
     """How much of ``target`` (m, 3; a model's held-out residuals) the flexible model of
     the joints (and temperature and time where given) predicts, by nested CV over
-    ``folds`` (row masks); and the map on the joints alone fitted on all rows."""
+    ``folds`` (row masks); and the map on the joints alone fitted on all rows of
+    ``map_target`` (default ``target``; the final model's measured minus predicted)."""
     center = q_ctrl.mean(axis=0)
     span = np.maximum(np.ptp(q_ctrl, axis=0), 1e-12)
     extra = [_scaled(np.asarray(v, float)) for v in (temperature, time)
@@ -188,8 +204,9 @@ def predictability(q_ctrl: np.ndarray, kinds: tuple[str, ...], target: np.ndarra
         heldout, after = target.copy(), before
     x_joints = _inputs(q_ctrl, kinds, center, span)
     w_j, b_j = _random_features(x_joints.shape[1])
-    joint_designs = ([_Fold(_design(x_joints, w_j, b_j, ell), target, folds) for ell in LENGTHS]
-                     if extra else designs)
+    fitted = target if map_target is None else map_target
+    joint_designs = ([_Fold(_design(x_joints, w_j, b_j, ell), fitted, folds) for ell in LENGTHS]
+                     if extra or map_target is not None else designs)
     li, pi = _select(joint_designs, set())
     weights = joint_designs[li].solutions(list(range(k)))[pi]
     q_range = np.column_stack([q_ctrl.min(axis=0), q_ctrl.max(axis=0)])
