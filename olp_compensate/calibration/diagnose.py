@@ -77,6 +77,9 @@ class DiagnoseOptions:
     convention: str = "auto"
     cyclic: bool = True
     """Scan the cyclic angle error bands (:mod:`.cyclic_scan`) after the named terms."""
+    account: bool = True
+    """Estimate what remains predictable (:mod:`.remainder`); without it the noise floor
+    falls back to the residual of the final model (the diagnosis before issue 28)."""
 
 
 @dataclass(frozen=True)
@@ -295,14 +298,20 @@ def diagnose(robot: Robot, meas: Measurements,
                 else robot.urdf_from_controller)
     dpoint_dq = np.einsum("ij,mjk,kl->mil", rotation, chain.dpoint_dq, coupling)
     residual_after = after.measured - predicted_after
-    remainder = predictability(inputs.q, tuple(j.kind for j in robot.joints),
-                               -target.residuals, folds, meas.temperature_c, meas.time_s,
-                               map_target=residual_after)
-    residual_sigma = remainder.rms_after / np.sqrt(3)
+    remainder, source = None, NOISE_SOURCE
+    if options.account:
+        remainder = predictability(inputs.q, tuple(j.kind for j in robot.joints),
+                                   -target.residuals, folds, meas.temperature_c, meas.time_s,
+                                   map_target=residual_after)
+        residual_sigma = remainder.rms_after / np.sqrt(3)
+    else:
+        dof = max(extended.n_equations - extended.n_unknowns, 1)
+        residual_sigma = float(np.sqrt(np.sum(residual_after**2) / dof))
+        source = "residual of the final model (an upper bound: measure some poses twice)"
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
                      effects=_kept_effects(after, x_after, extended, kept), rounds=rounds,
-                     noise=noise_floor(meas, options.noise_m, residual_sigma, NOISE_SOURCE),
+                     noise=noise_floor(meas, options.noise_m, residual_sigma, source),
                      untestable=untestable, drift=drift,
                      residual_before=before.measured - predicted_before,
                      residual_after=residual_after,

@@ -116,11 +116,12 @@ def _design(x: np.ndarray, frequencies, phases, length: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Predictability:
-    """``heldout`` (m, 3): the target minus the flexible model's nested-CV prediction;
+    """``heldout`` (m, 3): the ``target`` minus the flexible model's nested-CV prediction;
     ``rms_before``/``rms_after``: 3-D RMS of the target and of ``heldout``, m; ``joints``:
     0-based axes the map depends on most; ``map``: the map on the joints alone."""
 
     heldout: np.ndarray
+    target: np.ndarray
     rms_before: float
     rms_after: float
     joints: list[int]
@@ -216,7 +217,7 @@ def predictability(q_ctrl: np.ndarray, kinds: tuple[str, ...], target: np.ndarra
                            "method": f"{k}-fold cross-validation by pose, nested",
                            "heldout_rms_mm_without": before * 1e3,
                            "heldout_rms_mm_with": after * 1e3})
-    return Predictability(heldout=heldout, rms_before=before, rms_after=after,
+    return Predictability(heldout=heldout, target=target, rms_before=before, rms_after=after,
                           joints=_important_joints(rmap, q_ctrl) if after < before else [],
                           map=rmap)
 
