@@ -64,7 +64,8 @@ def main() -> None:
               f"{[k for k, _, _ in hidden.band]} -> named "
               f"{', '.join(k.effect.label for k in result.effects) or 'nothing'} (dominant "
               f"{orders[0]})  [{'hit' if hit else 'MISS'}]  held-out "
-              f"{result.geometric.heldout_rms * 1e3:.3f} -> {result.extended.heldout_rms * 1e3:.3f} mm")
+              f"{result.geometric.heldout_rms * 1e3:.3f} -> "
+              f"{result.extended.heldout_rms * 1e3:.3f} mm")
     alarms = 0
     for seed in range(args.free):
         rng = np.random.default_rng([281, seed])

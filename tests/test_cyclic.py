@@ -154,3 +154,39 @@ def test_cli_residual_map_is_stored_applied_inside_and_refused_outside(tmp_path,
     err = {k: np.linalg.norm(v - targets.points, axis=1) for k, v in outputs.items()}
     assert np.sqrt(np.mean(err[0][inside] ** 2)) < 0.9 * np.sqrt(np.mean(err[1][inside] ** 2))
     assert np.array_equal(outputs[0][~inside], outputs[1][~inside])
+
+
+def test_olp_fix_residual_map_pass_reaches_the_target_on_the_model_plus_map():
+    """The truth here is the calibration plus its residual map (a map built at random):
+    after the pass, that arm puts the flange on the desired position."""
+    from olp_compensate.calibration.calibration import nominal_calibration
+    from olp_compensate.calibration.remainder import ResidualMap
+    from olp_compensate.compensation.pose import Compensator
+    from olp_compensate.compensation.residual_map import APPLIED, residual_map_pass
+
+    rng = np.random.default_rng(5)
+    cal = nominal_calibration(ROBOT)
+    n_in, features = 12, 20
+    rmap = ResidualMap(kinds=("revolute",) * 6, center=np.zeros(6), span=np.ones(6),
+                       frequencies=rng.standard_normal((n_in, features)),
+                       phases=rng.uniform(0, 2 * np.pi, features), weights=np.zeros((1, 3)),
+                       length=1.0, penalty=1.0,
+                       q_range=np.column_stack([ROBOT.lower_limits, ROBOT.upper_limits]))
+    p = rmap.features(np.zeros((1, 6))).shape[1]
+    rmap = replace(rmap, weights=rng.normal(0, 1e-4, (p, 3)))
+    comp = Compensator(replace(cal, residual_map=rmap))
+    joints = random_joints(ROBOT, 12, rng)
+    desired = cal.flange_poses(joints)
+    q, flange, solution, _ = comp.compensate_flanges(desired, None, comp.confdata(
+        ROBOT.joints_from_controller(joints)))
+    notes = [""] * len(q)
+    q2, _ = residual_map_pass(comp, desired, q, flange, solution.success, notes)
+    q2_ctrl = ROBOT.controller_from_joints(q2)
+    reached = cal.flange_poses(q2_ctrl)[:, :3, 3] + rmap.predict(q2_ctrl)  # device = base
+    before = cal.flange_poses(ROBOT.controller_from_joints(q))[:, :3, 3] + rmap.predict(
+        ROBOT.controller_from_joints(q))
+    ok = solution.success
+    assert ok.sum() >= 10 and all(n == APPLIED for n, k in zip(notes, ok) if k)
+    miss_before = np.linalg.norm(before[ok] - desired[ok, :3, 3], axis=1)
+    miss_after = np.linalg.norm(reached[ok] - desired[ok, :3, 3], axis=1)
+    assert miss_before.max() > 2e-4 and miss_after.max() < 0.1 * miss_before.max()

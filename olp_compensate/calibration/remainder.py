@@ -3,8 +3,9 @@ predicts, and the noise floor that no model of the joints predicts.
 
 The flexible model (:class:`ResidualMap`) is ridge regression on random Fourier features
 (Rahimi & Recht 2007) and on the products of up to three of the inputs (a trigonometric
-polynomial: gravity torques and their coupling through the arm are of this kind), inputs: sin and cos of every revolute controller axis (a
-prismatic axis: its value over its span), plus, for the predictability estimate only,
+polynomial: gravity torques and their coupling through the arm are of this kind). The
+inputs: sin and cos of every revolute controller axis (a prismatic axis: its value over
+its span), plus, for the predictability estimate only,
 temperature and time scaled to [-1, 1] when the measurements carry them. Features
 ``sqrt(2 / D) cos(x W / ell + b)`` (W standard normal, b uniform, fixed seed) approximate
 a Gaussian kernel of length ``ell``; the inputs also enter linearly. The length and the

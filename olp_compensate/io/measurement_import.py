@@ -216,8 +216,9 @@ def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str) ->
 def _conventions(spec: ImportSpec, has_rot: bool) -> list[str]:
     words = [f"joints read in {spec.joints_unit}, lengths in {spec.length_unit}"]
     if has_rot:
+        kind = "intrinsic" if spec.euler.isupper() else "extrinsic"
         how = ("a rotation vector" if spec.euler == "rotvec" else
-               f"Euler angles {spec.euler} ({'intrinsic' if spec.euler.isupper() else 'extrinsic'})")
+               f"Euler angles {spec.euler} ({kind})")
         words.append(f"orientation from {how} in {spec.angles_unit}, written as the quaternion "
                      f"qw, qx, qy, qz (w first) of the measured frame in the device frame")
     return words
