@@ -113,7 +113,7 @@ def test_cli_residual_map_is_stored_applied_inside_and_refused_outside(tmp_path,
     rng = np.random.default_rng(31)
     virtual = make_virtual_robot(ROBOT, 31)
     joints = random_joints(ROBOT, 300, rng, within_ranges=False)
-    hidden = scaled_effect(virtual, random_cyclic_error(ROBOT, rng, orders=(2, 2), joint=2),
+    hidden = scaled_effect(virtual, random_cyclic_error(ROBOT, rng, orders=(1, 1), joint=0),
                            joints, 6 * NOISE)
     virtual = replace(virtual, effects=(hidden,))
     units = [j.unit for j in ROBOT.joints]
@@ -128,7 +128,7 @@ def test_cli_residual_map_is_stored_applied_inside_and_refused_outside(tmp_path,
     assert "residual map stored" in text
     doc = json.loads((tmp_path / "d.json").read_text())
     held = doc["heldout_rms_mm"]
-    assert held["predictable"] < 0.8 * held["extended"]
+    assert held["predictable"] < 0.85 * held["extended"]
     cal = read_calibration(calib)
     assert cal.residual_map is not None
     raw = json.loads(calib.read_text())["residual_map"]
@@ -148,11 +148,12 @@ def test_cli_residual_map_is_stored_applied_inside_and_refused_outside(tmp_path,
         cols = [rows[0].index(c) for c in ("x_mm", "y_mm", "z_mm")]
         outputs[len(flag)] = np.array([[float(r[c]) for c in cols] for r in rows[1:]]) * 1e-3
     text = capsys.readouterr().out
-    assert "residual map" in text and "applied to 20 of" in text
-    assert "outside the joint region of the residual map" in text
     inside = cal.residual_map.inside(fresh)
+    assert 15 <= inside.sum() <= 20 and not inside[20:].any()
+    assert "residual map" in text and f"applied to {inside.sum()} of {len(fresh)}" in text
+    assert "outside the joint region of the residual map" in text
     err = {k: np.linalg.norm(v - targets.points, axis=1) for k, v in outputs.items()}
-    assert np.sqrt(np.mean(err[0][inside] ** 2)) < 0.9 * np.sqrt(np.mean(err[1][inside] ** 2))
+    assert np.sqrt(np.mean(err[0][inside] ** 2)) < 0.85 * np.sqrt(np.mean(err[1][inside] ** 2))
     assert np.array_equal(outputs[0][~inside], outputs[1][~inside])
 
 
