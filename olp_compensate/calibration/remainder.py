@@ -2,7 +2,7 @@
 predicts, and the noise floor that no model of the joints predicts.
 
 The flexible model (:class:`ResidualMap`) is ridge regression on random Fourier features
-(Rahimi & Recht 2007) and on the products of up to three of the inputs (a trigonometric
+(Rahimi & Recht 2007) and on the products of pairs of the inputs (a trigonometric
 polynomial: gravity torques and their coupling through the arm are of this kind). The
 inputs: sin and cos of every revolute controller axis (a prismatic axis: its value over
 its span), plus, for the predictability estimate only,
@@ -24,7 +24,7 @@ import numpy as np
 
 FEATURES = 200
 """Random Fourier features D."""
-POLY_DEGREE = 3
+POLY_DEGREE = 2
 """Highest degree of the products of the inputs."""
 LENGTHS = (0.5, 1.0, 2.0)
 """Kernel lengths tried, in units of the inputs (sin/cos lie in [-1, 1])."""
@@ -107,9 +107,8 @@ def _monomials(x: np.ndarray, degree: int) -> np.ndarray:
 
 
 def _design(x: np.ndarray, frequencies, phases, length: float) -> np.ndarray:
-    """Random Fourier features, the trigonometric polynomial of degree POLY_DEGREE (the
-    products of the sin/cos inputs: gravity and coupling terms are of this kind), the
-    inputs and a constant."""
+    """Random Fourier features, the products of up to POLY_DEGREE of the sin/cos inputs
+    (gravity and coupling terms are of this kind), the inputs and a constant."""
     d = frequencies.shape[1]
     z = np.sqrt(2.0 / d) * np.cos(x @ frequencies / length + phases)
     return np.hstack([z, _monomials(x, POLY_DEGREE), x, np.ones((len(x), 1))])
@@ -138,9 +137,17 @@ class _Fold:
         self.rhs = [phi[f].T @ y[f] for f in folds]
         self.yy = [float(np.sum(y[f] ** 2)) for f in folds]
         self.rows = [int(f.sum()) for f in folds]
+        self._cache: dict = {}
 
     def solutions(self, train: list[int]):
-        """Weights for every penalty of the grid, fitted on the folds ``train``."""
+        """Weights for every penalty of the grid, fitted on the folds ``train`` (cached:
+        the nested folds share their training sets)."""
+        key = frozenset(train)
+        if key not in self._cache:
+            self._cache[key] = self._solutions(train)
+        return self._cache[key]
+
+    def _solutions(self, train: list[int]):
         gram = sum(self.grams[f] for f in train)
         rhs = sum(self.rhs[f] for f in train)
         d, v = np.linalg.eigh(gram)
