@@ -194,7 +194,7 @@ def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str) ->
                fields[index["point"]] if "point" in index else "tcp"]
         row += [f"{values[f'q{k + 1}'] * joint[k]:.9g}" for k in range(len(joint_units))]
         row += [f"{values[a] * length:.9g}" for a in ("x", "y", "z")]
-        row += [f"{values[k]:.9g}" for k in ("temperature", "time") if k in index]
+        row += [f"{values[k]:.15g}" for k in ("temperature", "time") if k in index]
         if has_sigma:
             sigma = math.sqrt(sum(values[k] ** 2 for k in ("sx", "sy", "sz")) / 3) * length
             if not sigma > 0:
