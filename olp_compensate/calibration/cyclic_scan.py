@@ -14,7 +14,8 @@ lambda). Everything is computed from per-fold Gram matrices, and the band's pena
 the eigen-decomposition of its Schur complement, so the whole lambda grid costs one
 decomposition per training set. Lambda is chosen by nested cross-validation: within each
 outer training set (the other folds), by the inner folds; the outer held-out residuals so
-obtained are what the band's test compares (:meth:`.effect_scan.EffectScan.gain_test`).
+obtained are what the band's test compares (:meth:`BandScan.gain_test`: the z-test of
+:meth:`.effect_scan.EffectScan.gain_test`, with the leverage of the kept bands too).
 The band of the final model takes the lambda that ordinary k-fold cross-validation over
 all rows chooses.
 """
@@ -25,7 +26,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg
+from scipy import linalg, stats
 
 from .effect_scan import EffectScan, Heldout
 from .identify import IdentificationResult
@@ -203,6 +204,26 @@ class BandScan:
         sigma2 = rss / max(n_eq - n_u - full.dof(lam_all), 1.0)
         return self._heldout(fits, cols, sigma2), lam_all
 
+    def gain_test(self, reference: Heldout, candidate: Heldout,
+                  kept: list[tuple[int, float]]) -> tuple[float, float, float]:
+        """(gain, z, p) as :meth:`.effect_scan.EffectScan.gain_test`, with the leverage of
+        the test rows under the current model's own fit (the geometry and the kept bands
+        at their penalties: ``A_t (G_T + P)^-1 A_t'``), which the held-out residuals of a
+        model with bands carry."""
+        cols, penalty, _ = self._layout(kept, None)
+        delta = (reference.residuals - candidate.residuals).ravel()
+        gain = reference.sse - candidate.sse
+        leverage = 0.0
+        for f, eq in enumerate(self.fold_eq):
+            gram = sum(g for k, g in enumerate(self.grams) if k != f)[np.ix_(cols, cols)]
+            v = self.a[np.ix_(eq, cols)].T @ delta[eq]
+            leverage += float(v @ np.linalg.lstsq(gram + np.diag(penalty), v, rcond=1e-12)[0])
+        variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
+        if variance <= 0:
+            return gain, 0.0, 1.0
+        z = gain / np.sqrt(variance)
+        return float(gain), float(z), float(stats.norm.sf(z))
+
     def current(self, kept: list[tuple[int, float]]) -> tuple[Heldout, np.ndarray]:
         """Held-out residuals of the current model with the kept bands at their penalties,
         and its full-data solution (the columns of ``_layout(kept, None)``)."""
@@ -235,7 +256,7 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float)
             if j in dict(kept):
                 continue
             held, lam = bands.evaluate(j, kept)
-            gain, z, p = scan.gain_test(base, held)
+            gain, z, p = bands.gain_test(base, held, kept)
             held_of[j] = held
             results.append(BandResult(effect=bands.templates[j], gain=gain / base.sse, z=z,
                                       p_value=p, ridge=lam))
