@@ -177,6 +177,8 @@ class BandScan:
         """The grid's penalty of least held-out error over the folds not in ``outer``."""
         cols, penalty, n_u = layout
         grid = RIDGE_GRID * self.scale[joint]
+        if len(self.grams) - len(outer) < 2:  # no inner folds left (2-fold diagnosis)
+            return float(grid[len(grid) // 2])
         sse = np.zeros(len(grid))
         for inner in range(len(self.grams)):
             if inner in outer:

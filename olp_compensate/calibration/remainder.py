@@ -164,6 +164,8 @@ class _Fold:
 def _select(designs: list[_Fold], outer: set[int]) -> tuple[int, int]:
     """(length index, penalty index) of least inner-CV error over the folds not in outer."""
     k = len(designs[0].folds)
+    if k - len(outer) < 2:  # no inner folds left (2-fold diagnosis): a middle choice
+        return 1, len(PENALTIES) // 2
     best, arg = np.inf, (0, 0)
     for li, design in enumerate(designs):
         sse = np.zeros(len(PENALTIES))
