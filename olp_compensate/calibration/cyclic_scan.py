@@ -82,6 +82,15 @@ class BandOutcome:
     thresholds: list[float] = field(default_factory=list)
 
 
+def _solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """matrix^-1 rhs for a symmetric positive (semi-)definite matrix: Cholesky, or least
+    squares when it is singular."""
+    try:
+        return linalg.cho_solve(linalg.cho_factor(matrix), rhs)
+    except linalg.LinAlgError:
+        return np.linalg.lstsq(matrix, rhs, rcond=1e-12)[0]
+
+
 class _Schur:
     """The band's problem on one training set with the other unknowns profiled out:
     ``c(lam) = -V (V'h / (d + lam))`` and ``u = -(y + X c)``."""
@@ -140,6 +149,7 @@ class BandScan:
         total = sum(self.grams)
         self.scale = {j: float(np.mean(np.diag(total)[cols])) for j, cols in self.columns.items()}
         self._cache: dict = {}
+        self._sums: dict = {}
 
     @property
     def joints(self) -> list[int]:
@@ -154,18 +164,30 @@ class BandScan:
             cols.append(self.columns[joint])
         return np.concatenate(cols), np.concatenate(penalty), n_u
 
+    def _training(self, excluded: frozenset) -> tuple[np.ndarray, np.ndarray]:
+        """Gram matrix and right-hand side of the folds not in ``excluded`` (cached: every
+        candidate shares the training sets)."""
+        if excluded not in self._sums:
+            train = [f for f in range(len(self.grams)) if f not in excluded]
+            self._sums[excluded] = (sum(self.grams[f] for f in train),
+                                    sum(self.rhs[f] for f in train))
+        return self._sums[excluded]
+
     def _schur(self, key, excluded: frozenset, cols, penalty, n_u) -> _Schur:
         cache_key = (key, excluded)
         if cache_key not in self._cache:
-            train = [f for f in range(len(self.grams)) if f not in excluded]
-            gram = sum(self.grams[f] for f in train)[np.ix_(cols, cols)]
-            rhs = sum(self.rhs[f] for f in train)[cols]
-            self._cache[cache_key] = _Schur(gram, rhs, n_u, penalty)
+            gram, rhs = self._training(excluded)
+            self._cache[cache_key] = _Schur(gram[np.ix_(cols, cols)], rhs[cols], n_u, penalty)
         return self._cache[cache_key]
 
     def _sse(self, fold: int, cols, x: np.ndarray) -> float:
+        return self._sses(fold, cols, x[:, None])[0]
+
+    def _sses(self, fold: int, cols, xs: np.ndarray) -> np.ndarray:
+        """Held-out sums of squares on ``fold`` of the solutions in the columns of xs."""
         g = self.grams[fold][np.ix_(cols, cols)]
-        return self.rr[fold] + 2.0 * x @ self.rhs[fold][cols] + x @ g @ x
+        return (self.rr[fold] + 2.0 * self.rhs[fold][cols] @ xs
+                + np.einsum("ij,ij->j", xs, g @ xs))
 
     def _heldout(self, fits: list[np.ndarray], cols, sigma2: float) -> Heldout:
         out = np.empty(len(self.scan.residual))
@@ -184,7 +206,8 @@ class BandScan:
             if inner in outer:
                 continue
             schur = self._schur(key, outer | {inner}, cols, penalty, n_u)
-            sse += [self._sse(inner, cols, schur.solution(lam)) for lam in grid]
+            sse += self._sses(inner, cols, np.column_stack([schur.solution(lam)
+                                                            for lam in grid]))
         return float(grid[int(np.argmin(sse))])
 
     def evaluate(self, joint: int, kept: list[tuple[int, float]]) -> tuple[Heldout, float]:
@@ -217,9 +240,9 @@ class BandScan:
         gain = reference.sse - candidate.sse
         leverage = 0.0
         for f, eq in enumerate(self.fold_eq):
-            gram = sum(g for k, g in enumerate(self.grams) if k != f)[np.ix_(cols, cols)]
+            gram = self._training(frozenset({f}))[0][np.ix_(cols, cols)]
             v = self.a[np.ix_(eq, cols)].T @ delta[eq]
-            leverage += float(v @ np.linalg.lstsq(gram + np.diag(penalty), v, rcond=1e-12)[0])
+            leverage += float(v @ _solve(gram + np.diag(penalty), v))
         variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
         if variance <= 0:
             return gain, 0.0, 1.0
@@ -232,12 +255,10 @@ class BandScan:
         cols, penalty, n_u = self._layout(kept, None)
         fits = []
         for f in range(len(self.grams)):
-            train = [g for g in range(len(self.grams)) if g != f]
-            gram = sum(self.grams[g] for g in train)[np.ix_(cols, cols)] + np.diag(penalty)
-            fits.append(-np.linalg.lstsq(gram, sum(self.rhs[g] for g in train)[cols],
-                                         rcond=1e-12)[0])
-        gram = sum(self.grams)[np.ix_(cols, cols)]
-        x = -np.linalg.lstsq(gram + np.diag(penalty), sum(self.rhs)[cols], rcond=1e-12)[0]
+            gram, rhs = self._training(frozenset({f}))
+            fits.append(-_solve(gram[np.ix_(cols, cols)] + np.diag(penalty), rhs[cols]))
+        gram, rhs = self._training(frozenset())
+        x = -_solve(gram[np.ix_(cols, cols)] + np.diag(penalty), rhs[cols])
         rss = sum(self._sse(f, cols, x) for f in range(len(self.grams)))
         dof = len(self.scan.residual) - n_u
         return self._heldout(fits, cols, rss / max(dof, 1)), x

@@ -22,7 +22,7 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
-FEATURES = 200
+FEATURES = 150
 """Random Fourier features D."""
 POLY_DEGREE = 2
 """Highest degree of the products of the inputs."""
@@ -129,32 +129,37 @@ class Predictability:
 
 
 class _Fold:
-    """Per-fold Gram matrices of one design."""
+    """Per-fold Gram matrices of one design and one target; the eigen-decompositions of
+    the training sets' Gram matrices are cached and shared with :meth:`retarget`."""
 
-    def __init__(self, phi: np.ndarray, y: np.ndarray, folds):
+    def __init__(self, phi: np.ndarray, y: np.ndarray, folds, eig: dict | None = None):
         self.phi, self.folds = phi, folds
-        self.grams = [phi[f].T @ phi[f] for f in folds]
+        self.grams = [phi[f].T @ phi[f] for f in folds] if eig is None else None
         self.rhs = [phi[f].T @ y[f] for f in folds]
         self.yy = [float(np.sum(y[f] ** 2)) for f in folds]
         self.rows = [int(f.sum()) for f in folds]
+        self._eig: dict = {} if eig is None else eig
         self._cache: dict = {}
+
+    def retarget(self, y: np.ndarray) -> "_Fold":
+        """The same design with another target (no Gram matrix or decomposition again)."""
+        other = _Fold(self.phi, y, self.folds, eig=self._eig)
+        other.grams = self.grams
+        return other
 
     def solutions(self, train: list[int]):
         """Weights for every penalty of the grid, fitted on the folds ``train`` (cached:
         the nested folds share their training sets)."""
         key = frozenset(train)
         if key not in self._cache:
-            self._cache[key] = self._solutions(train)
+            if key not in self._eig:
+                d, v = np.linalg.eigh(sum(self.grams[f] for f in train))
+                self._eig[key] = (np.clip(d, 0.0, None), v)
+            d, v = self._eig[key]
+            vr = v.T @ sum(self.rhs[f] for f in train)
+            n = sum(self.rows[f] for f in train)
+            self._cache[key] = [v @ (vr / (d + lam * n)[:, None]) for lam in PENALTIES]
         return self._cache[key]
-
-    def _solutions(self, train: list[int]):
-        gram = sum(self.grams[f] for f in train)
-        rhs = sum(self.rhs[f] for f in train)
-        d, v = np.linalg.eigh(gram)
-        d = np.clip(d, 0.0, None)
-        vr = v.T @ rhs
-        n = sum(self.rows[f] for f in train)
-        return [v @ (vr / (d + lam * n)[:, None]) for lam in PENALTIES]
 
     def sse(self, fold: int, w: np.ndarray) -> float:
         return float(self.yy[fold] - 2 * np.sum(w * self.rhs[fold])
@@ -217,7 +222,7 @@ def predictability(q_ctrl: np.ndarray, kinds: tuple[str, ...], target: np.ndarra
     w_j, b_j = _random_features(x_joints.shape[1])
     fitted = target if map_target is None else map_target
     joint_designs = ([_Fold(_design(x_joints, w_j, b_j, ell), fitted, folds) for ell in LENGTHS]
-                     if extra or map_target is not None else designs)
+                     if extra else [design.retarget(fitted) for design in designs])
     li, pi = _select(joint_designs, set())
     weights = joint_designs[li].solutions(list(range(k)))[pi]
     q_range = np.column_stack([q_ctrl.min(axis=0), q_ctrl.max(axis=0)])
