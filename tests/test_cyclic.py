@@ -191,3 +191,15 @@ def test_olp_fix_residual_map_pass_reaches_the_target_on_the_model_plus_map():
     miss_before = np.linalg.norm(before[ok] - desired[ok, :3, 3], axis=1)
     miss_after = np.linalg.norm(reached[ok] - desired[ok, :3, 3], axis=1)
     assert miss_before.max() > 2e-4 and miss_after.max() < 0.1 * miss_before.max()
+
+
+def test_cli_simulate_hides_a_cyclic_error_of_the_order_asked(tmp_path):
+    truth = tmp_path / "truth.json"
+    assert main(["simulate", "--robot", "abb_irb2400", "--poses", "20", "--seed", "3",
+                 "--effect", "cyclic_error:2:0.0003:17", "-o", str(tmp_path / "m.csv"),
+                 "--truth", str(truth)]) == 0
+    (effect,) = json.loads(truth.read_text())["hidden_effects"]
+    assert effect["kind"] == "cyclic_error" and effect["joint"] == 2
+    assert effect["value"] == 0.0003 and [k for k, _, _ in effect["band"]] == [17]
+    assert main(["simulate", "--robot", "abb_irb2400", "--poses", "5", "--effect",
+                 "gear_harmonic:2::17", "-o", str(tmp_path / "n.csv")]) == 1
