@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..kinematics.conventions import matrix_from_quat_wxyz
+from .remainder import ResidualMap
 from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
                       geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
                       length_scale, needs_torque)
@@ -150,6 +151,9 @@ class Calibration:
     validation: Validation | None = None
     regions: tuple[RegionCalibration, ...] = ()
     warnings: tuple[str, ...] = ()
+    residual_map: ResidualMap | None = None
+    """Optional cross-validated map of what the model leaves (``olp-cal diagnose
+    --residual-map``): applied on request, inside its joint region only."""
 
     def __post_init__(self):
         object.__setattr__(self, "warnings", tuple(self.warnings))

@@ -5,7 +5,7 @@
 2. Noise floor: the spread of repeated measurements of one pose (rows sharing ``pose`` and
    ``point``) when there are any, else ``DiagnoseOptions.noise_m``, else the residual of
    the final model (an upper bound).
-3. Scan (:mod:`.effect_scan`): every candidate of :func:`.effects.candidate_effects` that
+3. Scan (:mod:`.effect_scan`): every candidate of :func:`.effect_scan.candidate_effects` that
    the data can test (its term is not zero and not a combination of the geometry, see
    :func:`.identifiability.effect_separation`) is added to the current model and both models
    are cross-validated on the same folds. The fits are Gauss-Newton steps from the current
@@ -36,11 +36,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import (Effect, EffectInputs, GearHarmonic, JointCompliance, ThermalExpansion,
-                      candidate_effects)
+from .effects import (CyclicError, Effect, EffectInputs, GearHarmonic, JointCompliance,
+                      ThermalExpansion)
 from ..errors import DataError
 from .cross_validation import pose_folds
-from .effect_scan import CandidateResult, EffectScan, choose_candidate, drift_warning
+from .cyclic_scan import BandOutcome, apply_bands, band_text, scan_bands
+from .diagnose_account import account, account_lines, band_round_lines, band_rounds, cyclic_entry
+from .remainder import Predictability, predictability
+from .effect_scan import (CandidateResult, EffectScan, candidate_effects, choose_candidate,
+                          drift_warning)
 from .identify import (IdentificationOptions, IdentificationResult, identify,
                        measurement_inputs)
 from .problem import problem_at
@@ -52,6 +56,9 @@ TEST_DESCRIPTION = (
     "the extended model's, k-fold by pose), variance 4 sigma^2 (|D|^2 + D'HD) from the "
     "noise and the change D of the held-out predictions; significant when p < alpha / K "
     "(Bonferroni over the K candidates of a round)")
+
+NOISE_SOURCE = ("what no model of the joints predicts (the held-out error of the flexible model "
+                "of the remainder; measure some poses twice for a direct figure)")
 
 
 @dataclass(frozen=True)
@@ -68,6 +75,11 @@ class DiagnoseOptions:
     kinds: tuple[str, ...] | None = None
     prefer_simpler_alpha: float = 0.05
     convention: str = "auto"
+    cyclic: bool = True
+    """Scan the cyclic angle error bands (:mod:`.cyclic_scan`) after the named terms."""
+    account: bool = True
+    """Estimate what remains predictable (:mod:`.remainder`); without it the noise floor
+    falls back to the residual of the final model (the diagnosis before issue 28)."""
 
 
 @dataclass(frozen=True)
@@ -136,14 +148,21 @@ class Diagnosis:
     alpha: float
     candidates_tried: int
     test: str = TEST_DESCRIPTION
+    bands: BandOutcome | None = None
+    """The cyclic band scan (None when not run)."""
+    remainder: Predictability | None = None
+    """How much of the extended model's held-out residual a flexible model predicts."""
 
     @property
     def found(self) -> bool:
         return bool(self.effects)
 
 
-def noise_floor(meas: Measurements, noise_m: float | None, residual_sigma: float) -> NoiseFloor:
-    """Per-axis noise: repeated poses first, then ``noise_m``, then ``residual_sigma``."""
+def noise_floor(meas: Measurements, noise_m: float | None, residual_sigma: float,
+                residual_source: str = "residual of the final model (an upper bound: measure "
+                                       "some poses twice for a real one)") -> NoiseFloor:
+    """Per-axis noise: repeated poses first, then ``noise_m``, then ``residual_sigma``
+    (what no model of the joints predicts, see :mod:`.remainder`)."""
     groups: dict[tuple, list[int]] = {}
     for k, key in enumerate(zip(meas.pose_ids, meas.point_names)):
         groups.setdefault(key, []).append(k)
@@ -157,9 +176,7 @@ def noise_floor(meas: Measurements, noise_m: float | None, residual_sigma: float
                                  f"of freedom)")
     if noise_m is not None:
         return NoiseFloor(sigma_m=float(noise_m), source="stated (--noise-mm)")
-    return NoiseFloor(sigma_m=float(residual_sigma),
-                      source="residual of the final model (an upper bound: measure some "
-                             "poses twice for a real one)")
+    return NoiseFloor(sigma_m=float(residual_sigma), source=residual_source)
 
 
 def _checked_folds(meas: Measurements, options: DiagnoseOptions) -> int:
@@ -265,6 +282,13 @@ def diagnose(robot: Robot, meas: Measurements,
 
     drift = drift_warning(scan, options.alpha)
     extended = current
+    bands = None
+    if options.cyclic:
+        bands = scan_bands(scan, robot, inputs.q, options.alpha)
+        if bands.bands:
+            extended = apply_bands(current, scan, bands)
+            kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
+    target = bands.heldout if bands is not None and bands.bands else scan.base
     before, x_before = problem_at(geometric.calibration, meas, inputs)
     after, x_after = problem_at(extended.calibration, meas, inputs)
     predicted_before = before.predict(x_before, jacobian=False)[-1]
@@ -274,18 +298,27 @@ def diagnose(robot: Robot, meas: Measurements,
                 else robot.urdf_from_controller)
     dpoint_dq = np.einsum("ij,mjk,kl->mil", rotation, chain.dpoint_dq, coupling)
     residual_after = after.measured - predicted_after
-    dof = max(extended.n_equations - extended.n_unknowns, 1)
-    residual_sigma = float(np.sqrt(np.sum(residual_after**2) / dof))
+    remainder, source = None, NOISE_SOURCE
+    if options.account:
+        remainder = predictability(inputs.q, tuple(j.kind for j in robot.joints),
+                                   -target.residuals, folds, meas.temperature_c, meas.time_s,
+                                   map_target=residual_after)
+        residual_sigma = remainder.rms_after / np.sqrt(3)
+    else:
+        dof = max(extended.n_equations - extended.n_unknowns, 1)
+        residual_sigma = float(np.sqrt(np.sum(residual_after**2) / dof))
+        source = "residual of the final model (an upper bound: measure some poses twice)"
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
                      effects=_kept_effects(after, x_after, extended, kept), rounds=rounds,
-                     noise=noise_floor(meas, options.noise_m, residual_sigma),
+                     noise=noise_floor(meas, options.noise_m, residual_sigma, source),
                      untestable=untestable, drift=drift,
                      residual_before=before.measured - predicted_before,
                      residual_after=residual_after,
                      predicted_change=predicted_after - predicted_before,
                      dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
-                     alpha=options.alpha, candidates_tried=len(candidates))
+                     alpha=options.alpha, candidates_tried=len(candidates), bands=bands,
+                     remainder=remainder)
 
 
 def _mm(value_m: float | None) -> float | None:
@@ -309,6 +342,8 @@ def effect_entry(kept: KeptEffect) -> dict:
         entry["phase_rad"] = e.phase_rad
     if isinstance(e, ThermalExpansion):
         entry["reference_temperature_c"] = e.reference_temperature_c
+    if isinstance(e, CyclicError):
+        entry.update(cyclic_entry(e), text=band_text(e))
     return entry
 
 
@@ -338,7 +373,11 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
         "effects": [effect_entry(k) for k in d.effects],
         "found": d.found,
         "heldout_rms_mm": {"geometric": _mm(d.geometric.heldout_rms),
-                           "extended": _mm(d.extended.heldout_rms)},
+                           "extended": _mm(d.extended.heldout_rms),
+                           "predictable": _mm(None if d.remainder is None
+                                              else d.remainder.rms_after)},
+        "account": _account(d),
+        "cyclic_bands": band_rounds(d.bands),
         "heldout_max_mm": {"geometric": _mm(d.geometric.heldout_max),
                            "extended": _mm(d.extended.heldout_max)},
         "heldout_method": d.extended.calibration.validation.method,
@@ -352,6 +391,11 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
         "drift": d.drift,
         "conclusion": summary(d).splitlines()[-1],
     }
+
+
+def _account(d: Diagnosis) -> dict:
+    return account(d.geometric.heldout_rms, d.extended.heldout_rms, d.remainder,
+                   d.noise.sigma_m, d.noise.source)
 
 
 def _value_text(effect: Effect) -> str:
@@ -400,8 +444,10 @@ def summary(d: Diagnosis) -> str:
         else:
             lines.append(f"round {number}: no further term is significant (threshold "
                          f"{r.threshold:.1e})")
+    lines += band_round_lines(d.bands)
     if d.drift:
         lines.append(f"WARNING: {d.drift}")
+    lines += account_lines(_account(d))
     if not d.found:
         lines.append(f"no effect found: no candidate lowers the held-out error significantly; "
                      f"the geometric model stands (held-out RMS {g.heldout_rms * 1e3:.4f} mm, "
@@ -409,7 +455,9 @@ def summary(d: Diagnosis) -> str:
         return "\n".join(lines)
     lines.append(f"found {len(d.effects)} effect{'s' if len(d.effects) > 1 else ''}:")
     for k in d.effects:
-        lines.append(f"  {k.effect.label}: {_value_text(k.effect)}; {k.effect.description}; "
+        text = (band_text(k.effect) if isinstance(k.effect, CyclicError)
+                else f"{_value_text(k.effect)}; {k.effect.description}")
+        lines.append(f"  {k.effect.label}: {text}; "
                      f"moves the measured point by {k.point_rms_m * 1e3:.3f} mm RMS, "
                      f"{k.point_max_m * 1e3:.3f} mm max")
     lines.append(f"held-out RMS {g.heldout_rms * 1e3:.4f} -> {x.heldout_rms * 1e3:.4f} mm "

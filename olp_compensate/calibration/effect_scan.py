@@ -10,11 +10,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from .effects import Effect, EffectInputs
+from .effects import (Backlash, Effect, EffectInputs, GearHarmonic, JointCompliance,
+                      JointScale, ThermalExpansion)
 from .identifiability import effect_separation
 from .identify import IdentificationResult
 from .problem import problem_at
 from .measurements import Measurements
+from ..kinematics.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -64,11 +66,15 @@ class EffectScan:
     def __init__(self, result: IdentificationResult, meas: Measurements, inputs: EffectInputs,
                  folds: list[np.ndarray]):
         problem, x = problem_at(result.calibration, meas, inputs)
+        self.problem, self.x = problem, x
         self.residual, jac = problem.residuals_and_jacobian(x)
         kept = _kept_columns(jac)
+        self.kept = np.flatnonzero(kept)
+        """Positions in the unknown vector ``x`` of the columns of ``jac``."""
         self.jac = jac[:, kept]
         self.names = [n for n, k in zip(problem.names(), kept) if k]
-        self.scaled = self.jac / np.linalg.norm(self.jac, axis=0)
+        self.norms = np.linalg.norm(self.jac, axis=0)
+        self.scaled = self.jac / self.norms
         self.meas, self.inputs, self.result, self.folds = meas, inputs, result, folds
         self.training = []
         for test in folds:
@@ -124,6 +130,21 @@ class EffectScan:
         gain, z, p = self.gain_test(self.base, held)
         return CandidateResult(effect=effect, status="tested", heldout_sse=held.sse,
                                gain=gain / self.base.sse, t=z, p_value=p), held
+
+
+def candidate_effects(robot: Robot, has_temperature: bool) -> list[Effect]:
+    """Every term the diagnosis tries: compliance, backlash, harmonics of order 1-3 and
+    scale on each revolute axis, and thermal expansion when temperatures were measured
+    (the cyclic error bands are scanned apart, :mod:`.cyclic_scan`)."""
+    out: list[Effect] = []
+    for j, joint in enumerate(robot.joints):
+        if joint.kind != "revolute":
+            continue
+        out += [JointCompliance(joint=j), Backlash(joint=j), JointScale(joint=j)]
+        out += [GearHarmonic(joint=j, order=k) for k in (1, 2, 3)]
+    if has_temperature:
+        out.append(ThermalExpansion())
+    return out
 
 
 def choose_candidate(scan: EffectScan, tested: list[tuple[CandidateResult, Heldout]],

@@ -17,6 +17,8 @@ gear_harmonic       ``a sin(k q_j) + b cos(k q_j)``, order k = 1, 2, 3     a, b,
 backlash            ``(w / 2) * sign(tau_j)``, or ``-(w / 2) * d_j`` where  w, rad
                     the approach direction ``d_j`` (+1/-1) is given
 joint_scale         ``s * q_j``                                            s, rad/rad
+cyclic_error        ``sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = 1..K,   a1, b1, ..., rad
+                    inside the fitted range of q_j only (zero outside)
 ==================  =====================================================  =============
 
 ``tau_j`` is the *gravity load torque* about axis j (N.m, see :mod:`olp_compensate.calibration.gravity`):
@@ -332,15 +334,76 @@ class ThermalExpansion(Effect):
         return {**super().to_dict(), "reference_temperature_c": self.reference_temperature_c}
 
 
+@dataclass(frozen=True)
+class CyclicError(Effect):
+    """``dq_j = sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = 1..``max_order`` (rad): cyclic
+    angle error (gear stages, encoder), fitted with the ridge penalty ``ridge`` (m^2/rad^2,
+    :mod:`.cyclic_scan`); zero outside ``q_range`` (rad, the span it was fitted on)."""
+
+    kind: ClassVar[str] = "cyclic_error"
+    description: ClassVar[str] = "the joint's angle error repeats with the orders named"
+
+    max_order: int = 1
+    q_range: tuple[float, float] = (-np.inf, np.inf)
+    ridge: float = 0.0
+
+    parameter_names = property(lambda self: tuple(
+        f"{ab}{k}" for k in range(1, self.max_order + 1) for ab in "ab"))
+    units = property(lambda self: ("rad",) * (2 * self.max_order))
+    label = property(lambda self: f"cyclic_error j{self.joint + 1}")
+
+    def inside(self, q: np.ndarray) -> np.ndarray:
+        """(m,) True where the axis values (m, n) lie in the fitted range."""
+        return (q[:, self.joint] >= self.q_range[0]) & (q[:, self.joint] <= self.q_range[1])
+
+    def basis(self, inputs):
+        angle = np.outer(inputs.q[:, self.joint], np.arange(1, self.max_order + 1))
+        return (np.stack([np.sin(angle), np.cos(angle)], axis=2).reshape(len(angle), -1)
+                * self.inside(inputs.q)[:, None])
+
+    def basis_dq(self, inputs):
+        m, n = inputs.q.shape
+        k = np.arange(1, self.max_order + 1)
+        angle = np.outer(inputs.q[:, self.joint], k)
+        d = np.stack([k * np.cos(angle), -k * np.sin(angle)], axis=2).reshape(m, -1)
+        out = np.zeros((m, 2 * self.max_order, n))
+        out[:, :, self.joint] = d * self.inside(inputs.q)[:, None]
+        return out
+
+    def amplitudes(self) -> np.ndarray:
+        """(K,) amplitude sqrt(a_k^2 + b_k^2) of each order, rad."""
+        return np.hypot(*np.array(self.values).reshape(-1, 2).T)
+
+    def headline(self):
+        """Peak-equivalent amplitude sqrt(2) x RMS of dq over a turn, rad (std unknown)."""
+        return float(np.sqrt(np.sum(self.amplitudes() ** 2))), float("nan"), "rad"
+
+    def to_dict(self):
+        return {**super().to_dict(), "max_order": self.max_order,
+                "q_range": [float(v) for v in self.q_range], "ridge": self.ridge}
+
+
 EFFECT_KINDS: dict[str, type[Effect]] = {
-    cls.kind: cls for cls in (JointCompliance, GearHarmonic, Backlash, ThermalExpansion, JointScale)
+    cls.kind: cls for cls in (JointCompliance, GearHarmonic, Backlash, ThermalExpansion, JointScale,
+                           CyclicError)
 }
 
 
+def _cyclic(joint: int, values, std, extra: dict) -> "CyclicError":
+    """A cyclic_error from its calib.json fields (``max_order``, ``q_range``, ``ridge``)."""
+    max_order = int(extra.get("max_order", len(values) // 2 or 1))
+    if max_order < 1 or (values and len(values) != 2 * max_order):
+        raise DataError(f"cyclic_error: max_order {max_order} for {len(values)} parameters")
+    lo, hi = extra.get("q_range") or (-np.inf, np.inf)
+    return CyclicError(joint=joint, values=values, std=std, max_order=max_order,
+                       q_range=(float(lo), float(hi)), ridge=float(extra.get("ridge", 0.0)))
+
+
 def make_effect(kind: str, joint: int | None, n_joints: int, *, order: int = 1,
-                reference_temperature_c: float | None = None, values=(), std=()) -> Effect:
-    """An effect by kind, ``joint`` 0-based (None for thermal_expansion); DataError names
-    what is wrong (unknown kind, joint out of range)."""
+                reference_temperature_c: float | None = None, values=(), std=(),
+                extra: dict | None = None) -> Effect:
+    """An effect by kind, ``joint`` 0-based (None for thermal_expansion), ``extra`` the
+    cyclic_error's fields; DataError names what is wrong (unknown kind, joint out of range)."""
     cls = EFFECT_KINDS.get(kind)
     if cls is None:
         raise DataError(f"unknown effect kind '{kind}' (known: {', '.join(EFFECT_KINDS)})")
@@ -355,6 +418,8 @@ def make_effect(kind: str, joint: int | None, n_joints: int, *, order: int = 1,
     if not 0 <= joint < n_joints:
         raise DataError(f"{kind}: joint {joint + 1} is out of range (the robot has joints "
                         f"1..{n_joints})")
+    if cls is CyclicError:
+        return _cyclic(joint, values, std, extra or {})
     if cls is GearHarmonic:
         if order not in (1, 2, 3):
             raise DataError(f"gear_harmonic: order {order} is not 1, 2 or 3")
@@ -371,16 +436,23 @@ def effect_from_dict(entry: dict, n_joints: int, source: str = "<calibration>") 
         if cls is None:
             raise ModelError(f"{source}: unknown effect kind '{kind}'")
         params = entry["parameters"]
-        values = [float(params[name]) for name in cls.parameter_names]
+        names = cls.parameter_names
+        if cls is CyclicError:
+            names = CyclicError(max_order=int(entry["max_order"])).parameter_names
+        values = [float(params[name]) for name in names]
         std_doc = entry.get("std") or {}
         std = [float("nan") if std_doc.get(name) is None else float(std_doc[name])
-               for name in cls.parameter_names]
+               for name in names]
         return make_effect(kind, None if joint is None else int(joint) - 1, n_joints,
                            order=int(entry.get("order", 1)),
                            reference_temperature_c=entry.get("reference_temperature_c"),
-                           values=values, std=std)
+                           values=values, std=std, extra=entry)
     except KeyError as exc:
-        raise ModelError(f"{source}: effect entry {entry!r} lacks {exc}") from None
+        raise ModelError(f"{source}: effect entry of kind {entry.get('kind')!r} lacks "
+                         f"{exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"{source}: bad effect entry of kind {entry.get('kind')!r}: "
+                         f"{exc}") from None
     except DataError as exc:
         raise ModelError(f"{source}: {exc}") from None
 
@@ -422,21 +494,7 @@ def length_scale(effects, inputs: EffectInputs) -> np.ndarray:
     return scale
 
 
-def candidate_effects(robot: Robot, has_temperature: bool) -> list[Effect]:
-    """Every term the diagnosis tries: compliance, backlash, harmonics of order 1-3 and
-    scale on each revolute axis, and thermal expansion when temperatures were measured."""
-    out: list[Effect] = []
-    for j, joint in enumerate(robot.joints):
-        if joint.kind != "revolute":
-            continue
-        out += [JointCompliance(joint=j), Backlash(joint=j), JointScale(joint=j)]
-        out += [GearHarmonic(joint=j, order=k) for k in (1, 2, 3)]
-    if has_temperature:
-        out.append(ThermalExpansion())
-    return out
-
-
 __all__ = ["Conditions", "EffectInputs", "Effect", "JointCompliance", "GearHarmonic",
            "Backlash", "JointScale", "ThermalExpansion", "EFFECT_KINDS", "make_effect",
            "effect_from_dict", "effect_inputs", "joint_deflection", "joint_deflection_dq",
-           "length_scale", "candidate_effects"]
+           "length_scale", "CyclicError"]

@@ -27,8 +27,11 @@ from ..kinematics.robot import Robot
 
 TRUTH_FORMAT = "olp-compensate virtual robot"
 HIDDEN_KINDS = ("joint_compliance", "gear_harmonic", "backlash", "thermal_expansion", "joint_scale")
+CYCLIC_KIND = "cyclic_error"
+"""A cyclic angle error of any orders (:func:`random_cyclic_error`); not in HIDDEN_KINDS,
+which the classic benchmark cycles through."""
 HIDDEN_UNITS = {"joint_compliance": "rad/N.m", "gear_harmonic": "rad", "backlash": "rad",
-                "thermal_expansion": "1/K", "joint_scale": "rad/rad"}
+                "thermal_expansion": "1/K", "joint_scale": "rad/rad", CYCLIC_KIND: "rad"}
 
 
 @dataclass(frozen=True)
@@ -39,7 +42,8 @@ class HiddenEffect:
     thermal expansion); ``value``: compliance c (rad/N.m, dq = c * load torque), harmonic
     amplitude A (rad, dq = A sin(k q + phase)), backlash gap w (rad, dq = w/2 * sign of the
     load torque, or -w/2 * approach direction), expansion coefficient alpha (1/K, lengths
-    times 1 + alpha (T - T0)), or scale s (dq = s q).
+    times 1 + alpha (T - T0)), or scale s (dq = s q); cyclic error: dq = value *
+    sum_i w_i sin(k_i q + phi_i) over ``band`` = ((k_i, w_i, phi_i), ...).
     """
 
     kind: str
@@ -48,6 +52,16 @@ class HiddenEffect:
     order: int = 1
     phase_rad: float = 0.0
     reference_temperature_c: float = 20.0
+    band: tuple[tuple[int, float, float], ...] = ()
+
+    def cyclic(self, angle: float) -> float:
+        """The cyclic error's dq at the axis value ``angle`` (rad)."""
+        return self.value * sum(w * np.sin(k * angle + phi) for k, w, phi in self.band)
+
+    @property
+    def dominant_order(self) -> int:
+        """The order of largest weight of a cyclic error's band."""
+        return int(max(self.band, key=lambda t: abs(t[1]))[0])
 
     @property
     def label(self) -> str:
@@ -60,14 +74,16 @@ class HiddenEffect:
         return {"kind": self.kind, "joint": None if self.joint is None else self.joint + 1,
                 "value": self.value, "unit": HIDDEN_UNITS[self.kind], "order": self.order,
                 "phase_rad": self.phase_rad,
-                "reference_temperature_c": self.reference_temperature_c}
+                "reference_temperature_c": self.reference_temperature_c,
+                **({"band": [list(t) for t in self.band]} if self.band else {})}
 
     @classmethod
     def from_dict(cls, doc: dict) -> "HiddenEffect":
         return cls(kind=doc["kind"], joint=None if doc["joint"] is None else int(doc["joint"]) - 1,
                    value=float(doc["value"]), order=int(doc.get("order", 1)),
                    phase_rad=float(doc.get("phase_rad", 0.0)),
-                   reference_temperature_c=float(doc.get("reference_temperature_c", 20.0)))
+                   reference_temperature_c=float(doc.get("reference_temperature_c", 20.0)),
+                   band=tuple((int(k), float(w), float(p)) for k, w, p in doc.get("band", ())))
 
 
 @dataclass(frozen=True)
@@ -175,6 +191,8 @@ class VirtualRobot:
                         dq[j] += e.value * np.sin(e.order * reading[j] + e.phase_rad)
                     elif e.kind == "joint_scale":
                         dq[j] += e.value * reading[j]
+                    elif e.kind == CYCLIC_KIND:
+                        dq[j] += e.cyclic(reading[j])
                     elif e.kind == "backlash":
                         d = 0.0 if directions is None else directions[k][j]
                         if d != 0:
@@ -361,7 +379,7 @@ def random_joints(robot: Robot, n: int, rng: np.random.Generator, margin: float 
 
 
 UNIT_VALUES = {"joint_compliance": 1e-6, "gear_harmonic": 1e-4, "backlash": 1e-4,
-               "thermal_expansion": 1e-5, "joint_scale": 1e-4}
+               "thermal_expansion": 1e-5, "joint_scale": 1e-4, CYCLIC_KIND: 1e-4}
 """A small value of each hidden kind, the starting point for scaling to a wanted size."""
 
 
@@ -443,3 +461,19 @@ def random_hidden_effect(robot: Robot, rng: np.random.Generator, joints: np.ndar
     return HiddenEffect(kind, joint, sign * UNIT_VALUES[kind],
                         order=int(rng.integers(1, 4)) if kind == "gear_harmonic" else 1,
                         phase_rad=float(rng.uniform(-np.pi, np.pi)) if kind == "gear_harmonic" else 0.0)
+
+
+def random_cyclic_error(robot: Robot, rng: np.random.Generator, orders=(5, 40),
+                        band: bool = False, joint: int | None = None) -> HiddenEffect:
+    """A hidden cyclic angle error on a random revolute axis (or ``joint``): one order
+    drawn in ``orders`` (inclusive), or with ``band`` that order plus two neighbours at
+    weights 0.5 and 0.3; random phases; value 1e-4 rad (scale it with
+    :func:`scaled_effect`)."""
+    revolute = [j for j, spec in enumerate(robot.joints) if spec.kind == "revolute"]
+    joint = int(rng.choice(revolute)) if joint is None else joint
+    order = int(rng.integers(orders[0], orders[1] + 1))
+    terms = [(order, 1.0)]
+    if band:
+        terms += [(max(1, order - 1), 0.5), (order + 2, 0.3)]
+    return HiddenEffect(CYCLIC_KIND, joint, UNIT_VALUES[CYCLIC_KIND],
+                        band=tuple((k, w, float(rng.uniform(-np.pi, np.pi))) for k, w in terms))

@@ -22,6 +22,9 @@ COMMANDS = {
     "diagnose": ("cal_diagnose", "name the non-geometric effects (compliance, gear error, "
                                  "backlash, heat, scale) in the measurements, fit them and "
                                  "measure the gain on held-out poses"),
+    "import": ("cal_import", "turn a measurement table as instruments and other tools write it "
+                             "(; separators, decimal commas, Euler angles, rotation vectors, "
+                             "radians, RoboDK's tables) into the measurement CSV"),
     "predict": ("cal_predict", "predict measured-point positions (device frame, mm) for joint "
                                "rows of a CSV; optional payload_kg, temperature_c and "
                                "direction_K columns feed the model's effects"),

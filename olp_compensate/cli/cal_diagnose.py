@@ -3,6 +3,7 @@ and the gain on held-out data (see :mod:`olp_compensate.calibration.diagnose`)."
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 from ..calibration.diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict, summary
@@ -16,8 +17,8 @@ from ..calibration.measurements import check_spread
 from .cal_identify import least_unknowns
 from .common import refuse_clashes
 
-HELP = ("name the non-geometric effects (compliance, gear error, backlash, heat, scale) in "
-        "the measurements, fit them and measure the gain on held-out poses")
+HELP = ("name the non-geometric effects (compliance, gear error, backlash, heat, scale, "
+        "cyclic angle errors) in the measurements, fit them and measure the gain on held-out poses")
 
 
 def add_arguments(p) -> None:
@@ -33,6 +34,12 @@ def add_arguments(p) -> None:
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds (>= 2)")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="false-alarm rate per round of the test (default 0.01)")
+    p.add_argument("--residual-map", action="store_true",
+                   help="store the cross-validated map of what the named effects leave in "
+                        "the calib.json of -o (predict and olp-fix apply it inside its "
+                        "joint region)")
+    p.add_argument("--no-cyclic", action="store_true",
+                   help="skip the cyclic angle error bands (orders 1..K per joint)")
     p.add_argument("--kinds", help="comma-separated effect kinds to try (default all: "
                                    + ", ".join(EFFECT_KINDS) + ")")
 
@@ -48,6 +55,18 @@ def _kinds(text: str | None) -> tuple[str, ...] | None:
     return kinds
 
 
+def _with_map(result, calibration):
+    """The calibration with the residual map, when the map predicts anything."""
+    remainder = result.remainder
+    if remainder is None or remainder.map is None or remainder.rms_after >= remainder.rms_before:
+        print("residual map not stored: no model of the joints predicts the remainder")
+        return calibration
+    print(f"residual map stored ({remainder.map.to_dict()['kind']} of the joints; held-out "
+          f"{remainder.rms_before * 1e3:.4f} -> {remainder.rms_after * 1e3:.4f} mm; applied "
+          f"only inside the joint ranges it was fitted in)")
+    return dataclasses.replace(calibration, residual_map=remainder.map)
+
+
 def run(args) -> int:
     refuse_clashes([("measurements", args.measurements), ("--robot", args.robot)],
                    [("-o", args.output), ("--json", args.json), ("--html", args.html),
@@ -56,15 +75,21 @@ def run(args) -> int:
         raise DataError(f"--noise-mm must be positive, got {args.noise_mm}")
     if args.folds < 2:
         raise DataError(f"--folds must be at least 2 (held-out data decide), got {args.folds}")
+    if args.residual_map and not args.output:
+        raise DataError("--residual-map stores the map in the calib.json of -o: give -o")
     options = DiagnoseOptions(noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
-                              alpha=args.alpha, folds=args.folds, kinds=_kinds(args.kinds))
+                              alpha=args.alpha, folds=args.folds, kinds=_kinds(args.kinds),
+                              cyclic=not args.no_cyclic)
     robot = load_robot(args.robot)
     meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
     check_spread(meas, least_unknowns(robot, meas))
     result = diagnose(robot, meas, options)
     print(summary(result))
     if args.output:
-        write_calibration(args.output, result.extended.calibration)
+        calibration = result.extended.calibration
+        if args.residual_map:
+            calibration = _with_map(result, calibration)
+        write_calibration(args.output, calibration)
         print(f"wrote the {'extended' if result.found else 'geometric'} model to {args.output}")
     if args.json:
         write_text_atomic(args.json, json.dumps(diagnosis_to_dict(result), indent=2) + "\n")

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.effects import Conditions, ThermalExpansion
+from ..calibration.validity import map_correction, range_notes
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import read_calibration
@@ -24,6 +25,8 @@ def add_arguments(p) -> None:
     p.add_argument("joints", help="CSV with q1_deg..qN_deg (optional: point, payload_kg, "
                                   "temperature_c, direction_K)")
     p.add_argument("-o", "--output", required=True, help="CSV to write (x_mm, y_mm, z_mm added)")
+    p.add_argument("--no-residual-map", action="store_true",
+                   help="ignore the model's residual map (olp-cal diagnose --residual-map)")
 
 
 def _conditions(cal, columns: dict[str, list[float]], directions) -> Conditions | None:
@@ -70,6 +73,25 @@ def _check_limits(cal, q: np.ndarray, lines: list[int], source: str) -> None:
                         f"{joint + 1} outside the limits of {cal.robot.name}")
 
 
+def _range_report(cal, q: np.ndarray, lines: list[int], no_map: bool) -> np.ndarray:
+    """Print where the model's fitted-in-a-range parts apply (cyclic errors, the residual
+    map); the map's correction (m, 3), device frame."""
+    use_map = cal.residual_map is not None and not no_map
+    notes = range_notes(cal, q, residual_map=use_map)
+    correction = map_correction(cal, q) if use_map else np.zeros((len(q), 3))
+    if use_map:
+        inside = int(np.sum(cal.residual_map.inside(q)))
+        figures = cal.residual_map.validation
+        print(f"residual map ({figures.get('method', 'cross-validated')}: held-out "
+              f"{figures.get('heldout_rms_mm_without', float('nan')):.4f} -> "
+              f"{figures.get('heldout_rms_mm_with', float('nan')):.4f} mm) applied to "
+              f"{inside} of {len(q)} rows (the others lie outside its joint region)")
+    for line, note in zip(lines, notes):
+        if note:
+            print(f"note: line {line}: {note}")
+    return correction
+
+
 def run(args) -> int:
     refuse_clashes([("--model", args.model), ("joints", args.joints)], [("-o", args.output)])
     cal = read_calibration(args.model)
@@ -113,6 +135,7 @@ def run(args) -> int:
                   + cal.device_T_base[:3, 3])
     else:
         points = cal.predict_points(q, names, conditions)
+    points = points + _range_report(cal, q, lines, args.no_residual_map)
     bad = ~np.all(np.isfinite(points), axis=1)
     if np.any(bad):
         raise DataError(f"{source}:{lines[int(np.argmax(bad))]}: the model predicts a "

@@ -13,8 +13,9 @@ from ..io.poses import check_within_limits, read_poses
 from ..kinematics.robot import load_robot
 from .common import refuse_clashes
 from .cal_simulate_camera import add_camera_arguments, run_camera
-from ..calibration.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
-                        random_joints, scaled_effect)
+from ..calibration.simulate import (CYCLIC_KIND, HIDDEN_KINDS, make_virtual_robot,
+                                    random_cyclic_error, random_hidden_effect, random_joints,
+                                    scaled_effect)
 
 HELP = "write measurements of a virtual robot (random geometric errors) and its truth file"
 DEFAULT_EFFECT_SIZE = 5.0
@@ -38,11 +39,11 @@ def add_arguments(p) -> None:
     p.add_argument("--device-distance-m", type=float, default=2.0, help="device distance, m")
     p.add_argument("--effect", action="append", default=[], metavar="KIND[:JOINT[:VALUE[:ORDER]]]",
                    help="hide a non-geometric effect (repeatable): KIND one of "
-                        f"{', '.join(HIDDEN_KINDS)}; JOINT 1-based (empty: random; none for "
-                        "thermal_expansion); VALUE in SI (c rad/N.m, harmonic amplitude rad, "
+                        f"{', '.join(HIDDEN_KINDS + (CYCLIC_KIND,))}; JOINT 1-based (empty: random; none for "
+                        "thermal_expansion); VALUE in SI (c rad/N.m, harmonic or cyclic amplitude rad, "
                         "backlash gap rad, alpha 1/K, scale rad/rad; empty: sized to move the "
                         f"measured point by {DEFAULT_EFFECT_SIZE:g}x the noise RMS); ORDER 1-3 "
-                        "for gear_harmonic (default random)")
+                        "for gear_harmonic, any for cyclic_error (default random, 5-40)")
     p.add_argument("--payloads", metavar="KG[,KG...]",
                    help="payload per pose, drawn from the list (column payload_kg)")
     p.add_argument("--temperatures", metavar="C[,C...]|LO:HI",
@@ -81,7 +82,7 @@ def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | Non
     if len(parts) > 4:
         raise DataError(f"--effect {spec}: expected KIND[:JOINT[:VALUE[:ORDER]]]")
     kind = parts[0].strip()
-    if kind not in HIDDEN_KINDS:
+    if kind not in HIDDEN_KINDS + (CYCLIC_KIND,):
         raise DataError(f"--effect {spec}: unknown effect kind '{kind}' (known: "
                         f"{', '.join(HIDDEN_KINDS)})")
     joint_text = parts[1].strip() if len(parts) > 1 else ""
@@ -106,8 +107,12 @@ def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | Non
             raise DataError(f"--effect {spec}: value '{parts[2]}' is not a number") from None
     order = None
     if len(parts) > 3 and parts[3].strip():
-        if kind != "gear_harmonic" or parts[3].strip() not in ("1", "2", "3"):
-            raise DataError(f"--effect {spec}: ORDER is 1, 2 or 3 and only for gear_harmonic")
+        text = parts[3].strip()
+        if kind == CYCLIC_KIND and text.isdigit() and int(text) >= 1:
+            return kind, joint, value, int(text)
+        if kind != "gear_harmonic" or text not in ("1", "2", "3"):
+            raise DataError(f"--effect {spec}: ORDER is 1, 2 or 3 for gear_harmonic, any "
+                            f"positive whole number for cyclic_error, and only for those")
         order = int(parts[3])
     return kind, joint, value, order
 
@@ -153,8 +158,12 @@ def run(args) -> int:
     for (kind, joint, value, order), spec in zip(specs, args.effect):
         if kind == "thermal_expansion" and temperature is None:
             raise DataError(f"--effect {spec}: thermal_expansion needs --temperatures")
-        effect = random_hidden_effect(robot, effect_rng, joints, kind=kind, joint=joint)
-        if order is not None:
+        if kind == CYCLIC_KIND:
+            effect = random_cyclic_error(robot, effect_rng, joint=joint,
+                                         orders=(order, order) if order else (5, 40))
+        else:
+            effect = random_hidden_effect(robot, effect_rng, joints, kind=kind, joint=joint)
+        if order is not None and kind != CYCLIC_KIND:
             effect = replace(effect, order=order)
         if kind == "thermal_expansion":
             effect = replace(effect, reference_temperature_c=20.0)

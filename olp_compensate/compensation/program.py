@@ -39,6 +39,7 @@ from ..programs.targets import JointTarget
 from .confdata import vplus_configuration, written_confdata
 from .ik import OPWParameters
 from .pose import COMPENSATED, Compensator, explain_failures
+from .residual_map import add_range_notes, residual_map_pass
 from .program_edits import program_edits
 from .frame_rows import frame_rows
 from .program_tools import program_tool, program_tool_note
@@ -308,9 +309,12 @@ def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
             failures[i] = failure
     reason = reason.tolist()
     ok = np.fromiter((r in COMPENSATED for r in reason), bool, n)
+    if regional is None:
+        q, flange = residual_map_pass(comp, desired, q, flange, ok, tool_note)
     new_targets = _written_targets(res, job, flange, ok)
     original = res.wobj_T_target[job]
     q_ctrl = robot.controller_from_joints(q)
+    add_range_notes(comp.calibration, q_ctrl, ok, tool_note)
     nominal_ctrl = robot.controller_from_joints(nominal)
     conf = np.full((n, 4), -99, int)
     if np.any(ok):

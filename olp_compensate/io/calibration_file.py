@@ -43,6 +43,7 @@ from ..calibration.calibration import (Calibration, RegionBox, RegionCalibration
                                        Validation)
 from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from ..calibration.effects import effect_from_dict
+from ..calibration.remainder import ResidualMap
 from ..errors import DataError, ModelError
 from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
@@ -153,6 +154,8 @@ def calibration_to_dict(cal: Calibration) -> dict:
         doc["regions"] = [_region_to_dict(r) for r in cal.regions]
     if cal.warnings:
         doc["warnings"] = list(cal.warnings)
+    if cal.residual_map is not None:
+        doc["residual_map"] = cal.residual_map.to_dict()
     return doc
 
 
@@ -196,6 +199,9 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
     calibration = _model_from_dict(doc, embedded, source)
     if doc.get("warnings"):
         calibration = dataclasses.replace(calibration, warnings=tuple(doc["warnings"]))
+    if doc.get("residual_map") is not None:
+        calibration = dataclasses.replace(
+            calibration, residual_map=_residual_map(doc["residual_map"], embedded, source))
     regions = tuple(_region_from_dict(entry, embedded, f"{source}: regions/{k}")
                     for k, entry in enumerate(doc.get("regions", ())))
     if not regions:
@@ -204,6 +210,19 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
         return dataclasses.replace(calibration, regions=regions)
     except DataError as exc:
         raise ModelError(f"{source}: {exc}") from None
+
+
+def _residual_map(doc: dict, robot: Robot, source: str) -> ResidualMap:
+    """The stored residual map; :class:`ModelError` when its shapes do not fit the robot."""
+    try:
+        rmap = ResidualMap.from_dict(doc)
+        n_in = sum(2 if k == "revolute" else 1 for k in rmap.kinds)
+        rmap.predict(np.zeros((1, robot.n_joints)))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{source}: residual_map: {exc!r}") from None
+    if len(rmap.kinds) != robot.n_joints or rmap.frequencies.shape[0] != n_in:
+        raise ModelError(f"{source}: residual_map: made for another number of axes")
+    return rmap
 
 
 def _region_from_dict(entry: dict, robot: Robot, source: str) -> RegionCalibration:

@@ -1,0 +1,91 @@
+"""What a real robot gets wrong (issue 28): the diagnosis on measured data of real arms.
+
+Run: python benchmarks/real_data.py PATH[@ROBOT] ... [--robot NAME_OR_URDF] [--folds 5]
+
+Each PATH is a measurement CSV (version 1; ``olp-cal import`` turns instrument tables
+into one); ROBOT (after ``@``, else ``--robot``) the bundled robot or URDF it was measured
+on. The data stay outside the repository (see the README's "Real data" section for the
+public sets and how they were imported). For each it prints the 5-fold held-out RMS by
+pose of: the nominal model (registered to the device), the geometric model, the named
+effects, the predictable remainder (the flexible model of :mod:`.remainder`), an
+independent peer of it (k-nearest neighbours in the joints' sin/cos, k by the same
+folds; it shares no code with the flexible model) and the noise floor, with its source.
+"""
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from olp_compensate.calibration.cross_validation import pose_folds  # noqa: E402
+from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose  # noqa: E402
+from olp_compensate.calibration.identify import IdentificationOptions, identify  # noqa: E402
+from olp_compensate.io.measurements import read_measurements  # noqa: E402
+from olp_compensate.kinematics.model import build_model  # noqa: E402
+from olp_compensate.kinematics.robot import load_robot  # noqa: E402
+
+
+def nominal_heldout(robot, meas, folds: int) -> float:
+    """Held-out RMS of the nominal geometry, only the device frame and tools fitted, m."""
+    names = tuple(p.name for p in build_model(robot, "auto").parameters)
+    return identify(robot, meas, IdentificationOptions(folds=folds, freeze=names)).heldout_rms
+
+
+def knn_peer(q: np.ndarray, target: np.ndarray, folds, ks=(1, 2, 4, 8, 16, 32)) -> float:
+    """3-D RMS of ``target`` minus its k-nearest-neighbour prediction (mean of the k
+    nearest training rows in sin/cos of the joints), k chosen on the held-out folds."""
+    x = np.hstack([np.sin(q), np.cos(q)])
+    best = np.inf
+    for k in ks:
+        out = np.empty_like(target)
+        for test in folds:
+            train = np.flatnonzero(~test)
+            d = ((x[test][:, None, :] - x[train][None, :, :]) ** 2).sum(axis=2)
+            near = np.argsort(d, axis=1)[:, :k]
+            out[test] = target[test] - target[train][near].mean(axis=1)
+        best = min(best, float(np.sqrt(np.mean(np.sum(out**2, axis=1)))))
+    return best
+
+
+def report(path: str, robot, folds: int) -> None:
+    meas = read_measurements(path, robot)
+    start = time.perf_counter()
+    d = diagnose(robot, meas, DiagnoseOptions(folds=folds))
+    seconds = time.perf_counter() - start
+    rem = d.remainder
+    peer = knn_peer(meas.joints, rem.target, pose_folds(meas.pose_ids, folds))
+    print(f"{path} ({robot.name}, {meas.n_poses} poses, {meas.n_rows} points, "
+          f"{seconds:.0f} s)")
+    print(f"  nominal (registered)      {nominal_heldout(robot, meas, folds) * 1e3:8.4f} mm")
+    print(f"  geometric                 {d.geometric.heldout_rms * 1e3:8.4f} mm")
+    print(f"  named effects             {d.extended.heldout_rms * 1e3:8.4f} mm: "
+          + (", ".join(k.effect.label for k in d.effects) or "none"))
+    print(f"  predictable remainder     {rem.rms_after * 1e3:8.4f} mm (from joints "
+          f"{', '.join(str(j + 1) for j in rem.joints) or 'none'}); independent peer "
+          f"(k-nearest neighbours) {min(peer, rem.rms_before) * 1e3:.4f} mm")
+    print(f"  noise floor               {d.noise.sigma_m * 1e3:8.4f} mm per axis "
+          f"({d.noise.sigma_m * np.sqrt(3) * 1e3:.4f} mm 3-D), from {d.noise.source}")
+    for k in d.effects:
+        print(f"    {k.effect.label}: moves the point {k.point_rms_m * 1e3:.3f} mm RMS")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("paths", nargs="+", help="measurement CSV[@robot]")
+    parser.add_argument("--robot", help="bundled robot name or URDF (default for every path)")
+    parser.add_argument("--folds", type=int, default=5)
+    args = parser.parse_args()
+    for item in args.paths:
+        path, _, name = item.partition("@")
+        if not (name or args.robot):
+            parser.error(f"{item}: give the robot as PATH@ROBOT or --robot")
+        report(path, load_robot(name or args.robot), args.folds)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,365 @@
+"""Cyclic angle error bands: each joint's angle error as harmonics 1..K of its angle
+(:class:`.effects.CyclicError`), fitted with the geometry, ridge-regularized, tested as a
+band with the held-out criterion of :mod:`.effect_scan`.
+
+K per joint is what the joint's angles resolve (:func:`resolvable_order`): at least
+``SAMPLES_PER_PERIOD`` distinct angles per period of the highest order over the span the
+data cover, the highest order completing a period within that span, at most ``MAX_ORDER``,
+and the band's 2K parameters at most ``PARAMETER_SHARE`` of the equations.
+
+The fit is linear at the current model's full-data solution (as the effect scan's): the
+residual r (3m,) and the unit-scaled Jacobian of the current unknowns u (unpenalized)
+with each band's columns c (rad, penalized by ``lambda |c|^2``; kept bands keep their
+lambda). Everything is computed from per-fold Gram matrices, and the band's penalty from
+the eigen-decomposition of its Schur complement, so the whole lambda grid costs one
+decomposition per training set. Lambda is chosen by nested cross-validation: within each
+outer training set (the other folds), by the inner folds; the outer held-out residuals so
+obtained are what the band's test compares (:meth:`BandScan.gain_test`: the z-test of
+:meth:`.effect_scan.EffectScan.gain_test`, with the leverage of the kept bands too).
+The band of the final model takes the lambda that ordinary k-fold cross-validation over
+all rows chooses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg, stats
+
+from .effect_scan import EffectScan, Heldout
+from .identify import IdentificationResult
+from .effects import CyclicError
+from ..kinematics.robot import Robot
+
+MAX_ORDER = 48
+"""Highest order tried (cycles per turn)."""
+SAMPLES_PER_PERIOD = 6
+"""Distinct angles needed per period of the highest order, over the joint's span."""
+PARAMETER_SHARE = 0.1
+"""A band's parameters (2K) may be at most this share of the equations."""
+RIDGE_GRID = np.logspace(-6, 3, 19)
+"""Penalties tried, relative to the mean diagonal of the band's Gram matrix."""
+
+
+def resolvable_order(q: np.ndarray, n_equations: int) -> int:
+    """The highest harmonic order the angles ``q`` (rad) of one joint resolve (0: none)."""
+    span = float(np.ptp(q)) if len(q) else 0.0
+    if span <= 1e-6:
+        return 0
+    distinct = len(np.unique(np.round(q, 6)))
+    order = min(int(2 * np.pi * distinct / (span * SAMPLES_PER_PERIOD)), MAX_ORDER,
+                int(PARAMETER_SHARE * n_equations / 2))
+    return order if order * span >= 2 * np.pi else 0
+
+
+@dataclass(frozen=True)
+class BandResult:
+    """One band in one round: its joint (0-based), ``gain`` (share of the current
+    held-out sum of squares it removes), ``z`` and ``p`` of the test, the penalty chosen
+    on all rows, and whether it is significant (p below alpha / K)."""
+
+    effect: CyclicError
+    gain: float
+    z: float
+    p_value: float
+    ridge: float
+    significant: bool = False
+
+
+@dataclass
+class BandOutcome:
+    """What the band scan found: the kept bands (fitted values, strongest first in
+    ``rounds``), the change ``du`` (unknown vector positions ``kept`` of the scan) of the
+    current unknowns, the held-out residuals of the final model, and the rounds."""
+
+    bands: list[CyclicError] = field(default_factory=list)
+    p_values: list[float] = field(default_factory=list)
+    du: np.ndarray | None = None
+    heldout: Heldout | None = None
+    rounds: list[list[BandResult]] = field(default_factory=list)
+    thresholds: list[float] = field(default_factory=list)
+
+
+def _solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """matrix^-1 rhs for a symmetric positive (semi-)definite matrix: Cholesky, or least
+    squares when it is singular."""
+    try:
+        return linalg.cho_solve(linalg.cho_factor(matrix), rhs)
+    except linalg.LinAlgError:
+        return np.linalg.lstsq(matrix, rhs, rcond=1e-12)[0]
+
+
+class _Schur:
+    """The band's problem on one training set with the other unknowns profiled out:
+    ``c(lam) = -V (V'h / (d + lam))`` and ``u = -(y + X c)``."""
+
+    def __init__(self, gram: np.ndarray, rhs: np.ndarray, nu: int, penalty_u: np.ndarray):
+        guu = gram[:nu, :nu] + np.diag(penalty_u)
+        guu[np.diag_indices(nu)] += 1e-12 * np.trace(guu) / max(nu, 1)
+        factor = linalg.cho_factor(guu)
+        guc = gram[:nu, nu:]
+        self.x_uc = linalg.cho_solve(factor, guc)
+        self.y = linalg.cho_solve(factor, rhs[:nu])
+        schur = gram[nu:, nu:] - guc.T @ self.x_uc
+        self.d, self.v = np.linalg.eigh(0.5 * (schur + schur.T))
+        self.d = np.clip(self.d, 0.0, None)
+        self.hv = self.v.T @ (rhs[nu:] - guc.T @ self.y)
+
+    def solution(self, lam: float) -> np.ndarray:
+        c = -self.v @ (self.hv / (self.d + lam))
+        return np.concatenate([-(self.y + self.x_uc @ c), c])
+
+    def dof(self, lam: float) -> float:
+        return float(np.sum(self.d / (self.d + lam)))
+
+
+class BandScan:
+    """The cyclic bands of every joint the data resolve, at one model (an EffectScan)."""
+
+    def __init__(self, scan: EffectScan, robot: Robot, q_ctrl: np.ndarray):
+        self.scan = scan
+        n_eq = len(scan.residual)
+        blocks, self.templates, self.columns = [], {}, {}
+        start = scan.scaled.shape[1]
+        for j, joint in enumerate(robot.joints):
+            if joint.kind != "revolute":
+                continue
+            order = resolvable_order(q_ctrl[:, j], n_eq)
+            if order == 0:
+                continue
+            template = CyclicError(joint=j, max_order=order,
+                                   q_range=(float(q_ctrl[:, j].min()), float(q_ctrl[:, j].max())))
+            block = scan.columns(template)
+            if not np.any(block):
+                continue
+            self.templates[j] = template
+            self.columns[j] = np.arange(start, start + block.shape[1])
+            start += block.shape[1]
+            blocks.append(block)
+        self.n_u = scan.scaled.shape[1]
+        a = np.hstack([scan.scaled] + blocks)
+        self.a = a
+        r = scan.residual
+        self.fold_eq = [np.repeat(test, 3) for test in scan.folds]
+        self.grams = [a[eq].T @ a[eq] for eq in self.fold_eq]
+        self.rhs = [a[eq].T @ r[eq] for eq in self.fold_eq]
+        self.rr = [float(r[eq] @ r[eq]) for eq in self.fold_eq]
+        total = sum(self.grams)
+        self.scale = {j: float(np.mean(np.diag(total)[cols])) for j, cols in self.columns.items()}
+        self._cache: dict = {}
+        self._sums: dict = {}
+
+    @property
+    def joints(self) -> list[int]:
+        return list(self.columns)
+
+    def _layout(self, kept: list[tuple[int, float]], joint: int | None):
+        """(columns, penalty of the non-candidate columns, number of them)."""
+        cols = [np.arange(self.n_u)] + [self.columns[j] for j, _ in kept]
+        penalty = [np.zeros(self.n_u)] + [np.full(len(self.columns[j]), lam) for j, lam in kept]
+        n_u = sum(len(c) for c in cols)
+        if joint is not None:
+            cols.append(self.columns[joint])
+        return np.concatenate(cols), np.concatenate(penalty), n_u
+
+    def _training(self, excluded: frozenset) -> tuple[np.ndarray, np.ndarray]:
+        """Gram matrix and right-hand side of the folds not in ``excluded`` (cached: every
+        candidate shares the training sets)."""
+        if excluded not in self._sums:
+            train = [f for f in range(len(self.grams)) if f not in excluded]
+            self._sums[excluded] = (sum(self.grams[f] for f in train),
+                                    sum(self.rhs[f] for f in train))
+        return self._sums[excluded]
+
+    def _schur(self, key, excluded: frozenset, cols, penalty, n_u) -> _Schur:
+        cache_key = (key, excluded)
+        if cache_key not in self._cache:
+            gram, rhs = self._training(excluded)
+            self._cache[cache_key] = _Schur(gram[np.ix_(cols, cols)], rhs[cols], n_u, penalty)
+        return self._cache[cache_key]
+
+    def _sse(self, fold: int, cols, x: np.ndarray) -> float:
+        return self._sses(fold, cols, x[:, None])[0]
+
+    def _sses(self, fold: int, cols, xs: np.ndarray) -> np.ndarray:
+        """Held-out sums of squares on ``fold`` of the solutions in the columns of xs."""
+        g = self.grams[fold][np.ix_(cols, cols)]
+        return (self.rr[fold] + 2.0 * self.rhs[fold][cols] @ xs
+                + np.einsum("ij,ij->j", xs, g @ xs))
+
+    def _heldout(self, fits: list[np.ndarray], cols, sigma2: float) -> Heldout:
+        out = np.empty(len(self.scan.residual))
+        for eq, x in zip(self.fold_eq, fits):
+            out[eq] = self.scan.residual[eq] + self.a[np.ix_(eq, cols)] @ x
+        return Heldout(residuals=out.reshape(-1, 3), sigma2=sigma2)
+
+    def _best_lambda(self, key, outer: frozenset, layout, joint: int) -> float:
+        """The grid's penalty of least held-out error over the folds not in ``outer``."""
+        cols, penalty, n_u = layout
+        grid = RIDGE_GRID * self.scale[joint]
+        if len(self.grams) - len(outer) < 2:  # no inner folds left (2-fold diagnosis)
+            return float(grid[len(grid) // 2])
+        sse = np.zeros(len(grid))
+        for inner in range(len(self.grams)):
+            if inner in outer:
+                continue
+            schur = self._schur(key, outer | {inner}, cols, penalty, n_u)
+            sse += self._sses(inner, cols, np.column_stack([schur.solution(lam)
+                                                            for lam in grid]))
+        return float(grid[int(np.argmin(sse))])
+
+    def evaluate(self, joint: int, kept: list[tuple[int, float]]) -> tuple[Heldout, float]:
+        """Nested-CV held-out residuals of the current model plus band ``joint``, and the
+        penalty ordinary CV chooses on all rows."""
+        layout = self._layout(kept, joint)
+        cols, penalty, n_u = layout
+        key = (tuple(kept), joint)
+        k = len(self.grams)
+        fits = []
+        for f in range(k):
+            lam = self._best_lambda(key, frozenset({f}), layout, joint)
+            fits.append(self._schur(key, frozenset({f}), cols, penalty, n_u).solution(lam))
+        lam_all = self._best_lambda(key, frozenset(), layout, joint)
+        full = self._schur(key, frozenset(), cols, penalty, n_u)
+        x = full.solution(lam_all)
+        n_eq = len(self.scan.residual)
+        rss = sum(self._sse(f, cols, x) for f in range(k))
+        sigma2 = rss / max(n_eq - n_u - full.dof(lam_all), 1.0)
+        return self._heldout(fits, cols, sigma2), lam_all
+
+    def gain_test(self, reference: Heldout, candidate: Heldout,
+                  kept: list[tuple[int, float]]) -> tuple[float, float, float]:
+        """(gain, z, p) as :meth:`.effect_scan.EffectScan.gain_test`, with the leverage of
+        the test rows under the current model's own fit (the geometry and the kept bands
+        at their penalties: ``A_t (G_T + P)^-1 A_t'``), which the held-out residuals of a
+        model with bands carry."""
+        cols, penalty, _ = self._layout(kept, None)
+        delta = (reference.residuals - candidate.residuals).ravel()
+        gain = reference.sse - candidate.sse
+        leverage = 0.0
+        for f, eq in enumerate(self.fold_eq):
+            gram = self._training(frozenset({f}))[0][np.ix_(cols, cols)]
+            v = self.a[np.ix_(eq, cols)].T @ delta[eq]
+            leverage += float(v @ _solve(gram + np.diag(penalty), v))
+        variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
+        if variance <= 0:
+            return gain, 0.0, 1.0
+        z = gain / np.sqrt(variance)
+        return float(gain), float(z), float(stats.norm.sf(z))
+
+    def current(self, kept: list[tuple[int, float]]) -> tuple[Heldout, np.ndarray]:
+        """Held-out residuals of the current model with the kept bands at their penalties,
+        and its full-data solution (the columns of ``_layout(kept, None)``)."""
+        cols, penalty, n_u = self._layout(kept, None)
+        fits = []
+        for f in range(len(self.grams)):
+            gram, rhs = self._training(frozenset({f}))
+            fits.append(-_solve(gram[np.ix_(cols, cols)] + np.diag(penalty), rhs[cols]))
+        gram, rhs = self._training(frozenset())
+        x = -_solve(gram[np.ix_(cols, cols)] + np.diag(penalty), rhs[cols])
+        rss = sum(self._sse(f, cols, x) for f in range(len(self.grams)))
+        dof = len(self.scan.residual) - n_u
+        return self._heldout(fits, cols, rss / max(dof, 1)), x
+
+
+def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float) -> BandOutcome:
+    """Add the significant bands one at a time, the one of least held-out error first,
+    until no other band lowers the held-out error significantly (alpha / K, K the bands
+    tested in the round); see the module docstring."""
+    bands = BandScan(scan, robot, q_ctrl)
+    outcome = BandOutcome()
+    kept: list[tuple[int, float]] = []
+    base, _ = bands.current(kept)
+    held_of: dict[int, Heldout] = {}
+    while len(kept) < len(bands.joints):
+        results = []
+        for j in bands.joints:
+            if j in dict(kept):
+                continue
+            held, lam = bands.evaluate(j, kept)
+            gain, z, p = bands.gain_test(base, held, kept)
+            held_of[j] = held
+            results.append(BandResult(effect=bands.templates[j], gain=gain / base.sse, z=z,
+                                      p_value=p, ridge=lam))
+        if not results:
+            break
+        threshold = alpha / len(results)
+        results = [dataclasses.replace(r, significant=r.p_value < threshold) for r in results]
+        outcome.rounds.append(results)
+        outcome.thresholds.append(threshold)
+        significant = [r for r in results if r.significant]
+        if not significant:
+            break
+        best = min(significant, key=lambda r: held_of[r.effect.joint].sse)
+        kept.append((best.effect.joint, best.ridge))
+        outcome.p_values.append(best.p_value)
+        outcome.heldout = held_of[best.effect.joint]
+        # the next bands are tested against the kept ones at the penalty they keep
+        base, _ = bands.current(kept)
+    if not kept:
+        return outcome
+    _, x = bands.current(kept)
+    outcome.du = x[:bands.n_u] / scan.norms
+    at = bands.n_u
+    for j, lam in kept:
+        n = len(bands.columns[j])
+        outcome.bands.append(CyclicError(
+            joint=j, values=tuple(x[at:at + n]), max_order=bands.templates[j].max_order,
+            q_range=bands.templates[j].q_range, ridge=lam))
+        at += n
+    return outcome
+
+
+def apply_bands(result: IdentificationResult, scan: EffectScan,
+                outcome: BandOutcome) -> IdentificationResult:
+    """``result`` with the band scan's full-data solution: the current unknowns moved by
+    ``outcome.du`` (linear step at the scan's model), the bands appended to the effects,
+    and the held-out figures of the band scan's final cross-validation."""
+    x = scan.x.copy()
+    x[scan.kept] += outcome.du
+    problem, cal = scan.problem, result.calibration
+    values, pose, tools = problem.unpack(x)
+    effects = tuple(e.with_values(v, e.std) for e, v in
+                    zip(problem.effects, problem.effect_values(x))) + tuple(outcome.bands)
+    points = {name: dataclasses.replace(cal.tools[name], xyz_m=tools[k])
+              for k, name in enumerate(problem.tool_names)}
+    errors = np.linalg.norm(outcome.heldout.residuals, axis=1)
+    rms, worst = float(np.sqrt(np.mean(errors**2))), float(errors.max())
+    validation = cal.validation
+    if validation is not None:
+        validation = dataclasses.replace(
+            validation, heldout_rms_mm=rms * 1e3, heldout_max_mm=worst * 1e3,
+            method=f"{len(scan.folds)}-fold cross-validation by pose (linearized, "
+                   f"cyclic bands' penalty by nested cross-validation)")
+    calibration = dataclasses.replace(cal, values=values, device_T_base=pose, tools=points,
+                                      effects=effects, validation=validation)
+    return dataclasses.replace(result, calibration=calibration, heldout_rms=rms,
+                               heldout_max=worst, heldout_errors=errors)
+
+
+SOURCES = {1: "eccentricity of the output bearing or of the encoder disc",
+           2: "ellipticity of a strain-wave (harmonic drive) gear or of the encoder"}
+
+
+def dominant_orders(effect: CyclicError, count: int = 2) -> list[int]:
+    """The ``count`` orders of largest fitted amplitude, strongest first."""
+    return [int(k) + 1 for k in np.argsort(-effect.amplitudes())[:count]]
+
+
+def band_text(effect: CyclicError) -> str:
+    """'joint j: cyclic angle error, dominant orders k1, k2 (periods), amplitude' with the
+    orders' likely sources as hypotheses."""
+    orders = dominant_orders(effect)
+    amplitude = effect.amplitudes()
+    periods = ", ".join(f"{k} ({360 / k:.1f} deg)" for k in orders)
+    sources = "; ".join(SOURCES.get(k, f"order {k}: a gear stage turning {k} times per "
+                                       f"turn of the joint, or the encoder's {k}-per-turn "
+                                       f"error") for k in orders)
+    lo, hi = np.degrees(effect.q_range)
+    return (f"joint {effect.joint + 1}: cyclic angle error, dominant orders {periods}, "
+            f"amplitude {np.degrees(amplitude[orders[0] - 1]) * 1e3:.3g} mdeg "
+            f"(all {effect.max_order} orders: {np.degrees(effect.headline()[0]) * 1e3:.3g} "
+            f"mdeg); valid for q{effect.joint + 1} in [{lo:.1f}, {hi:.1f}] deg; "
+            f"likely sources (hypotheses): {sources}")

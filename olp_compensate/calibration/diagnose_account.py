@@ -1,0 +1,87 @@
+"""The honest account of what remains after a diagnosis (issue 28, item 2): how much of
+the geometric model's held-out error the named effects explain, how much more a flexible
+model of the joints predicts without naming it (:mod:`.remainder`), and the noise floor.
+
+RMS figures add in quadrature: with B the geometric model's held-out RMS, E the extended
+model's and P what remains after the flexible model of E's held-out residual, the named
+effects explain ``A = sqrt(B^2 - E^2)``, the unnamed predictable part is
+``C = sqrt(E^2 - P^2)`` and the rest, P, is the noise floor (3-D RMS)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .cyclic_scan import BandOutcome, dominant_orders
+from .effects import CyclicError
+from .remainder import Predictability
+
+
+def _quadrature(big: float, small: float) -> float:
+    return float(np.sqrt(max(big**2 - small**2, 0.0)))
+
+
+def account(geometric_m: float, extended_m: float, remainder: Predictability | None,
+            noise_sigma_m: float, noise_source: str) -> dict:
+    """The JSON account, mm (3-D RMS except ``noise_per_axis_mm``)."""
+    predictable = extended_m if remainder is None else remainder.rms_after
+    return {"geometric_heldout_mm": geometric_m * 1e3,
+            "explained_by_named_effects_mm": _quadrature(geometric_m, extended_m) * 1e3,
+            "extended_heldout_mm": extended_m * 1e3,
+            "predictable_not_named_mm": _quadrature(extended_m, predictable) * 1e3,
+            "predictable_from_joints": [] if remainder is None
+            else [j + 1 for j in remainder.joints],
+            "remaining_mm": predictable * 1e3,
+            "noise_per_axis_mm": noise_sigma_m * 1e3, "noise_source": noise_source,
+            "method": "RMS figures in quadrature; the predictable part by a random-Fourier-"
+                      "feature ridge model of the extended model's held-out residual against "
+                      "the joints (and temperature and time where given), nested "
+                      "cross-validation"}
+
+
+def account_lines(doc: dict) -> list[str]:
+    """The account in words (the text summary's last lines before the conclusion)."""
+    joints = doc["predictable_from_joints"]
+    where = (f" from joint{'s' if len(joints) > 1 else ''} "
+             + " and ".join(str(j) for j in joints)) if joints else ""
+    return [f"what remains: named effects explain {doc['explained_by_named_effects_mm']:.4f} "
+            f"mm of the {doc['geometric_heldout_mm']:.4f} mm (held-out RMS, in quadrature); "
+            f"{doc['predictable_not_named_mm']:.4f} mm more is predictable{where} but not "
+            f"named; the rest ({doc['remaining_mm']:.4f} mm 3-D RMS) is the noise floor, "
+            f"{doc['noise_per_axis_mm']:.4f} mm per axis from {doc['noise_source']}"]
+
+
+def cyclic_entry(effect: CyclicError) -> dict:
+    """The JSON fields a cyclic error adds to its effect entry."""
+    amplitudes = effect.amplitudes()
+    orders = dominant_orders(effect)
+    return {"max_order": effect.max_order, "dominant_orders": orders,
+            "periods_deg": [360.0 / k for k in orders],
+            "amplitudes_rad": amplitudes.tolist(),
+            "q_range_deg": np.degrees(effect.q_range).tolist(), "ridge": effect.ridge}
+
+
+def band_rounds(bands: BandOutcome | None) -> list[dict]:
+    """The band scan's rounds for the JSON document."""
+    if bands is None:
+        return []
+    return [{"threshold": threshold,
+             "bands": [{"joint": r.effect.joint + 1, "max_order": r.effect.max_order,
+                        "heldout_gain": r.gain, "z": r.z, "p_value": r.p_value,
+                        "ridge": r.ridge, "significant": r.significant} for r in results]}
+            for threshold, results in zip(bands.thresholds, bands.rounds)]
+
+
+def band_round_lines(bands: BandOutcome | None) -> list[str]:
+    """One line per round of the band scan."""
+    if bands is None or not bands.rounds:
+        return ["cyclic error bands: no joint's angles resolve a band"] if bands else []
+    lines = []
+    for number, (threshold, results) in enumerate(zip(bands.thresholds, bands.rounds), 1):
+        tested = ", ".join(f"j{r.effect.joint + 1} (orders 1-{r.effect.max_order}: "
+                           f"{100 * r.gain:.1f} %, p = {r.p_value:.1e})" for r in results)
+        kept = [r for r in results if r.significant]
+        verdict = (f"kept the band of joint {min(kept, key=lambda r: -r.gain).effect.joint + 1}"
+                   if kept else "no band is significant")
+        lines.append(f"cyclic band round {number} (threshold {threshold:.1e}): {tested}; "
+                     f"{verdict}")
+    return lines

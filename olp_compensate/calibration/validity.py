@@ -1,0 +1,38 @@
+"""Where the fitted-in-a-range parts of a calibration hold: the cyclic angle errors
+(:class:`.effects.CyclicError`, valid in the axis span they were fitted on, zero outside)
+and the residual map (:class:`.remainder.ResidualMap`, refused outside its joint region).
+Prediction and compensation use them inside and say, per target, where they fell back."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .calibration import Calibration
+from .effects import CyclicError
+
+
+def range_notes(cal: Calibration, q_ctrl: np.ndarray, residual_map: bool = False) -> list[str]:
+    """One note per row of controller axis values (m, n), '' when everything the
+    calibration holds applies there."""
+    q = np.atleast_2d(np.asarray(q_ctrl, float))
+    notes = [[] for _ in range(len(q))]
+    for effect in cal.effects:
+        if not isinstance(effect, CyclicError):
+            continue
+        lo, hi = np.degrees(effect.q_range)
+        for k in np.flatnonzero(~effect.inside(q)):
+            notes[k].append(f"q{effect.joint + 1} outside [{lo:.1f}, {hi:.1f}] deg where its "
+                            f"cyclic error was fitted: the rest of the model alone")
+    if residual_map and cal.residual_map is not None:
+        for k in np.flatnonzero(~cal.residual_map.inside(q)):
+            notes[k].append("outside the joint region of the residual map: not applied")
+    return ["; ".join(n) for n in notes]
+
+
+def map_correction(cal: Calibration, q_ctrl: np.ndarray) -> np.ndarray:
+    """(m, 3) what the residual map adds to a predicted point, device frame, m (zero
+    without a map and outside its region)."""
+    q = np.atleast_2d(np.asarray(q_ctrl, float))
+    if cal.residual_map is None:
+        return np.zeros((len(q), 3))
+    return cal.residual_map.predict(q)
