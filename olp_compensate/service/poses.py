@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compensation.pose import COMPENSATED, Compensator
-from ..kinematics.conventions import invert_pose
-from .calls import DIALECTS, INVALID_PARAMS, ServiceError, finite_or_none, matrix
+from ..compensation.explained import compensate_explained
+from ..compensation.pose import Compensator
+from .calls import DIALECTS, INVALID_PARAMS, ServiceError, matrix
 
 MAX_POSES = 100_000
 """Poses accepted in one request (the request size limit comes first in practice)."""
@@ -110,34 +110,14 @@ def compensate_requests(comp: Compensator, req: PoseRequests, scale: float) -> l
 
 def _solve(comp: Compensator, targets, tools, wobjs, confdata, scale: float) -> list[dict]:
     """Solve rows sharing whether a configuration was given; their answers."""
-    from ..compensation.regions import RegionalCompensator, explain_failures
-
-    desired = wobjs @ targets @ invert_pose(tools)
-    regional = None
-    if isinstance(comp, RegionalCompensator):
-        q, flange, solution, _, regional = comp.solve_regions(desired, desired, confdata)
-    else:
-        q, flange, solution, _ = comp.compensate_flanges(desired, desired, confdata)
-    poses = invert_pose(wobjs) @ flange @ tools
-    robot = comp.robot
-    joints = robot.to_degrees_or_mm(robot.controller_from_joints(q))
-    failures = (explain_failures(comp, solution, desired, confdata, regional)
-                if not np.all(solution.success) else [None] * len(q))
+    batch = compensate_explained(comp, targets, tools, wobjs, confdata)
     out = []
-    for i in range(len(q)):
-        status = str(solution.reason[i])
-        note = ""
-        pose, row_joints = poses[i], joints[i]
-        if status not in COMPENSATED:
-            pose = targets[i]
-            failure = failures[i]
-            if failure is not None:
-                note = failure.note
-                row_joints = robot.to_degrees_or_mm(failure.joints[None])[0]
-        shown = pose.copy()
+    for i, status in enumerate(batch.status):
+        shown = batch.poses[i].copy()
         shown[:3, 3] /= scale
-        finite = bool(np.all(np.isfinite(row_joints)))
+        joints = batch.joints_deg[i]
+        finite = bool(np.all(np.isfinite(joints)))
         out.append({"pose": shown.tolist(),
-                    "joints_deg": [finite_or_none(v) for v in row_joints] if finite else None,
-                    "status": status, "note": note})
+                    "joints_deg": [float(v) for v in joints] if finite else None,
+                    "status": status, "note": batch.notes[i]})
     return out

@@ -1,0 +1,294 @@
+"""A compensating RoboDK post-processor: any vendor post, its targets compensated.
+
+RoboDK makes a program by running a small script that builds the post's ``RobotPost`` and
+calls it instruction by instruction (``ProgStart``, ``setFrame``, ``setTool``, ``MoveJ``,
+``MoveL``, ``MoveC``, ``setSpeed``, ``RunCode``, ``ProgFinish``, ``ProgSave``...), with
+poses as ``robodk.robomath.Mat`` 4x4 in mm and joints in degrees. Use::
+
+    from ABB_RAPID_IRC5 import RobotPost as VendorPost
+    from olp_compensate.robodk import compensated
+    RobotPost = compensated(VendorPost, calibration="C:/cells/cell4/calib.json")
+
+The class returned is a subclass of the vendor's, with its constructor and methods. Each
+call is kept in order until the program ends (``ProgFinish``, ``ProgSave`` or
+``ProgSendRobot``); then every Cartesian target is compensated in one batch and the calls
+are handed to the vendor post in their order, each ``MoveJ``/``MoveL``/``MoveC`` with the
+compensated pose (the same reference frame, mm) and the joints the real arm takes (deg).
+
+Frames: ``setFrame(pose)`` is base_T_wobj and ``setTool(pose)`` flange_T_tool, as RoboDK
+passes them; a tool of the same name in the calibration (``olp-cal tool``) is the real one,
+as olp-fix takes it. The configuration asked for is that of the joints RoboDK passes (its
+nominal solution), so the real arm stays on the branch RoboDK chose. A joint move (pose
+None) is handed on unchanged.
+
+Which calibration (first found):
+
+1. the ``calibration`` argument of :func:`compensated` (a path);
+2. the environment variable ``OLP_CALIBRATION`` (a path);
+3. ``OLP_CALIBRATION_DIR/<robot name>.json``, the robot name as RoboDK passes it to the
+   post's constructor (its second argument), with characters other than letters, digits,
+   ``-``, ``_`` and ``.`` replaced by ``_``.
+
+A target that cannot be compensated (out of reach, outside the axis ranges...) is never
+written silently: its status and note (olp-fix's words) go to the post's log (``addlog``,
+which RoboDK shows) and, where the post has ``RunMessage``, into the program as a comment
+before the target, which is then written as RoboDK gave it. With ``strict=True`` the
+program is refused instead (:class:`~olp_compensate.errors.UnreachableTarget`).
+
+RoboDK's own "accurate kinematics" (its calibration option's ``FilterTarget``) must be off
+for this robot, or every target is compensated twice.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import logging
+import os
+import re
+import types
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ModelError, UnreachableTarget
+
+__all__ = ["compensated", "find_calibration", "PostCompensation", "ENV_FILE", "ENV_DIR"]
+
+ENV_FILE = "OLP_CALIBRATION"
+ENV_DIR = "OLP_CALIBRATION_DIR"
+FLUSH = ("ProgFinish", "ProgSave", "ProgSendRobot")
+"""Calls that end a program: the kept calls are compensated and handed on before them."""
+PASS_THROUGH = frozenset({"addlog"})
+"""Vendor methods called at once, never kept (logging)."""
+MOVES = ("MoveJ", "MoveL", "MoveC")
+log = logging.getLogger(__name__)
+
+
+def find_calibration(calibration: str | os.PathLike | None, robot_name: str | None) -> Path:
+    """The calib.json to use (see the module docstring); ModelError when none is found."""
+    if calibration:
+        return Path(calibration)
+    if os.environ.get(ENV_FILE):
+        return Path(os.environ[ENV_FILE])
+    folder = os.environ.get(ENV_DIR)
+    if folder and robot_name:
+        return Path(folder) / (re.sub(r"[^A-Za-z0-9_.-]", "_", robot_name) + ".json")
+    raise ModelError(f"olp-compensate: no calibration for robot {robot_name!r}: pass "
+                     f"calibration= to compensated(), or set {ENV_FILE} (a calib.json) or "
+                     f"{ENV_DIR} (a folder of <robot name>.json)")
+
+
+@dataclass
+class _Target:
+    """One Cartesian target of a kept move: where its pose and joints go in the call."""
+
+    call: int
+    pose_arg: int
+    joints_arg: int
+    wobj_T_target: np.ndarray
+    joints_deg: np.ndarray
+    base_T_wobj: np.ndarray
+    tool: np.ndarray
+    tool_name: str
+
+
+@dataclass
+class PostCompensation:
+    """The state of one compensating post: the calibration's solver, the frame and tool
+    in force, the calls kept since the last flush, and every problem reported."""
+
+    compensator: object
+    source: str
+    strict: bool = False
+    frame: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool_name: str = ""
+    calls: list = field(default_factory=list)
+    targets: list = field(default_factory=list)
+    problems: list = field(default_factory=list)
+    """(move name, target index in the program, status, note) of each target not
+    compensated."""
+    moves: int = 0
+
+
+def _matrix(pose) -> np.ndarray:
+    """A RoboDK Mat (or any 4x4) as a (4, 4) float array in mm."""
+    rows = pose.rows if hasattr(pose, "rows") else pose
+    a = np.array(rows, dtype=float)
+    if a.shape != (4, 4):
+        raise ModelError(f"olp-compensate: expected a 4x4 pose, got shape {a.shape}")
+    return a
+
+
+def _like(original, a: np.ndarray):
+    """``a`` (4, 4) as the type RoboDK passed (a Mat, or a robodk Mat for anything else)."""
+    if hasattr(original, "rows"):
+        return type(original)(a.tolist())
+    from robodk.robomath import Mat   # the robodk package: RoboDK's own, imported lazily
+
+    return Mat(a.tolist())
+
+
+def _keep(name: str, vendor_method):
+    """A method that records the call (or, replaying, runs the vendor's)."""
+
+    @functools.wraps(vendor_method)
+    def kept(self, *args, **kwargs):
+        state = self.__dict__.get("_olp")
+        if state is None or self.__dict__.get("_olp_replaying"):
+            return vendor_method(self, *args, **kwargs)
+        if name in FLUSH:
+            _flush(self)
+            self._olp_replaying = True      # what the vendor's own method calls runs at once
+            try:
+                return vendor_method(self, *args, **kwargs)
+            finally:
+                self._olp_replaying = False
+        args = list(args)
+        if name == "setFrame" and args and args[0] is not None:
+            state.frame = _matrix(args[0])
+        elif name == "setTool" and args and args[0] is not None:
+            state.tool = _matrix(args[0])
+            state.tool_name = str(args[2]) if len(args) > 2 else str(kwargs.get("tool_name", ""))
+        elif name in MOVES:
+            _record_targets(state, name, args)
+        state.calls.append((name, args, kwargs))
+        return None
+
+    return kept
+
+
+def _record_targets(state: PostCompensation, name: str, args: list) -> None:
+    """Note the Cartesian targets of a move call (pose/joints argument positions)."""
+    pairs = ((0, 1), (2, 3)) if name == "MoveC" else ((0, 1),)
+    for pose_arg, joints_arg in pairs:
+        state.moves += 1
+        if len(args) <= joints_arg or args[pose_arg] is None:
+            continue          # a joint move: the joints are what the robot does
+        joints = np.asarray(args[joints_arg].tolist() if hasattr(args[joints_arg], "tolist")
+                            else args[joints_arg], dtype=float).ravel()
+        state.targets.append(_Target(call=len(state.calls), pose_arg=pose_arg,
+                                     joints_arg=joints_arg,
+                                     wobj_T_target=_matrix(args[pose_arg]), joints_deg=joints,
+                                     base_T_wobj=state.frame, tool=state.tool,
+                                     tool_name=state.tool_name))
+
+
+def _flush(post) -> None:
+    """Compensate the kept targets in one batch and hand every kept call to the vendor."""
+    state: PostCompensation = post._olp
+    calls, targets = state.calls, state.targets
+    state.calls, state.targets = [], []
+    results = _solve_targets(state.compensator, targets) if targets else []
+    messages: dict[int, list[str]] = {}
+    for target, result in zip(targets, results):
+        name, args, _ = calls[target.call]
+        args[target.pose_arg] = _like(args[target.pose_arg], result.pose_mm)
+        if result.ok:
+            args[target.joints_arg] = result.joints_deg
+            continue
+        state.problems.append((name, target.call, result.status, result.note))
+        text = (f"olp-compensate: {name} target NOT compensated ({result.status}"
+                + (f": {result.note}" if result.note else "") + "); written as RoboDK gave it")
+        messages.setdefault(target.call, []).append(text)
+    if state.problems and state.strict:
+        name, _, status, note = state.problems[0]
+        raise UnreachableTarget(f"olp-compensate: {name}: {status}: {note} "
+                                f"({len(state.problems)} target(s) not compensated)")
+    post._olp_replaying = True
+    try:
+        for k, (name, args, kwargs) in enumerate(calls):
+            for text in messages.get(k, ()):
+                _say(post, text)
+            getattr(post, name)(*args, **kwargs)
+    finally:
+        post._olp_replaying = False
+
+
+@dataclass(frozen=True)
+class _Result:
+    pose_mm: np.ndarray
+    joints_deg: list
+    status: str
+    note: str
+    ok: bool
+
+
+def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
+    """Compensate the kept targets in one batch, each on the configuration of the joints
+    RoboDK gave (its nominal solution) and with the calibrated tool of its tool's name."""
+    from .compensation.explained import compensate_explained, confdata_of_joints
+    from .compensation.program import _real_tool
+
+    n = comp.robot.n_joints
+    short = [t for t in targets if len(t.joints_deg) < n]
+    if short:
+        raise ModelError(f"olp-compensate: a move gives {len(short[0].joints_deg)} joints; "
+                         f"{comp.robot.name} has {n}")
+    mm = np.diag([1e-3, 1e-3, 1e-3, 1.0])
+    def metres(a):
+        return mm @ a @ np.linalg.inv(mm)     # scales the translation only
+    tools = np.array([metres(t.tool) for t in targets])
+    real = np.array([_real_tool(comp.calibration, t.tool_name, tool)[0] if t.tool_name
+                     else tool for t, tool in zip(targets, tools)])
+    batch = compensate_explained(
+        comp, np.array([metres(t.wobj_T_target) for t in targets]), tools,
+        np.array([metres(t.base_T_wobj) for t in targets]),
+        confdata_of_joints(comp, np.array([t.joints_deg[:n] for t in targets])), real)
+    out = []
+    for i, t in enumerate(targets):
+        pose = batch.poses[i].copy()
+        pose[:3, 3] *= 1e3
+        joints = [float(v) for v in batch.joints_deg[i]] + [float(v) for v in t.joints_deg[n:]]
+        out.append(_Result(pose, joints, batch.status[i], batch.notes[i], bool(batch.ok[i])))
+    return out
+
+
+def _say(post, text: str) -> None:
+    """Report a problem in the post's log and, where it can, in the program."""
+    if callable(getattr(post, "addlog", None)):
+        post.addlog(text)
+    else:
+        log.warning("%s", text)
+    if callable(getattr(post, "RunMessage", None)):
+        post.RunMessage(text, True)
+
+
+def compensated(post_class: type, calibration: str | os.PathLike | None = None, *,
+                strict: bool = False) -> type:
+    """A subclass of RoboDK post ``post_class`` whose targets are compensated on
+    ``calibration`` (see the module docstring for where it is found otherwise).
+    ``strict``: refuse the program when a target cannot be compensated (default: write it
+    as given, saying so in the log and the program)."""
+
+    def __init__(self, *args, **kwargs):
+        from .io.calibration_file import read_calibration
+        from .compensation.pose import Compensator
+
+        self.__dict__["_olp"] = None
+        post_class.__init__(self, *args, **kwargs)
+        robot_name = args[1] if len(args) > 1 else kwargs.get("robotname")
+        path = find_calibration(calibration, robot_name)
+        cal = read_calibration(path)
+        if cal.regions:
+            from .compensation.regions import RegionalCompensator
+
+            comp = RegionalCompensator(cal)
+        else:
+            comp = Compensator(cal)
+        self._olp_replaying = False
+        self.__dict__["_olp"] = PostCompensation(compensator=comp, source=str(path),
+                                                 strict=strict)
+
+    namespace = {"__init__": __init__, "__doc__": post_class.__doc__,
+                 "__module__": post_class.__module__,
+                 "olp_problems": property(lambda self: list(self._olp.problems))}
+    for name in dir(post_class):
+        if name.startswith("_") or name in PASS_THROUGH:
+            continue
+        member = inspect.getattr_static(post_class, name)
+        if isinstance(member, types.FunctionType):   # plain methods (not static, class)
+            namespace[name] = _keep(name, member)
+    return type(post_class.__name__, (post_class,), namespace)
