@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -73,10 +72,14 @@ class Service:
         """The file ``value`` (relative to the root, or absolute) if it lies under the root."""
         if not isinstance(value, str) or not value:
             raise ServiceError(INVALID_PARAMS, f"{name}: expected a file path (string), got "
-                                               f"{_kind(value)}")
+                                               f"{_kind(value) if value != '' else 'an empty one'}")
         if "\0" in value:
             raise ServiceError(INVALID_PARAMS, f"{name}: a path cannot hold a NUL character")
-        path = (self.root / value).resolve()
+        try:
+            path = (self.root / value).resolve()
+            value.encode("utf-8")
+        except (OSError, ValueError, RuntimeError):   # a link loop, an unpaired surrogate
+            raise ServiceError(INVALID_PARAMS, f"{name}: {value!r} is not a usable path") from None
         if path != self.root and self.root not in path.parents:
             raise ServiceError(OUTSIDE_ROOT, f"{name}: {value} is outside the folder the "
                                              f"service serves ({self.root}); start it with "
@@ -202,19 +205,14 @@ def _kind(value) -> str:
     return names.get(type(value), type(value).__name__)
 
 
-def finite_or_none(value: float):
-    """A float for JSON, None for NaN or infinity (JSON has neither)."""
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
 def matrix(value, name: str, scale: float) -> np.ndarray:
     """A 4x4 row-major pose of a request as (4, 4) m; ServiceError naming ``name``."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        a = None
-    if a is None or a.shape != (4, 4) or isinstance(value, str):
+    rows_ok = (isinstance(value, list) and len(value) == 4
+               and all(isinstance(r, list) and len(r) == 4 for r in value)
+               and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       for r in value for v in r))
+    a = np.array(value, dtype=float) if rows_ok else None
+    if a is None:
         raise ServiceError(INVALID_PARAMS, f"{name}: expected a 4x4 matrix as 4 rows of 4 "
                                            f"numbers")
     if not np.all(np.isfinite(a)):
