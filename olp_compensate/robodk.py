@@ -227,23 +227,31 @@ def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
     if short:
         raise ModelError(f"olp-compensate: a move gives {len(short[0].joints_deg)} joints; "
                          f"{comp.robot.name} has {n}")
-    mm = np.diag([1e-3, 1e-3, 1e-3, 1.0])
-    def metres(a):
-        return mm @ a @ np.linalg.inv(mm)     # scales the translation only
-    tools = np.array([metres(t.tool) for t in targets])
-    real = np.array([_real_tool(comp.calibration, t.tool_name, tool)[0] if t.tool_name
-                     else tool for t, tool in zip(targets, tools)])
-    batch = compensate_explained(
-        comp, np.array([metres(t.wobj_T_target) for t in targets]), tools,
-        np.array([metres(t.base_T_wobj) for t in targets]),
-        confdata_of_joints(comp, np.array([t.joints_deg[:n] for t in targets])), real)
-    out = []
+
+    def metres(poses: list) -> np.ndarray:
+        a = np.array(poses)
+        a[:, :3, 3] *= 1e-3
+        return a
+
+    tools = metres([t.tool for t in targets])
+    real_of: dict[tuple, np.ndarray] = {}      # one lookup per tool in force, not per target
+    real = tools.copy()
     for i, t in enumerate(targets):
-        pose = batch.poses[i].copy()
-        pose[:3, 3] *= 1e3
-        joints = [float(v) for v in batch.joints_deg[i]] + [float(v) for v in t.joints_deg[n:]]
-        out.append(_Result(pose, joints, batch.status[i], batch.notes[i], bool(batch.ok[i])))
-    return out
+        if t.tool_name:
+            key = (t.tool_name, id(t.tool))
+            if key not in real_of:
+                real_of[key] = _real_tool(comp.calibration, t.tool_name, tools[i])[0]
+            real[i] = real_of[key]
+    batch = compensate_explained(
+        comp, metres([t.wobj_T_target for t in targets]), tools,
+        metres([t.base_T_wobj for t in targets]),
+        confdata_of_joints(comp, np.array([t.joints_deg[:n] for t in targets])), real)
+    poses = batch.poses.copy()
+    poses[:, :3, 3] *= 1e3
+    joints = batch.joints_deg.tolist()
+    return [_Result(poses[i], joints[i] + [float(v) for v in t.joints_deg[n:]],
+                    batch.status[i], batch.notes[i], ok)
+            for i, (t, ok) in enumerate(zip(targets, batch.ok.tolist()))]
 
 
 def _say(post, text: str) -> None:
