@@ -215,6 +215,19 @@ def test_pipe_refuses_bad_requests_and_goes_on(root, pipe):
     assert [a["id"] for a in answers] == [1, 2] and answers[0] == {**answers[1], "id": 1}
 
 
+def test_pipe_parent_leaving_mid_request(root):
+    service = PipeService(root)
+    service.process.stdin.write(b'{"jsonrpc": "2.0", "method": "compensate_poses", "id": 1, "par')
+    service.process.stdin.close()               # gone mid-line: the half line is answered
+    answer = service.receive()
+    _error(answer, -32700, "not valid JSON")
+    assert service.process.wait(timeout=60) == 0
+    err = service.process.stderr.read().decode()
+    assert "Traceback" not in err
+    service.process.stdout.close()
+    service.process.stderr.close()
+
+
 @pytest.mark.parametrize("where", ["../calib.json", "/etc/hostname", "link.json",
                                    "sub/../../x.json"])
 def test_pipe_refuses_files_outside_root(pipe, where):

@@ -16,7 +16,7 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 from .calls import Service
-from .jsonrpc import INVALID_REQUEST, encode, error, handle, too_large
+from .jsonrpc import INTERNAL_ERROR, INVALID_REQUEST, encode, error, handle, too_large
 from .openapi import openapi
 
 log = logging.getLogger(__name__)
@@ -109,7 +109,13 @@ class RpcHandler(BaseHTTPRequestHandler):
                      len(body), length)
             self.close_connection = True
             return
-        answer = handle(self.server.service, body)
+        try:
+            answer = handle(self.server.service, body)
+        except Exception as exc:   # a bug: answered all the same, the service goes on
+            log.exception("internal error")
+            self._send(HTTPStatus.INTERNAL_SERVER_ERROR, encode(error(
+                INTERNAL_ERROR, f"internal error ({type(exc).__name__}); please report it")))
+            return
         if answer is None:
             self.send_response(HTTPStatus.NO_CONTENT)
             self.send_header("Content-Length", "0")

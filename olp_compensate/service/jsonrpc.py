@@ -55,9 +55,20 @@ def handle(service: Service, data: bytes) -> bytes | None:
             return encode(error(INVALID_REQUEST, f"a batch of {len(message)} requests; send "
                                                  f"at most {MAX_BATCH}"))
         answers = [a for a in (_one(service, m) for m in message) if a is not None]
-        return encode(answers) if answers else None
+        return _encoded(answers) if answers else None
     answer = _one(service, message)
-    return None if answer is None else encode(answer)
+    return None if answer is None else _encoded(answer)
+
+
+def _encoded(answer) -> bytes:
+    """``answer`` as bytes, or an internal error where it cannot be JSON (a bug)."""
+    try:
+        return encode(answer)
+    except (TypeError, ValueError) as exc:
+        log.exception("answer not JSON")
+        id_ = answer.get("id") if isinstance(answer, dict) else None
+        return encode(error(INTERNAL_ERROR, f"internal error (the answer is not JSON: "
+                                            f"{_short(exc)}); please report it", id_))
 
 
 def _one(service: Service, message) -> dict | None:
