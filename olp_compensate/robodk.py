@@ -63,6 +63,8 @@ FLUSH = ("ProgFinish", "ProgSave", "ProgSendRobot")
 PASS_THROUGH = frozenset({"addlog"})
 """Vendor methods called at once, never kept (logging)."""
 MOVES = ("MoveJ", "MoveL", "MoveC")
+TRACKED = ("setFrame", "setTool", *MOVES)
+"""Calls whose arguments the wrapper reads (by position, keywords made positional)."""
 log = logging.getLogger(__name__)
 
 
@@ -146,12 +148,15 @@ def _keep(name: str, vendor_method):
                 return vendor_method(self, *args, **kwargs)
             finally:
                 self._olp_replaying = False
+        if kwargs and name in TRACKED:      # pose=..., joints=...: made positional
+            bound = inspect.signature(vendor_method).bind(self, *args, **kwargs)
+            args, kwargs = bound.args[1:], bound.kwargs
         args = list(args)
         if name == "setFrame" and args and args[0] is not None:
             state.frame = _matrix(args[0])
         elif name == "setTool" and args and args[0] is not None:
             state.tool = _matrix(args[0])
-            state.tool_name = str(args[2]) if len(args) > 2 else str(kwargs.get("tool_name", ""))
+            state.tool_name = str(args[2]) if len(args) > 2 else ""
         elif name in MOVES:
             _record_targets(state, name, args)
         state.calls.append((name, args, kwargs))

@@ -207,3 +207,40 @@ def test_calibration_by_robot_name_and_clear_error_without(cell, tmp_path, monke
     post = Post("ABB_RAPID", "ABB IRB 2400", 6)
     assert isinstance(post, Vendor) and post.ROBOT_NAME == "ABB IRB 2400"
     assert post._olp.source.endswith("ABB_IRB_2400.json")
+
+
+def test_keyword_arguments_and_several_programs(cell, tmp_path):
+    _, nominal, identified = cell
+    from robodk.robomath import Mat
+
+    from olp_compensate import Compensator, compensate_pose, read_calibration
+    from olp_compensate.robodk import compensated
+
+    sys.path.insert(0, str(POSTS))
+    try:
+        from vendor_abb import RobotPost as Vendor
+    finally:
+        sys.path.remove(str(POSTS))
+    frame, tool, targets = _scene(nominal)
+    post = compensated(Vendor, calibration=identified)("ABB_RAPID", "ABB IRB 2400", 6)
+    post.ProgStart("First")
+    post.setFrame(pose=Mat(frame.tolist()), frame_id=1, frame_name="Frame 2")
+    post.setTool(Mat(tool.tolist()), 1, "tGun")
+    post.MoveL(joints=list(targets[0][1]), pose=Mat(targets[0][0].tolist()))
+    assert post.PROG == []          # every call kept until the program ends
+    post.ProgFinish("First")
+    post.ProgStart("Second")
+    post.MoveL(Mat(targets[1][0].tolist()), list(targets[1][1]), [0, 0, 0])
+    post.ProgFinish("Second")
+    assert post.PROG.count("  PROC main()") == 2 == post.PROG.count("  ENDPROC")
+    written = _robtargets("PROC main()" + "\n".join(post.PROG).replace("PROC main()", ""))
+    assert len(written) == 2 and post.olp_problems == []
+    comp = Compensator(read_calibration(identified))
+    for (numbers, _), (pose, joints, _) in zip(written, targets[:2]):
+        def metres(a):
+            a = np.array(a, dtype=float)
+            a[:3, 3] *= 1e-3
+            return a
+        want = compensate_pose(comp, metres(pose), metres(tool), metres(frame),
+                               config=None).pose
+        assert np.allclose(numbers[:3], want[:3, 3] * 1e3, atol=1e-3)
