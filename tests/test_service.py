@@ -103,6 +103,7 @@ def _same(answers: list[dict], expected: list, scale: float = 1e-3) -> None:
         pose = np.array(got["pose"])
         pose[:3, 3] *= scale
         assert np.allclose(pose, want.pose, rtol=0, atol=1e-12)
+        assert got["config"] == (list(want.config) if want.success else None)
         if got["joints_deg"] is None:
             assert not np.all(np.isfinite(want.joints))
         else:

@@ -25,12 +25,14 @@ class ExplainedBatch:
         compensated the best found, NaN where none.
     status : (m,) 'ok', 'singular' or why not; notes : m strings, olp-fix's note ('' when
         compensated).
+    config : (m, 4) int, ABB confdata of the joints the real arm takes (where compensated).
     """
 
     poses: np.ndarray
     joints_deg: np.ndarray
     status: list[str]
     notes: list[str]
+    config: np.ndarray
 
     @property
     def ok(self) -> np.ndarray:
@@ -67,6 +69,9 @@ def compensate_explained(comp: Compensator, wobj_T_target: np.ndarray, tool: np.
     poses = invert_pose(wobj) @ flange @ tool
     poses[~ok] = wobj_T_target[~ok]
     joints = robot.to_degrees_or_mm(robot.controller_from_joints(q))
+    config = np.zeros((len(q), 4), dtype=int)
+    if np.any(ok):
+        config[ok] = comp.confdata(q[ok])
     notes = [""] * len(q)
     if not np.all(ok):
         for i, failure in enumerate(explain_failures(comp, solution, desired, confdata,
@@ -75,4 +80,5 @@ def compensate_explained(comp: Compensator, wobj_T_target: np.ndarray, tool: np.
                 notes[i] = failure.note
                 joints[i] = robot.to_degrees_or_mm(failure.joints[None])[0]
     return ExplainedBatch(poses=poses, joints_deg=joints,
-                          status=[str(s) for s in solution.reason], notes=notes)
+                          status=[str(s) for s in solution.reason], notes=notes,
+                          config=config)

@@ -127,9 +127,9 @@ class Service:
         loaded = self.calibration(params.get("calibration"))
         _refuse_controller(params)
         units = params.get("units", "mm")
-        if units not in UNITS:
+        if not isinstance(units, str) or units not in UNITS:
             raise ServiceError(INVALID_PARAMS, f"units: expected 'mm' or 'm', got "
-                                               f"{json.dumps(units)}")
+                                               f"{_shown(units)}")
         requests = read_requests(params.get("poses"), UNITS[units])
         return {"poses": compensate_requests(loaded.compensator, requests, UNITS[units])}
 
@@ -144,7 +144,7 @@ class Service:
         if dialect not in DIALECTS:
             raise ServiceError(INVALID_PARAMS, f"dialect: expected one of "
                                                f"{', '.join(DIALECTS)}, got "
-                                               f"{json.dumps(dialect)}")
+                                               f"{_shown(dialect)}")
         text = params.get("text")
         if not isinstance(text, str):
             raise ServiceError(INVALID_PARAMS, f"text: expected the program as a string, "
@@ -194,6 +194,13 @@ def _only(params: dict, method: str, known: tuple[str, ...]) -> None:
         raise ServiceError(INVALID_PARAMS, f"{method}: unknown parameter(s) "
                                            f"{', '.join(unknown)}; expected "
                                            f"{', '.join(known)}")
+
+
+def _shown(value) -> str:
+    """A request's value in a message: a short string quoted, else what it is."""
+    if isinstance(value, str) and len(value) <= 40:
+        return json.dumps(value)
+    return _kind(value)
 
 
 def _kind(value) -> str:

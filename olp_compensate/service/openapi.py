@@ -30,7 +30,10 @@ POSE_ANSWER = {
         "joints_deg": {"type": "array", "items": {"type": "number"}, "nullable": True,
                        "description": "controller axes the real arm takes, deg (mm for a "
                                       "prismatic axis); null where none was found"},
-        "status": {"type": "string"}, "note": {"type": "string"}}}
+        "status": {"type": "string"}, "note": {"type": "string"},
+        "config": {"type": "array", "items": {"type": "integer"}, "nullable": True,
+                   "description": "RAPID confdata [cf1, cf4, cf6, cfx] of joints_deg, to "
+                                  "write with the pose; null where not compensated"}}}
 
 POSES_PARAMS = {
     "type": "object", "required": ["calibration", "poses"], "additionalProperties": False,

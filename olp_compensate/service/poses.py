@@ -5,8 +5,9 @@ Each request pose is ``target`` (wobj_T_target), ``tool`` (flange_T_tool) and ``
 numbers of the dialect (RAPID confdata ``[cf1, cf4, cf6, cfx]``). The answer per pose: the
 target to write (4x4, same frame and unit; the target as given where not compensated, with
 the status saying so), the controller axes the real arm takes (degrees; mm for a prismatic
-axis; None where no solution was found), the status ('ok', 'singular' or why not) and the
-note olp-fix writes for it.
+axis; None where no solution was found), the status ('ok', 'singular' or why not), the
+note olp-fix writes for it, and ``config``: the RAPID confdata of those joints, to write
+with the pose (None where not compensated).
 """
 
 from __future__ import annotations
@@ -61,8 +62,9 @@ def read_requests(poses, scale: float) -> PoseRequests:
         _name_bad_keys(poses)
     dialects = [p.get("dialect", "rapid") for p in poses]
     configs = [p.get("config") for p in poses]
-    if not set(dialects) <= _DIALECT_SET:
-        i = next(i for i, d in enumerate(dialects) if d not in _DIALECT_SET)
+    if not (set(map(type, dialects)) == {str} and set(dialects) <= _DIALECT_SET):
+        i = next(i for i, d in enumerate(dialects)
+                 if not isinstance(d, str) or d not in _DIALECT_SET)
         raise ServiceError(INVALID_PARAMS, f"poses[{i}].dialect: expected one of "
                                            f"{', '.join(DIALECTS)}")
     has_config = np.array([c is not None for c in configs], dtype=bool)
@@ -159,8 +161,8 @@ def _solve(comp: Compensator, targets, tools, wobjs, confdata, scale: float) -> 
     shown = batch.poses.copy()
     shown[:, :3, 3] /= scale
     finite = np.all(np.isfinite(batch.joints_deg), axis=1).tolist()
-    return [{"pose": pose, "joints_deg": joints if ok else None, "status": status,
-             "note": note}
-            for pose, joints, ok, status, note in zip(shown.tolist(),
-                                                       batch.joints_deg.tolist(), finite,
-                                                       batch.status, batch.notes)]
+    return [{"pose": pose, "joints_deg": joints if fine else None, "status": status,
+             "note": note, "config": config if ok else None}
+            for pose, joints, fine, status, note, config, ok in zip(
+                shown.tolist(), batch.joints_deg.tolist(), finite, batch.status,
+                batch.notes, batch.config.tolist(), batch.ok.tolist())]
