@@ -336,3 +336,42 @@ def test_openapi_exercised_by_a_property_based_tester(root, web):
         exercise()
     assert len(seen) >= 10 and set(seen) <= {200, 204}
     assert web.process.poll() is None
+
+
+KRL = """DEF prog( )
+  PTP {X 1000, Y 0, Z 800, A 0, B 0, C 180, S 2, T 32}
+  LIN {X 950, Y -150, Z 700, A 10, B 5, C 170, S 2, T 0}
+  LIN {X 900, Y 150, Z 650, A -20, B 0, C 175}
+END
+"""
+
+
+def test_pipe_krl_configuration_as_olp_fix_reads_it(pipe):
+    from scipy.spatial.transform import Rotation
+
+    program = pipe.call("compensate_program", {"calibration": "calib.json", "dialect": "krl",
+                                               "text": KRL, "file": "prog.src"})
+    rows = program["result"]["rows"]
+    assert [r["status"] for r in rows] == ["ok", "branch_changed", "ok"]
+    poses = []
+    for x, y, z, a, b, c, config in ((1000, 0, 800, 0, 0, 180, [2, 32]),
+                                     (950, -150, 700, 10, 5, 170, [2, 0]),
+                                     (900, 150, 650, -20, 0, 175, None)):
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_euler("ZYX", [a, b, c], degrees=True).as_matrix()
+        pose[:3, 3] = x, y, z
+        poses.append({"target": pose.tolist(), "dialect": "krl",
+                      **({"config": config} if config else {})})
+    answers = pipe.call("compensate_poses", {"calibration": "calib.json",
+                                             "poses": poses})["result"]["poses"]
+    for answer, row in zip(answers, rows):
+        assert answer["status"] == row["status"]
+        if row["status"] != "ok":     # the same reason (olp-fix adds the tool it assumed)
+            assert answer["note"] and answer["note"] in row["note"]
+            assert answer["config"] is None and answer["pose"] == poses[1]["target"]
+            continue
+        assert np.allclose(answer["joints_deg"], [row[f"q{k}_deg"] for k in range(1, 7)],
+                           atol=1e-6)
+    assert f"S {answers[0]['config'][0]} T {answers[0]['config'][1]}" == rows[0]["config_after"]
+    _error(pipe.call("compensate_poses", {"calibration": "calib.json", "poses": [
+        {**poses[0], "config": ["B010"]}]}), -32602, "[S] or [S, T]")

@@ -9,6 +9,7 @@ MATRIX = {"type": "array", "minItems": 4, "maxItems": 4,
           "items": {"type": "array", "minItems": 4, "maxItems": 4,
                     "items": {"type": "number"}},
           "description": "4x4 homogeneous transform, row-major, in the request's unit"}
+CONFIG_ITEM = {"anyOf": [{"type": "number"}, {"type": "string"}]}
 DIALECTS = ["rapid", "vplus", "krl", "fanuc", "val3", "urscript"]
 
 POSE_REQUEST = {
@@ -17,9 +18,11 @@ POSE_REQUEST = {
         "target": {**MATRIX, "description": "wobj_T_target: the target in its work object"},
         "tool": {**MATRIX, "description": "flange_T_tool (identity if absent)"},
         "wobj": {**MATRIX, "description": "base_T_wobj (identity if absent)"},
-        "config": {"type": "array", "items": {"type": "integer"}, "minItems": 4,
-                   "maxItems": 4, "description": "RAPID confdata [cf1, cf4, cf6, cfx]; "
-                                                 "absent: the branch nearest zero"},
+        "config": {"type": "array", "maxItems": 6, "items": CONFIG_ITEM,
+                   "description": "the dialect's configuration: RAPID confdata [cf1, cf4, "
+                                  "cf6, cfx]; KRL [S, T]; FANUC [flip, up, top, turns...]; "
+                                  "VAL3 words; URScript qnear (rad); absent: the rules' "
+                                  "branch without one (RAPID: nearest zero)"},
         "dialect": {"type": "string", "enum": DIALECTS, "default": "rapid"}}}
 
 POSE_ANSWER = {
@@ -31,9 +34,9 @@ POSE_ANSWER = {
                        "description": "controller axes the real arm takes, deg (mm for a "
                                       "prismatic axis); null where none was found"},
         "status": {"type": "string"}, "note": {"type": "string"},
-        "config": {"type": "array", "items": {"type": "integer"}, "nullable": True,
-                   "description": "RAPID confdata [cf1, cf4, cf6, cfx] of joints_deg, to "
-                                  "write with the pose; null where not compensated"}}}
+        "config": {"type": "array", "items": CONFIG_ITEM, "nullable": True,
+                   "description": "the dialect's configuration of joints_deg, to write "
+                                  "with the pose; null where not compensated"}}}
 
 POSES_PARAMS = {
     "type": "object", "required": ["calibration", "poses"], "additionalProperties": False,

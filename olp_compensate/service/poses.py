@@ -2,12 +2,13 @@
 
 Each request pose is ``target`` (wobj_T_target), ``tool`` (flange_T_tool) and ``wobj``
 (base_T_wobj), 4x4 row-major in the request's length unit; ``config`` the configuration
-numbers of the dialect (RAPID confdata ``[cf1, cf4, cf6, cfx]``). The answer per pose: the
+numbers of the dialect (RAPID confdata ``[cf1, cf4, cf6, cfx]``; the other dialects'
+in :mod:`.dialect_poses`), solved as olp-fix reads them in a program. The answer per pose: the
 target to write (4x4, same frame and unit; the target as given where not compensated, with
 the status saying so), the controller axes the real arm takes (degrees; mm for a prismatic
 axis; None where no solution was found), the status ('ok', 'singular' or why not), the
-note olp-fix writes for it, and ``config``: the RAPID confdata of those joints, to write
-with the pose (None where not compensated).
+note olp-fix writes for it, and ``config``: the dialect's configuration of those joints,
+to write with the pose (None where not compensated).
 """
 
 from __future__ import annotations
@@ -23,8 +24,6 @@ from .calls import DIALECTS, INVALID_PARAMS, ORTHONORMAL_TOL, ServiceError, matr
 
 MAX_POSES = 100_000
 """Poses accepted in one request (the request size limit comes first in practice)."""
-CONFIG_DIALECTS = ("rapid",)
-"""Dialects whose ``config`` numbers compensate_poses reads (others: whole programs)."""
 KEYS = ("target", "tool", "wobj", "config", "dialect")
 _KEYS = frozenset(KEYS)
 _DIALECT_SET = frozenset(DIALECTS)
@@ -45,6 +44,10 @@ class PoseRequests:
     wobjs: np.ndarray
     confdata: np.ndarray
     has_config: np.ndarray
+    dialects: list
+    configs: list
+    """Each pose's dialect and its ``config`` as sent (read by :mod:`.dialect_poses` for
+    the dialects other than RAPID)."""
 
 
 def read_requests(poses, scale: float) -> PoseRequests:
@@ -67,10 +70,11 @@ def read_requests(poses, scale: float) -> PoseRequests:
                  if not isinstance(d, str) or d not in _DIALECT_SET)
         raise ServiceError(INVALID_PARAMS, f"poses[{i}].dialect: expected one of "
                                            f"{', '.join(DIALECTS)}")
-    has_config = np.array([c is not None for c in configs], dtype=bool)
-    confdata = _confdata_all(configs, dialects, has_config)
+    rapid = [c if d == "rapid" else None for c, d in zip(configs, dialects)]
+    has_config = np.array([c is not None for c in rapid], dtype=bool)
+    confdata = _confdata_all(rapid)
     targets, tools, wobjs = (_matrices(poses, key, scale) for key in ("target", "tool", "wobj"))
-    return PoseRequests(targets, tools, wobjs, confdata, has_config)
+    return PoseRequests(targets, tools, wobjs, confdata, has_config, dialects, configs)
 
 
 def _matrices(poses: list[dict], key: str, scale: float) -> np.ndarray:
@@ -111,25 +115,17 @@ def _name_bad_keys(poses: list[dict]) -> None:
             raise ServiceError(INVALID_PARAMS, f"poses[{i}].target: missing (4x4 matrix)")
 
 
-def _confdata_all(configs: list, dialects: list[str], has_config: np.ndarray) -> np.ndarray:
-    """(m, 4) int confdata of the poses that give one (zeros elsewhere)."""
+def _confdata_all(configs: list) -> np.ndarray:
+    """(m, 4) int confdata of the RAPID poses that give one (zeros elsewhere)."""
     rows = [c if c is not None else [0, 0, 0, 0] for c in configs]
     numbers = list(chain.from_iterable(rows)) if set(map(type, rows)) == {list} else []
     fine = (len(numbers) == 4 * len(rows) and set(map(len, rows)) == {4}
-            and set(map(type, numbers)) == {int} and all(-1000 < v < 1000 for v in numbers)
-            and all(d in CONFIG_DIALECTS for d, c in zip(dialects, configs) if c is not None))
-    if fine:
-        return np.array(numbers, dtype=int).reshape(-1, 4)
-    for i, (config, dialect) in enumerate(zip(configs, dialects)):   # name the bad one
-        if config is None:
-            continue
-        if dialect not in CONFIG_DIALECTS:
-            raise ServiceError(INVALID_PARAMS, f"poses[{i}].config: the configuration "
-                                               f"numbers of {dialect} are read only in "
-                                               f"whole programs (compensate_program); leave "
-                                               f"config out for the branch nearest zero")
-        _confdata(config, f"poses[{i}].config")
-    raise AssertionError("unreachable: a bad config was not named")   # pragma: no cover
+            and set(map(type, numbers)) == {int} and all(-1000 < v < 1000 for v in numbers))
+    if not fine:                                             # name the bad one
+        for i, config in enumerate(configs):
+            if config is not None:
+                _confdata(config, f"poses[{i}].config")
+    return np.array(numbers, dtype=int).reshape(-1, 4)
 
 
 def _confdata(value, name: str) -> np.ndarray:
@@ -145,14 +141,53 @@ def compensate_requests(comp: Compensator, req: PoseRequests, scale: float) -> l
     """The answer of each pose of ``req`` in its order (see the module docstring)."""
     m = len(req.targets)
     answers: list[dict | None] = [None] * m
+    confdata, has_config = req.confdata.copy(), req.has_config.copy()
+    others = np.flatnonzero([d != "rapid" for d in req.dialects])
+    chosen = None
+    if len(others):
+        from .dialect_poses import choose_branches, requested_flanges
+
+        chosen = choose_branches(comp, others, req.dialects, req.configs, requested_flanges(
+            req.targets[others], req.tools[others], req.wobjs[others]))
+        confdata[others] = chosen.confdata
+        has_config[others] = True
+        for row, (status, note) in chosen.failed.items():
+            answers[row] = {"pose": _shown(req.targets[row], scale), "joints_deg": None,
+                            "status": status, "note": note, "config": None}
     for with_config in (True, False):
-        rows = np.flatnonzero(req.has_config == with_config)
+        rows = np.flatnonzero((has_config == with_config)
+                              & np.array([a is None for a in answers]))
         if len(rows):
             part = _solve(comp, req.targets[rows], req.tools[rows], req.wobjs[rows],
-                          req.confdata[rows] if with_config else None, scale)
+                          confdata[rows] if with_config else None, scale)
             for row, answer in zip(rows.tolist(), part):
                 answers[row] = answer
+    if chosen is not None:
+        _dialect_answers(comp, req, chosen, answers)
     return answers   # type: ignore[return-value]
+
+
+def _dialect_answers(comp: Compensator, req: PoseRequests, chosen, answers: list) -> None:
+    """Answers of the dialect poses in their dialect's configuration, with the rules'
+    notes."""
+    from .dialect_poses import answer_config
+
+    for row, target in chosen.targets.items():
+        answer = answers[row]
+        if row in chosen.failed:
+            continue
+        answer["config"] = (answer_config(comp, req.dialects[row], target,
+                                          answer["joints_deg"])
+                            if answer["status"] in ("ok", "singular") else None)
+        note = chosen.notes.get(row)
+        if note:
+            answer["note"] = "; ".join(x for x in (answer["note"], note) if x)
+
+
+def _shown(pose: np.ndarray, scale: float) -> list:
+    shown = pose.copy()
+    shown[:3, 3] /= scale
+    return shown.tolist()
 
 
 def _solve(comp: Compensator, targets, tools, wobjs, confdata, scale: float) -> list[dict]:
