@@ -110,9 +110,8 @@ class PostCompensation:
     calls: list = field(default_factory=list)
     targets: list = field(default_factory=list)
     problems: list = field(default_factory=list)
-    """(move name, target index in the program, status, note) of each target not
+    """(move name, index of its call in the program, status, note) of each target not
     compensated."""
-    moves: int = 0
 
 
 def _matrix(pose) -> np.ndarray:
@@ -169,7 +168,6 @@ def _record_targets(state: PostCompensation, name: str, args: list) -> None:
     """Note the Cartesian targets of a move call (pose/joints argument positions)."""
     pairs = ((0, 1), (2, 3)) if name == "MoveC" else ((0, 1),)
     for pose_arg, joints_arg in pairs:
-        state.moves += 1
         if len(args) <= joints_arg or args[pose_arg] is None:
             continue          # a joint move: the joints are what the robot does
         joints = np.asarray(args[joints_arg].tolist() if hasattr(args[joints_arg], "tolist")
@@ -190,10 +188,10 @@ def _flush(post) -> None:
     messages: dict[int, list[str]] = {}
     for target, result in zip(targets, results):
         name, args, _ = calls[target.call]
-        args[target.pose_arg] = _like(args[target.pose_arg], result.pose_mm)
         if result.ok:
+            args[target.pose_arg] = _like(args[target.pose_arg], result.pose_mm)
             args[target.joints_arg] = result.joints_deg
-            continue
+            continue                  # (a target not compensated: RoboDK's own objects)
         state.problems.append((name, target.call, result.status, result.note))
         text = (f"olp-compensate: {name} target NOT compensated ({result.status}"
                 + (f": {result.note}" if result.note else "") + "); written as RoboDK gave it")
