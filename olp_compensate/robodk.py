@@ -89,8 +89,10 @@ class _Target:
     call: int
     pose_arg: int
     joints_arg: int
-    wobj_T_target: np.ndarray
-    joints_deg: np.ndarray
+    pose: object
+    """wobj_T_target as RoboDK passed it (a Mat, mm), read when the program ends."""
+    joints: object
+    """The joints RoboDK passed (deg), read when the program ends."""
     base_T_wobj: np.ndarray
     tool: np.ndarray
     tool_name: str
@@ -170,13 +172,9 @@ def _record_targets(state: PostCompensation, name: str, args: list) -> None:
     for pose_arg, joints_arg in pairs:
         if len(args) <= joints_arg or args[pose_arg] is None:
             continue          # a joint move: the joints are what the robot does
-        joints = np.asarray(args[joints_arg].tolist() if hasattr(args[joints_arg], "tolist")
-                            else args[joints_arg], dtype=float).ravel()
-        state.targets.append(_Target(call=len(state.calls), pose_arg=pose_arg,
-                                     joints_arg=joints_arg,
-                                     wobj_T_target=_matrix(args[pose_arg]), joints_deg=joints,
-                                     base_T_wobj=state.frame, tool=state.tool,
-                                     tool_name=state.tool_name))
+        state.targets.append(_Target(len(state.calls), pose_arg, joints_arg, args[pose_arg],
+                                     args[joints_arg], state.frame, state.tool,
+                                     state.tool_name))
 
 
 def _flush(post) -> None:
@@ -226,10 +224,19 @@ def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
     from .compensation.program import _real_tool
 
     n = comp.robot.n_joints
-    short = [t for t in targets if len(t.joints_deg) < n]
+    joints = [np.asarray(t.joints.tolist() if hasattr(t.joints, "tolist") else t.joints,
+                         dtype=float).ravel() for t in targets]
+    short = [j for j in joints if len(j) < n]
     if short:
-        raise ModelError(f"olp-compensate: a move gives {len(short[0].joints_deg)} joints; "
+        raise ModelError(f"olp-compensate: a move gives {len(short[0])} joints; "
                          f"{comp.robot.name} has {n}")
+    try:
+        poses = np.array([t.pose.rows if hasattr(t.pose, "rows") else t.pose
+                          for t in targets], dtype=float)
+    except (TypeError, ValueError):
+        poses = np.zeros(0)
+    if poses.shape[1:] != (4, 4):
+        raise ModelError("olp-compensate: a move's pose is not a 4x4 matrix")
 
     def metres(poses: list) -> np.ndarray:
         a = np.array(poses)
@@ -246,15 +253,14 @@ def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
                 real_of[key] = _real_tool(comp.calibration, t.tool_name, tools[i])[0]
             real[i] = real_of[key]
     batch = compensate_explained(
-        comp, metres([t.wobj_T_target for t in targets]), tools,
-        metres([t.base_T_wobj for t in targets]),
-        confdata_of_joints(comp, np.array([t.joints_deg[:n] for t in targets])), real)
-    poses = batch.poses.copy()
-    poses[:, :3, 3] *= 1e3
-    joints = batch.joints_deg.tolist()
-    return [_Result(poses[i], joints[i] + [float(v) for v in t.joints_deg[n:]],
+        comp, metres(poses), tools, metres([t.base_T_wobj for t in targets]),
+        confdata_of_joints(comp, np.array([j[:n] for j in joints])), real)
+    new = batch.poses.copy()
+    new[:, :3, 3] *= 1e3
+    real_joints = batch.joints_deg.tolist()
+    return [_Result(new[i], real_joints[i] + [float(v) for v in joints[i][n:]],
                     batch.status[i], batch.notes[i], ok)
-            for i, (t, ok) in enumerate(zip(targets, batch.ok.tolist()))]
+            for i, ok in enumerate(batch.ok.tolist())]
 
 
 def _say(post, text: str) -> None:
