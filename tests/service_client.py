@@ -104,8 +104,11 @@ class HttpService:
         assert status == 200, (status, data[:300])
         return json.loads(data)
 
-    def close(self) -> None:
+    def close(self) -> tuple[int, str]:
+        """Stop it as a parent does (SIGTERM); its exit code and what it wrote on stderr."""
         self.process.terminate()
-        self.process.wait(timeout=WAIT_S)
+        code = self.process.wait(timeout=WAIT_S)
+        err = self.process.stderr.read().decode()
         self.process.stdout.close()
         self.process.stderr.close()
+        return code, err

@@ -122,7 +122,8 @@ def pipe(root):
 def web(root):
     service = HttpService(root, "--max-request-bytes", "65536")
     yield service
-    service.close()
+    code, err = service.close()
+    assert code == 0 and "stopped" in err and "Traceback" not in err
 
 
 def test_pipe_poses_are_the_library_s(root, pipe):

@@ -4,8 +4,8 @@ Without ``--http`` it answers JSON-RPC 2.0 lines on standard input, one line eac
 standard output, until the input ends (for a parent process that starts it). With
 ``--http HOST:PORT`` it answers ``POST /rpc`` and describes itself at ``GET /openapi.json``
 (port 0: any free port, printed). Files are read only under ``--root``. Exit codes: 0 input
-ended; 1 bad arguments (a remote address without --allow-remote, a port in use); 130
-interrupted.
+ended or stopped; 1 bad arguments (a remote address without --allow-remote, a port in use).
+Ctrl-C and SIGTERM stop it (exit 0).
 """
 
 from __future__ import annotations
@@ -62,7 +62,10 @@ def run(args) -> int:
 
         print(f"olp-fix serve: JSON-RPC lines on standard input, files under "
               f"{service.root}", file=sys.stderr, flush=True)
-        serve_lines(service, sys.stdin.buffer, sys.stdout.buffer, args.max_request_bytes)
+        try:
+            serve_lines(service, sys.stdin.buffer, sys.stdout.buffer, args.max_request_bytes)
+        except KeyboardInterrupt:       # Ctrl-C or SIGTERM: the way a service is stopped
+            print("olp-fix serve: stopped", file=sys.stderr)
         return 0
     return _serve_http(args, service)
 
@@ -85,7 +88,10 @@ def _serve_http(args, service) -> int:
     print(f"olp-fix serve: listening on http://{_url_host(bound_host)}:{bound_port}/rpc "
           f"({reach}), files under {service.root}", file=sys.stderr, flush=True)
     with server:
-        server.serve_forever(poll_interval=0.2)
+        try:
+            server.serve_forever(poll_interval=0.2)
+        except KeyboardInterrupt:       # Ctrl-C or SIGTERM: the way a service is stopped
+            print("olp-fix serve: stopped", file=sys.stderr)
     return 0
 
 
