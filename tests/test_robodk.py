@@ -244,3 +244,10 @@ def test_keyword_arguments_and_several_programs(cell, tmp_path):
         want = compensate_pose(comp, metres(pose), metres(tool), metres(frame),
                                config=None).pose
         assert np.allclose(numbers[:3], want[:3, 3] * 1e3, atol=1e-3)
+
+
+def test_the_wrapper_imports_robodk_only_when_it_needs_a_mat():
+    done = subprocess.run([sys.executable, "-c", "import sys, olp_compensate.robodk; "
+                           "print('robodk' in sys.modules)"], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "False", done.stderr

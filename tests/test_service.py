@@ -267,6 +267,13 @@ def test_http_client_leaving_mid_request_costs_nothing(web):
             raw.sendall(b"POST /rpc HTTP/1.1\r\nHost: x\r\nContent-Length: 5000\r\n\r\n"
                         b'{"jsonrpc": "2.0", "method": "compen')
         # gone before the body ended; the next client is answered
+    body = json.dumps({"jsonrpc": "2.0", "method": "compensate_poses", "id": 1,
+                       "params": {"calibration": "calib.json", "poses": POSES}}).encode()
+    with socket.create_connection(("127.0.0.1", web.port), timeout=30) as raw:
+        raw.sendall(b"POST /rpc HTTP/1.1\r\nHost: x\r\nContent-Length: %d\r\n\r\n%s"
+                    % (len(body), body))
+        raw.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+    # gone before its answer (reset): the next client is answered
     answer = web.call("compensate_poses", {"calibration": "calib.json", "poses": POSES[:1]})
     assert answer["result"]["poses"][0]["status"] == "ok"
     assert web.process.poll() is None
