@@ -354,6 +354,23 @@ END
 """
 
 
+def test_pipe_krl_src_and_dat_as_olp_fix_writes_them(root, pipe, tmp_path):
+    folder = ROOT / "tests" / "programs" / "krl_inline_forms"
+    src, dat = (folder / "input.src").read_bytes(), (folder / "input.dat").read_bytes()
+    answer = pipe.call("compensate_program", {
+        "calibration": "calib.json", "dialect": "krl", "file": "input.src",
+        "text": src.decode("latin-1"), "dat": dat.decode("latin-1")})["result"]
+    out, report = tmp_path / "out.src", tmp_path / "report.csv"
+    fix([str(folder / "input.src"), "--model",
+         str(root / "calib.json"), "-o", str(out), "--report", str(report), "-q"])
+    assert answer["text"] == out.read_bytes().decode("latin-1")
+    assert answer["dat"] == out.with_suffix(".dat").read_bytes().decode("latin-1")
+    assert {"XP1", "XP2"} <= {r["target"] for r in answer["rows"]}   # the .dat was read
+    expected = list(csv.DictReader(report.open(encoding="utf-8")))
+    assert [(r["target"], r["status"], r["note"]) for r in answer["rows"]] == \
+        [(r["target"], r["status"], r["note"]) for r in expected]
+
+
 def test_pipe_krl_configuration_as_olp_fix_reads_it(pipe):
     from scipy.spatial.transform import Rotation
 

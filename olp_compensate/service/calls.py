@@ -137,7 +137,7 @@ class Service:
         from .program import compensate_text
 
         _only(params, "compensate_program",
-              ("calibration", "controller", "dialect", "text", "file", "frames"))
+              ("calibration", "controller", "dialect", "text", "file", "frames", "dat"))
         loaded = self.calibration(params.get("calibration"))
         _refuse_controller(params)
         dialect = params.get("dialect")
@@ -153,10 +153,14 @@ class Service:
         if not isinstance(file, str) or not file or "/" in file or "\\" in file:
             raise ServiceError(INVALID_PARAMS, "file: expected a bare file name (it names the "
                                                "program in the report; nothing is read)")
+        dat = params.get("dat")
+        if dat is not None and (dialect != "krl" or not isinstance(dat, str)
+                                or not file.lower().endswith(".src")):
+            raise ServiceError(INVALID_PARAMS, "dat: the text of a KRL .src's data list "
+                                               "(a string, with dialect krl and file NAME.src)")
         frames = params.get("frames")
         frames_path = None if frames is None else self.path(frames, "frames")
-        new, rows = compensate_text(loaded.compensator, dialect, text, file, frames_path)
-        return {"text": new, "rows": rows}
+        return compensate_text(loaded.compensator, dialect, text, file, frames_path, dat)
 
 
 def _compensator(data: bytes, source: str):

@@ -54,7 +54,9 @@ PROGRAM_PARAMS = {
         "dialect": {"type": "string", "enum": DIALECTS}, "text": {"type": "string"},
         "file": {"type": "string", "description": "the name the report gives the program"},
         "frames": {"type": "string", "description": "KRL $config.dat / FANUC SYSFRAME.VA, "
-                                                   "under --root"}}}
+                                                   "under --root"},
+        "dat": {"type": "string", "description": "KRL: the text of the .src's .dat (file "
+                                                 "must name the .src); answered as dat"}}}
 
 ROW = {"type": "object", "required": ["target", "file", "line", "column", "status", "note"],
        "description": "one row of olp-fix's report (its CSV columns; null for an empty "

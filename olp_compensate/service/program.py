@@ -13,21 +13,28 @@ from ..compensation.pose import Compensator
 
 
 def compensate_text(comp: Compensator, dialect: str, text: str, file: str,
-                    frames_path: Path | None) -> tuple[str, list[dict]]:
-    """(new text, report rows) of program ``text`` named ``file`` (KRL: a .src or a .dat
-    alone; FANUC and KRL frames from ``frames_path``)."""
+                    frames_path: Path | None, dat: str | None = None) -> dict:
+    """``{"text": new text, "rows": report rows}`` of program ``text`` named ``file``
+    (KRL: a .src, with its .dat's text ``dat`` when given, answered as ``"dat"`` too;
+    FANUC and KRL frames from ``frames_path``)."""
     if dialect in ("rapid", "vplus"):
         from ..compensation.program import compensate_program
 
         new, report = compensate_program(text, dialect, comp, file=file)
+        out = {"text": new}
     else:
         from ..compensation.dialect_program import compensate_pose_program
 
-        files = ProgramFiles(dialect=dialect, paths=(Path(file),), names=(file,))
-        program, rules = _parse_pose_dialect(files, [text], frames_path)
+        names = (file,) if dat is None else (file, str(Path(file).with_suffix(".dat")))
+        files = ProgramFiles(dialect=dialect, paths=tuple(map(Path, names)), names=names)
+        program, rules = _parse_pose_dialect(files, [text] if dat is None else [text, dat],
+                                             frames_path)
         texts, report = compensate_pose_program(program, rules, comp)
-        new = texts[file]
-    return new, [row_dict(r, report.n_joints) for r in report.rows]
+        out = {"text": texts[file]}
+        if dat is not None:
+            out["dat"] = texts[names[1]]
+    out["rows"] = [row_dict(r, report.n_joints) for r in report.rows]
+    return out
 
 
 def row_dict(row, n_joints: int) -> dict:
