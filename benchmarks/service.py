@@ -14,6 +14,9 @@ them in batches of ``--batch`` (default 100):
 - over HTTP to ``olp-fix serve --http 127.0.0.1:0`` (one kept-alive connection);
 
 and prints the times and the ratios to the library (targets: pipe <= 1.5x, HTTP <= 2x).
+The service and these clients read and write JSON with orjson where it is installed
+(``pip install olp-compensate[service]``), else with the standard library (the line says
+which).
 Every answer is checked against the library's numbers (pose to 1e-12 m, status).
 
 Then ``--clients`` (default 20) HTTP clients, each on its own connection, send batches for
@@ -43,6 +46,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from service_client import HttpService, PipeService  # noqa: E402
+
+from olp_compensate.service import codec  # noqa: E402
 
 
 WORK_DEG = np.array([[-60, 60], [-20, 50], [-20, 40], [-90, 90], [30, 100], [-90, 90]])
@@ -122,10 +127,10 @@ def over_pipe(root: Path, batches) -> tuple[float, list[dict]]:
 def over_http(service: HttpService, batches) -> tuple[float, list[dict]]:
     connection = http.client.HTTPConnection("127.0.0.1", service.port, timeout=60)
     def call(k, batch):
-        body = json.dumps({"jsonrpc": "2.0", "method": "compensate_poses", "id": k,
-                           "params": {"calibration": "calib.json", "poses": batch}})
+        body = codec.dumps({"jsonrpc": "2.0", "method": "compensate_poses", "id": k,
+                            "params": {"calibration": "calib.json", "poses": batch}})
         connection.request("POST", "/rpc", body, {"Content-Type": "application/json"})
-        return json.loads(connection.getresponse().read())
+        return codec.loads(connection.getresponse().read())
     try:
         call(0, batches[0])
         started = time.perf_counter()
@@ -215,7 +220,7 @@ def main() -> int:
             n = len(poses)
             what = "target, tool, wobj, config" if args.frames else "target, config"
             print(f"{n} poses ({what}) in batches of {args.batch}, best of "
-                  f"{args.repeats}:")
+                  f"{args.repeats}, JSON by {codec.NAME}:")
             for key, target in (("library", None), ("pipe", 1.5), ("http", 2.0)):
                 ratio = best[key] / best["library"]
                 print(f"  {key:8s} {best[key]:7.3f} s  {best[key] / n * 1e6:7.1f} us/pose  "

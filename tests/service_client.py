@@ -1,10 +1,10 @@
 """Clients of ``olp-fix serve`` for the tests: the service as a subprocess, spoken to over
-its pipe or over HTTP on 127.0.0.1, every wait bounded."""
+its pipe or over HTTP on 127.0.0.1, every wait bounded. JSON through the service's own
+codec (orjson where installed: a client in another language has a fast one too)."""
 
 from __future__ import annotations
 
 import http.client
-import json
 import os
 import re
 import select
@@ -12,6 +12,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+from olp_compensate.service.codec import dumps, loads
 
 WAIT_S = 60.0
 
@@ -56,11 +58,10 @@ class PipeService:
             assert more, "the service closed its output"
             self.pending += more
         line, self.pending = self.pending.split(b"\n", 1)
-        return json.loads(line)
+        return loads(line)
 
     def call(self, method: str, params: dict, id_=1) -> dict:
-        self.send(json.dumps({"jsonrpc": "2.0", "method": method, "params": params,
-                              "id": id_}).encode())
+        self.send(dumps({"jsonrpc": "2.0", "method": method, "params": params, "id": id_}))
         return self.receive()
 
     def close(self) -> tuple[int, str]:
@@ -97,12 +98,11 @@ class HttpService:
             connection.close()
 
     def call(self, method: str, params: dict, id_=1) -> dict:
-        body = json.dumps({"jsonrpc": "2.0", "method": method, "params": params,
-                           "id": id_}).encode()
+        body = dumps({"jsonrpc": "2.0", "method": method, "params": params, "id": id_})
         status, data = self.request("POST", "/rpc", body,
                                     {"Content-Type": "application/json"})
         assert status == 200, (status, data[:300])
-        return json.loads(data)
+        return loads(data)
 
     def close(self) -> tuple[int, str]:
         """Stop it as a parent does (SIGTERM); its exit code and what it wrote on stderr."""

@@ -400,3 +400,15 @@ def test_pipe_krl_configuration_as_olp_fix_reads_it(pipe):
     assert f"S {answers[0]['config'][0]} T {answers[0]['config'][1]}" == rows[0]["config_after"]
     _error(pipe.call("compensate_poses", {"calibration": "calib.json", "poses": [
         {**poses[0], "config": ["B010"]}]}), -32602, "[S] or [S, T]")
+
+
+def test_both_json_codecs_read_and_write_the_same(root, pipe):
+    from olp_compensate.service import codec
+
+    answer = pipe.call("compensate_poses", {"calibration": "calib.json", "poses": POSES})
+    assert codec.loads(codec.dumps(answer)) == codec.loads_std(codec.dumps_std(answer)) \
+        == answer
+    for bad in (b"{", b'{"a": NaN}', b"[Infinity]", b"\xff", b'{"a": 1} x'):
+        for loads in (codec.loads, codec.loads_std):
+            with pytest.raises(ValueError):
+                loads(bad)

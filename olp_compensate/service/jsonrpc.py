@@ -8,9 +8,9 @@ own (-32001 a path outside the served folders, -32002 a file or value the librar
 
 from __future__ import annotations
 
-import json
 import logging
 
+from . import codec
 from .calls import Service, ServiceError
 
 PARSE_ERROR = -32700
@@ -31,8 +31,8 @@ def error(code: int, message: str, id_=None) -> dict:
 
 
 def encode(response) -> bytes:
-    """A response (or batch) as one line of JSON, without NaN (refused by JSON)."""
-    return json.dumps(response, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    """A response (or batch) as one line of JSON (:mod:`.codec`)."""
+    return codec.dumps(response)
 
 
 def too_large(limit: int) -> bytes:
@@ -45,7 +45,7 @@ def too_large(limit: int) -> bytes:
 def handle(service: Service, data: bytes) -> bytes | None:
     """The answer to one JSON-RPC message ``data`` (None for notifications only)."""
     try:
-        message = json.loads(data.decode("utf-8"), parse_constant=_no_constant)
+        message = codec.loads(data)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         return encode(error(PARSE_ERROR, f"not valid JSON in UTF-8 ({_short(exc)})"))
     if isinstance(message, list):
@@ -100,10 +100,6 @@ def _one(service: Service, message) -> dict | None:
             answer = error(INTERNAL_ERROR, f"internal error ({type(exc).__name__}: "
                                            f"{_short(exc)}); please report it", id_)
     return None if notification else answer
-
-
-def _no_constant(name: str):
-    raise ValueError(f"{name} is not a JSON number")
 
 
 def _short(exc: Exception) -> str:
