@@ -80,7 +80,9 @@ def read_requests(poses, scale: float) -> PoseRequests:
 def _matrices(poses: list[dict], key: str, scale: float) -> np.ndarray:
     """The ``key`` matrices of every pose (identity where absent) as (m, 4, 4) m, checked
     all at once; a bad one is named by :func:`~.calls.matrix`."""
-    values = [p.get(key, IDENTITY) for p in poses]
+    values = [p.get(key) for p in poses]
+    if values.count(None) == len(values):          # none given: the identity for every pose
+        return np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()
     values = [IDENTITY if v is None else v for v in values]
     rows = list(chain.from_iterable(values)) if set(map(type, values)) == {list} else []
     plain = len(rows) == 4 * len(values) and set(map(type, rows)) == {list}
