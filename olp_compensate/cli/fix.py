@@ -90,7 +90,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--unused", choices=("skip", "tool0"), default="skip",
                    help="targets never moved to in this file: leave them ('skip', default) "
                         "or compensate them with tool0/wobj0 ('tool0')")
-    p.epilog = (f"A comment '! olp-robot: NAME' (RAPID) or '; olp-robot: NAME' (V+) in the "
+    p.epilog = (f"Also: 'olp-fix serve [--http HOST:PORT] [--root DIR]' (a compensation "
+                f"service, see 'olp-fix serve --help') and 'olp-fix --manifest plant.csv "
+                f"[--changed-only]' (a plant's robots in one run). "
+                f"A comment '! olp-robot: NAME' (RAPID) or '; olp-robot: NAME' (V+) in the "
                 f"first {ROBOT_COMMENT_SPAN // 1024} KB of the program names the robot it is "
                 f"for; a calibration of another robot is then refused. {THREADS_HELP}.")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary on the terminal")
@@ -308,8 +311,26 @@ def _summary(report, outputs, report_path: str | None, seconds: float,
     print(f"  wrote {written}" + (f" and {report_path}" if report_path else ""))
 
 
+def other_command(argv: list[str]):
+    """The entry point of ``olp-fix serve ...`` (:mod:`.fix_serve`) or ``olp-fix --manifest
+    ...`` (:mod:`.fix_manifest`) for these arguments, or None for a run on programs. A
+    program file named ``serve`` is still given as ``./serve``."""
+    if argv and argv[0] == "serve":
+        from .fix_serve import main as serve
+
+        return lambda: serve(argv[1:])
+    if any(a == "--manifest" or a.startswith("--manifest=") for a in argv):
+        from .fix_manifest import main as manifest
+
+        return lambda: manifest(argv)
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """olp-fix as a function (argv without the program name); returns the exit code."""
+    other = other_command(sys.argv[1:] if argv is None else argv)
+    if other is not None:
+        return other()
     args = build_parser().parse_args(argv)
     return run_guarded(lambda: run(args), args.verbose, "olp-fix")
 
@@ -319,6 +340,9 @@ def console() -> None:
     run's objects one by one (see :func:`~olp_compensate.cli.common.exit_now`). The
     cyclic garbage collector stays off: switched back on after a big run, its next pass
     would scan every object the run made (0.4 s for 100,000 targets) just before exit."""
+    other = other_command(sys.argv[1:])
+    if other is not None:          # a long-running service keeps its garbage collector
+        sys.exit(other())
     gc.disable()
     args = build_parser().parse_args()
     retained: list = []

@@ -380,6 +380,31 @@ def _choose_all(comp: Compensator, geometry: ArmGeometry, rules: DialectRules,
     return chosen, previous_of
 
 
+@dataclass(frozen=True)
+class _Asked:
+    """What the rule's predicates read of a pose that is no program's target."""
+
+    target: PoseTarget
+
+
+def decide_unchosen(comp: Compensator, rules: DialectRules, targets: list[PoseTarget],
+                    previous_of: list, desired: np.ndarray):
+    """The configuration rule on dialect poses for which no nominal branch has the written
+    configuration (``targets``: their configuration numbers; ``previous_of``: the
+    controller joints of the pose before each, or None; ``desired`` (k, 4, 4): the real
+    flange poses, base frame, m), as olp-fix decides them in a program:
+    ``(solution, failures)``; where ``solution.success`` the calibrated arm reaches the pose
+    on the asked configuration inside the ranges (its joints stand in for the nominal
+    ones), else ``failures[r]`` holds the status and note."""
+    geometry = _geometry(comp)
+    asked_of = [_Asked(t) for t in targets]
+    rows = np.arange(len(targets))
+    asked = _dialect_asked(rules, geometry, asked_of, previous_of)
+    found = _rule_alone(comp, desired, _on_rows(asked, rows))
+    words = _config_namer(rules, geometry, asked_of)
+    return found, explain_failures(comp, found, desired, None, _on_rows(words, rows))
+
+
 def _on_rows(function, rows: np.ndarray):
     """``function`` of rows of a sub-batch, called with the rows of the whole batch."""
     def on(sub, *args):
