@@ -128,17 +128,24 @@ def named_robot(texts: list[str]) -> tuple[str | None, str]:
     return name, ""
 
 
-def reach_score_text(program, comp: Compensator) -> tuple[int, int, int]:
-    """RAPID or V+/AS ``program`` (parsed) on ``comp``: (targets reached inside the axis
-    ranges, targets reached on another branch, targets scored)."""
+def scored_entries(program) -> tuple[object, list[int]]:
+    """(resolution, job) of a parsed RAPID or V+/AS program: the entries to score, the
+    Cartesian targets moved to with a known tool and work object (robot-independent)."""
     res = resolve(program)
     known = np.isfinite(res.base_T_flange[:, 0, 0])
     bad = res.bad_value if res.bad_value is not None else np.zeros(len(known), bool)
     job = [k for k, t in enumerate(res.entry_targets)
            if known[k] and not bad[k] and res.entry_uses[k] and not isinstance(t, JointTarget)]
+    return res, job
+
+
+def reach_score_text(res, job: list[int], vplus: bool, comp: Compensator
+                     ) -> tuple[int, int, int]:
+    """The ``job`` entries of a resolved RAPID or V+/AS program on ``comp``: (targets
+    reached inside the axis ranges, targets reached on another branch, targets scored)."""
     if not job:
         return 0, 0, 0
-    solved = solve_entries(comp, res, job, program.dialect == "vplus", retries=False)
+    solved = solve_entries(comp, res, job, vplus, retries=False)
     reasons = Counter(solved.reason)
     return sum(reasons[r] for r in COMPENSATED), reasons["branch_changed"], len(job)
 
@@ -186,13 +193,17 @@ def choose(dialect: str, unit: list[Path], default: str, robot_map: list[MapLine
     program, scores = None, {}
     if dialect in ("rapid", "vplus"):
         program = load(unit[0], dialect)
-        for name in order:
-            scores[name] = reach_score_text(program, comps(name))
+        res, job = scored_entries(program)
+        for name in order if job else ():
+            scores[name] = reach_score_text(res, job, dialect == "vplus", comps(name))
     else:
         for name in order:
             statuses = run_pose(comps(name))
-            if statuses is not None:
-                scores[name] = score_of_statuses(statuses)
+            if statuses is None:
+                continue
+            scores[name] = score_of_statuses(statuses)
+            if scores[name][2] == 0:
+                break                   # nothing to score: the same on every candidate
     choice = best_by_targets(scores, order, default)
     if note:
         choice = Choice(choice.robot, choice.how, f"{choice.detail}; {note}")
