@@ -429,7 +429,7 @@ def run_auto(dialect: str, units, default: str, robot_map, comps, tallies,
             continue
         on_default = statuses if choice.robot == default else run_unit(
             dialect, unit, comps(default), Tally(), False, program)
-        model = tallies.setdefault(choice.robot, corpus_robots.ModelTally())
+        model = tallies.setdefault((dialect, choice.robot), corpus_robots.ModelTally())
         model.programs[choice.how] += 1
         model.chosen.update(statuses)
         model.default.update(on_default or Counter())
@@ -460,7 +460,7 @@ def main() -> int:
         return 2
     units = units_in(args.folders)
     comps = corpus_robots.Compensators()
-    tallies: dict[str, corpus_robots.ModelTally] = {}
+    tallies: dict[tuple[str, str], corpus_robots.ModelTally] = {}
     for dialect in ORDER:
         if dialect not in units and not (dialect == "rapid" and not units):
             continue
@@ -477,7 +477,7 @@ def main() -> int:
         report(dialect, "each program's own robot" if auto else robot,
                len(units.get(dialect, [])), tally, seconds)
     if auto:
-        print("\n".join(corpus_robots.model_report(tallies)))
+        print("\n".join(corpus_robots.model_report(tallies, NAMES)))
     return 0
 
 

@@ -226,19 +226,23 @@ def share(statuses: Counter, status: str = "ok") -> str:
     return f"{100 * statuses[status] / total:.1f} %" if total else "-"
 
 
-def model_report(tallies: dict[str, ModelTally]) -> list[str]:
-    """Lines of the per-robot-model table (and a total line)."""
+def model_report(tallies: dict[tuple[str, str], ModelTally], names: dict[str, str]
+                 ) -> list[str]:
+    """Lines of the per-robot-model table: ``tallies`` by (dialect, robot), a total line
+    per dialect (``names``: dialect -> its name in the report)."""
     lines = ["== per robot model (--robot auto): target uses, share ok on the chosen robot "
              "and on the fixed default"]
-    total = ModelTally()
-    for name in sorted(tallies, key=lambda n: (-sum(tallies[n].chosen.values()), n)):
-        t = tallies[name]
-        total.programs.update(t.programs)
-        total.chosen.update(t.chosen)
-        total.default.update(t.default)
-        total.defaults |= t.defaults
-        lines.append(_model_line(name, t))
-    lines.append(_model_line("all", total))
+    for dialect in dict.fromkeys(d for d, _ in tallies):
+        mine = {robot: t for (d, robot), t in tallies.items() if d == dialect}
+        total = ModelTally()
+        for name in sorted(mine, key=lambda n: (-sum(mine[n].chosen.values()), n)):
+            t = mine[name]
+            total.programs.update(t.programs)
+            total.chosen.update(t.chosen)
+            total.default.update(t.default)
+            total.defaults |= t.defaults
+            lines.append(_model_line(name, t))
+        lines.append(_model_line(f"all {names.get(dialect, dialect)}", total))
     return lines
 
 
