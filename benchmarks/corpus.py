@@ -31,7 +31,17 @@ a UR10e. For each dialect present it prints:
   motion);
 - the time.
 
-Run: ``python benchmarks/corpus.py DIR [DIR ...] [--robot NAME] [-v]``. Exit code 0.
+With ``--robot auto`` each program runs on the robot it was written for: the one its text
+names, else the one ``--robot-map FILE`` gives its path (lines ``GLOB,ROBOT``), else the
+robot of the dialect's maker that reaches the most of its targets inside the axis ranges
+with the nominal model (the heuristic and its ties: :mod:`corpus_robots`). Each program's
+line says which robot it got and why (header / map / targets / default); a table per robot
+model closes the run: programs, target uses (report rows), the share ``ok`` and the other
+statuses, next to the share ``ok`` of the same programs on the dialect's fixed default
+robot (the one above; RAPID's IRB 2400), so that the gain of the right robot shows.
+
+Run: ``python benchmarks/corpus.py DIR [DIR ...] [--robot NAME|auto] [--robot-map FILE]
+[-v]``. Exit code 0 (2 for a bad ``--robot-map``).
 """
 
 from __future__ import annotations
@@ -43,14 +53,13 @@ import time
 from collections import Counter, defaultdict
 from pathlib import Path
 
-from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.files import EXTENSIONS as DIALECT_OF
 from olp_compensate.compensation.files import ProgramFiles, compensate_files
-from olp_compensate.compensation.pose import Compensator
 from olp_compensate.compensation.program import compensate_program
 from olp_compensate.errors import OlpError, ParseError
-from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import load
+
+import corpus_robots  # beside this script
 
 EXTENSIONS = {".mod", ".modx", ".prg", ".sys"}
 """RAPID's extensions (kept for callers of the RAPID-only version)."""
@@ -307,29 +316,86 @@ class Tally:
         self.failures: list[str] = []
 
 
+def run_text_unit(dialect: str, path: Path, comp, tally: Tally, verbose: bool,
+                  program=None) -> Counter | None:
+    """RAPID and V+/AS: one file alone, as before; its status counts (None: not parsed).
+    ``program``: the file already parsed, if it is."""
+    text = path.read_bytes().decode("latin-1")
+    places = literal_places(text) if dialect == "rapid" else vplus_places(text)
+    try:
+        program = program or load(path, dialect)
+        out, report = compensate_program(program, None, comp)
+    except OlpError as exc:
+        tally.failures.append(_failure(exc, path))
+        return None
+    tally.parsed += 1
+    tally.literals += len(places)
+    tally.identical += out == program.text
+    if out != program.text and verbose:
+        print(f"  differs: {path}")
+    statuses = Counter(r.status for r in report.rows)
+    tally.statuses.update(statuses)
+    reported = {(r.line, r.column) for r in report.rows}
+    missing = [p for p in places if p not in reported]
+    tally.accounted += len(places) - len(missing)
+    if missing and verbose:
+        print(f"  not accounted for: {path}: {missing[:5]}")
+    return statuses
+
+
+def run_pose_unit(dialect: str, paths: list[Path], comp, tally: Tally,
+                  verbose: bool) -> Counter | None:
+    """KRL, FANUC, VAL3, URScript: one program through ``compensate_files``; its status
+    counts (None: not parsed)."""
+    names = tuple(str(p) for p in paths)
+    originals = [p.read_bytes() for p in paths]
+    try:
+        result = compensate_files(ProgramFiles(dialect, tuple(paths), names), comp)
+    except OlpError as exc:
+        tally.failures.append(_failure(exc, paths[0]))
+        return None
+    tally.parsed += 1
+    same = all(new == old for new, old in zip(result.data, originals))
+    tally.identical += same
+    if not same and verbose:
+        print(f"  differs: {', '.join(names)}")
+    rows = result.report.rows
+    statuses = Counter(r.status for r in rows)
+    tally.statuses.update(statuses)
+    exact = {(r.file, r.line, r.column) for r in rows}
+    whole = {(r.file, r.line, r.column) for r in rows
+             if r.status in ("runtime", "unknown_instruction")}
+    missing = []
+    for name, data in zip(names, originals):
+        text = data.decode("latin-1")
+        if dialect == "urscript":
+            places = urscript_places(text)
+        else:
+            places = [(line, column, None) for line, column in PLACES[dialect](text)]
+        for line, column, motion in places:
+            tally.literals += 1
+            if (name, line, column) in exact or (
+                    motion is not None and (name, line, motion) in whole):
+                tally.accounted += 1
+            else:
+                missing.append(f"{name}:{line}:{column}")
+    if missing and verbose:
+        print(f"  not accounted for: {missing[:5]}")
+    return statuses
+
+
+def run_unit(dialect: str, unit: list[Path], comp, tally: Tally, verbose: bool,
+             program=None) -> Counter | None:
+    if dialect in ("rapid", "vplus"):
+        return run_text_unit(dialect, unit[0], comp, tally, verbose, program)
+    return run_pose_unit(dialect, unit, comp, tally, verbose)
+
+
 def run_text_dialect(dialect: str, units, comp, verbose: bool) -> Tally:
     """RAPID and V+/AS: each file alone, as before."""
     tally = Tally()
     for (path,) in units:
-        text = path.read_bytes().decode("latin-1")
-        places = literal_places(text) if dialect == "rapid" else vplus_places(text)
-        try:
-            program = load(path, dialect)
-            out, report = compensate_program(program, None, comp)
-        except OlpError as exc:
-            tally.failures.append(_failure(exc, path))
-            continue
-        tally.parsed += 1
-        tally.literals += len(places)
-        tally.identical += out == program.text
-        if out != program.text and verbose:
-            print(f"  differs: {path}")
-        tally.statuses.update(r.status for r in report.rows)
-        reported = {(r.line, r.column) for r in report.rows}
-        missing = [p for p in places if p not in reported]
-        tally.accounted += len(places) - len(missing)
-        if missing and verbose:
-            print(f"  not accounted for: {path}: {missing[:5]}")
+        run_text_unit(dialect, path, comp, tally, verbose)
     return tally
 
 
@@ -337,39 +403,37 @@ def run_pose_dialect(dialect: str, units, comp, verbose: bool) -> Tally:
     """KRL, FANUC, VAL3, URScript: each program through ``compensate_files``."""
     tally = Tally()
     for paths in units:
-        names = tuple(str(p) for p in paths)
-        originals = [p.read_bytes() for p in paths]
+        run_pose_unit(dialect, paths, comp, tally, verbose)
+    return tally
+
+
+# ---------------------------------------------------------------- --robot auto
+
+def run_auto(dialect: str, units, default: str, robot_map, comps, tallies,
+             verbose: bool) -> Tally:
+    """Each program on its own robot (printed with the reason), its statuses also on
+    ``default`` for the per-model table."""
+    tally = Tally()
+    for unit in units:
         try:
-            result = compensate_files(ProgramFiles(dialect, tuple(paths), names), comp)
+            choice, program = corpus_robots.choose(
+                dialect, unit, default, robot_map, comps,
+                lambda comp: run_pose_unit(dialect, unit, comp, Tally(), False))
         except OlpError as exc:
-            tally.failures.append(_failure(exc, paths[0]))
+            tally.failures.append(_failure(exc, unit[0]))
             continue
-        tally.parsed += 1
-        same = all(new == old for new, old in zip(result.data, originals))
-        tally.identical += same
-        if not same and verbose:
-            print(f"  differs: {', '.join(names)}")
-        rows = result.report.rows
-        tally.statuses.update(r.status for r in rows)
-        exact = {(r.file, r.line, r.column) for r in rows}
-        whole = {(r.file, r.line, r.column) for r in rows
-                 if r.status in ("runtime", "unknown_instruction")}
-        missing = []
-        for name, data in zip(names, originals):
-            text = data.decode("latin-1")
-            if dialect == "urscript":
-                places = urscript_places(text)
-            else:
-                places = [(line, column, None) for line, column in PLACES[dialect](text)]
-            for line, column, motion in places:
-                tally.literals += 1
-                if (name, line, column) in exact or (
-                        motion is not None and (name, line, motion) in whole):
-                    tally.accounted += 1
-                else:
-                    missing.append(f"{name}:{line}:{column}")
-        if missing and verbose:
-            print(f"  not accounted for: {missing[:5]}")
+        print(f"  {unit[0]}: {choice.robot} ({choice.how}"
+              f"{': ' + choice.detail if choice.detail else ''})")
+        statuses = run_unit(dialect, unit, comps(choice.robot), tally, verbose, program)
+        if statuses is None:
+            continue
+        on_default = statuses if choice.robot == default else run_unit(
+            dialect, unit, comps(default), Tally(), False, program)
+        model = tallies.setdefault((dialect, choice.robot), corpus_robots.ModelTally())
+        model.programs[choice.how] += 1
+        model.chosen.update(statuses)
+        model.default.update(on_default or Counter())
+        model.defaults.add(default)
     return tally
 
 
@@ -377,23 +441,43 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="+")
     parser.add_argument("--robot", default="abb_irb2400",
-                        help="robot of the RAPID and V+/AS programs (default abb_irb2400)")
+                        help="robot of the RAPID and V+/AS programs (default abb_irb2400), "
+                             "or 'auto': each program on the robot it was written for")
+    parser.add_argument("--robot-map", metavar="FILE",
+                        help="with --robot auto: lines GLOB,ROBOT naming the robot of the "
+                             "programs whose path matches GLOB")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="list the files that differ and the literals not accounted for")
     args = parser.parse_args()
+    auto = args.robot == "auto"
+    try:
+        robot_map = corpus_robots.read_robot_map(args.robot_map) if args.robot_map else []
+    except OlpError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.robot_map and not auto:
+        print("error: --robot-map needs --robot auto", file=sys.stderr)
+        return 2
     units = units_in(args.folders)
-    comps: dict[str, Compensator] = {}
+    comps = corpus_robots.Compensators()
+    tallies: dict[tuple[str, str], corpus_robots.ModelTally] = {}
     for dialect in ORDER:
         if dialect not in units and not (dialect == "rapid" and not units):
             continue
-        robot = MAKER_ROBOT.get(dialect, args.robot)
-        if robot not in comps:
-            comps[robot] = Compensator(nominal_calibration(load_robot(robot)))
+        robot = MAKER_ROBOT.get(dialect, "abb_irb2400" if auto else args.robot)
         started = time.perf_counter()
-        run = run_text_dialect if dialect in ("rapid", "vplus") else run_pose_dialect
-        tally = run(dialect, units.get(dialect, []), comps[robot], args.verbose)
+        if auto:
+            print(f"== {NAMES[dialect]}: the robot of each program (fixed default {robot})")
+            tally = run_auto(dialect, units.get(dialect, []), robot, robot_map, comps,
+                             tallies, args.verbose)
+        else:
+            run = run_text_dialect if dialect in ("rapid", "vplus") else run_pose_dialect
+            tally = run(dialect, units.get(dialect, []), comps(robot), args.verbose)
         seconds = time.perf_counter() - started
-        report(dialect, robot, len(units.get(dialect, [])), tally, seconds)
+        report(dialect, "each program's own robot" if auto else robot,
+               len(units.get(dialect, [])), tally, seconds)
+    if auto:
+        print("\n".join(corpus_robots.model_report(tallies, NAMES)))
     return 0
 
 
