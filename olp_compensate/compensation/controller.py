@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..calibration.calibration import Calibration
-from ..calibration.controller_fit import controller_chain
 from ..calibration.effects import Conditions
 from ..errors import DataError
 from ..kinematics.fixed_chain import FixedChain
@@ -59,6 +58,10 @@ class Load:
 
 def controller_model_chain(controller: Calibration, calibration: Calibration) -> FixedChain:
     """The chain of the controller's model, checked to be of the calibration's robot."""
+    # imported when used: the fit's module brings scipy.linalg (0.24 s, 25 MB), which
+    # olp-fix without --controller never needs
+    from ..calibration.controller_fit import controller_chain
+
     if controller.robot.fingerprint != calibration.robot.fingerprint:
         raise DataError(f"controller model: a calibration of {controller.robot.name}, but the "
                         f"arm is a {calibration.robot.name}; the controller's model must be of "
