@@ -41,3 +41,22 @@ def test_the_same_robot_twice_is_one_name():
 def test_two_robots_are_refused_with_their_lines():
     with pytest.raises(DataError, match=r"'ur5e' \(line 1\), 'ur10e' \(line 3\)"):
         robot_named_in("# olp-robot: ur5e\nmovej()\n# olp-robot: ur10e\n")
+
+
+def test_olp_fix_refuses_a_calibration_of_another_robot_than_the_header_names(tmp_path, capsys):
+    """A KRL program whose &PARAM names an IRB 2400, compensated with a KR 16-2 calibration:
+    exit 1, one line naming the file and the header's line; a FANUC /ATTR likewise."""
+    from olp_compensate.calibration.calibration import nominal_calibration
+    from olp_compensate.cli.fix import main as fix
+    from olp_compensate.io.calibration_file import write_calibration
+    from olp_compensate.kinematics.robot import load_robot
+
+    model = tmp_path / "kr16.json"
+    write_calibration(model, nominal_calibration(load_robot("kuka_kr16_2")))
+    src = tmp_path / "cell.src"
+    src.write_text("&ACCESS RVP\n&PARAM OLP_ROBOT = abb_irb2400\nDEF cell( )\n"
+                   "  PTP {X 900, Y 0, Z 900, A 0, B 90, C 0}\nEND\n")
+    assert fix([str(src), "--model", str(model), "-o", str(tmp_path / "out.src")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{src}:2:" in err[0] and "abb_irb2400" in err[0], err
+    assert not (tmp_path / "out.src").exists()

@@ -35,12 +35,8 @@ EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid
               ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
               ".script": "urscript", ".urscript": "urscript"}
 """As :data:`olp_compensate.compensation.files.EXTENSIONS` (a test checks)."""
-ROBOT_COMMENT = re.compile(rb"^[ \t]*[!;][ \t]*olp-robot[ \t]*:[ \t]*([A-Za-z0-9_.+-]+)",
-                           re.MULTILINE | re.IGNORECASE)
-"""The comment that says which robot a program is for: ``! olp-robot: abb_irb2400`` in
-RAPID, ``; olp-robot: unimation_puma560`` in V+ (the robot's name as calib.json has it)."""
 ROBOT_COMMENT_SPAN = 65536
-"""Only the program's first bytes are searched for :data:`ROBOT_COMMENT` (its header)."""
+"""Only the program's first bytes are searched for the robot it names (its header)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -109,16 +105,20 @@ def default_output(path: Path) -> Path:
 
 
 def program_robot(path: Path) -> tuple[str, int] | None:
-    """(robot name, 1-based line) of the program's ``olp-robot`` comment, or None."""
+    """(robot name, 1-based line) the program's header names (an ``olp-robot:`` comment of
+    any dialect, KRL ``&PARAM OLP_ROBOT``, FANUC ``/ATTR`` comment:
+    :func:`~olp_compensate.kinematics.robot_names.robot_named_at`), or None."""
+    from ..kinematics.robot_names import robot_named_at
+
     try:
         with open(path, "rb") as stream:
-            head = stream.read(ROBOT_COMMENT_SPAN)
+            head = stream.read(ROBOT_COMMENT_SPAN).decode("latin-1")
     except OSError:
         return None   # the parser says why it cannot read the file
-    found = ROBOT_COMMENT.search(head)
-    if found is None:
-        return None
-    return found.group(1).decode("ascii"), head.count(b"\n", 0, found.start()) + 1
+    try:
+        return robot_named_at(head)
+    except DataError as exc:
+        raise DataError(f"{path}: {exc}") from None
 
 
 def check_robot(path: Path, calibration, model: str) -> None:

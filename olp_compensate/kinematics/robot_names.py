@@ -33,6 +33,13 @@ def robot_named_in(text: str) -> str | None:
     Raises :class:`DataError` when the text names two different robots (line numbers in the
     message, counted from 1).
     """
+    named = robot_named_at(text)
+    return None if named is None else named[0]
+
+
+def robot_named_at(text: str) -> tuple[str, int] | None:
+    """(robot name, 1-based line) the program's text declares, or None; as
+    :func:`robot_named_in`."""
     found: dict[str, int] = {}
     for pattern in _PATTERNS:
         for match in pattern.finditer(text):
@@ -41,4 +48,4 @@ def robot_named_in(text: str) -> str | None:
         where = ", ".join(f"'{name}' (line {line})" for name, line in
                           sorted(found.items(), key=lambda item: item[1]))
         raise DataError(f"the program names more than one robot: {where}")
-    return next(iter(found), None)
+    return next(iter(found.items()), None)
