@@ -36,7 +36,8 @@ from .pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, b
                             is_finite_number, line_column, line_starts_of)
 from .krl_frames import FIELD as _FIELD
 from .krl_frames import POSE_FIELDS, ToolBase
-from .krl_structs import frame_assignments, frame_fields, is_frame_literal, struc_fields
+from .krl_structs import (closing_brace, frame_assignments, frame_fields, is_frame_literal,
+                          struc_fields)
 from .targets import Number
 from .text_checks import check_closed, check_not_non_finite, check_number_end, check_text
 
@@ -72,16 +73,9 @@ def strip_comments(text: str) -> str:
 
 def _aggregate_end(text: str, start: int, file: str, starts: list[int]) -> int:
     """Offset just past the ``}`` closing the aggregate whose ``{`` is at ``start``."""
-    depth = 0
-    for k in range(start, len(text)):
-        if text[k] == "{":
-            depth += 1
-        elif text[k] == "}":
-            depth -= 1
-            if depth == 0:
-                return k + 1
-        elif text[k] in "\r\n" and depth:
-            continue
+    end = closing_brace(text, start, len(text))
+    if end is not None:
+        return end
     line, column = line_column(text, start, starts)
     raise ParseError("aggregate '{' is never closed", file, line, column)
 

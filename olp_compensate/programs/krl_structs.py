@@ -69,7 +69,9 @@ def frame_fields(clean: str, lo: int, hi: int, fields: dict[str, str],
     return out
 
 
-def _close(text: str, start: int, hi: int) -> int:
+def closing_brace(text: str, start: int, hi: int) -> int | None:
+    """Offset just past the ``}`` closing the aggregate whose ``{`` is at ``start``,
+    searched before ``hi``; None when it is not closed there."""
     depth = 0
     for k in range(start, hi):
         if text[k] == "{":
@@ -78,7 +80,12 @@ def _close(text: str, start: int, hi: int) -> int:
             depth -= 1
             if depth == 0:
                 return k + 1
-    return hi
+    return None
+
+
+def _close(text: str, start: int, hi: int) -> int:
+    end = closing_brace(text, start, hi)
+    return hi if end is None else end
 
 
 def frame_pose(values) -> np.ndarray:
