@@ -182,15 +182,19 @@ class ReportSpool:
     per unit in a temporary folder) and joined in the units' input order at the end, so a
     backup's report costs no more memory than its largest program's."""
 
-    def __init__(self):
+    def __init__(self, n_joints: int):
         import tempfile
 
         self._folder = tempfile.TemporaryDirectory(prefix="olp-fix-report-")
+        self.n_joints = n_joints
         self._header: str | None = None
         self._indices: list[int] = []
 
     def add(self, index: int, report) -> None:
-        chunks = report.csv_chunks()
+        """Spool ``report``'s rows, in the run's joint columns (the calibration's axes)."""
+        import dataclasses
+
+        chunks = dataclasses.replace(report, n_joints=self.n_joints).csv_chunks()
         header = next(chunks)
         self._header = self._header or header
         with open(Path(self._folder.name) / f"{index}.csv", "w", encoding="utf-8",
@@ -198,12 +202,12 @@ class ReportSpool:
             f.writelines(chunks)
         self._indices.append(index)
 
-    def pieces(self, n_joints: int):
+    def pieces(self):
         """The report's bytes in pieces: the header, then each unit's rows in input order."""
         from ..compensation.report import CompensationReport
 
         header = self._header or next(CompensationReport(file="", rows=(),
-                                                         n_joints=n_joints).csv_chunks())
+                                                         n_joints=self.n_joints).csv_chunks())
         yield header.encode("utf-8")
         for index in sorted(self._indices):
             with open(Path(self._folder.name) / f"{index}.csv", "rb") as f:
@@ -238,7 +242,7 @@ def run_batch(args, units) -> int:
     if any(u.dialect == "urscript" for u in units):
         warn_ur("urscript", read_controller(args, calibration))
     summaries: list[UnitSummary | None] = [None] * len(units)
-    spool = ReportSpool()
+    spool = ReportSpool(calibration.robot.n_joints)
     try:
         for outcome in _outcomes(args, units):
             if outcome.error is None:
@@ -253,7 +257,7 @@ def run_batch(args, units) -> int:
             summaries[outcome.index] = _summary_of(outcome)
             del outcome                              # its bytes and rows are done with
         if args.report:
-            write_files_atomic([(Path(args.report), spool.pieces(calibration.robot.n_joints))])
+            write_files_atomic([(Path(args.report), spool.pieces())])
     finally:
         spool.close()
     failed = [s for s in summaries if s.error is not None]
