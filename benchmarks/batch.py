@@ -57,7 +57,8 @@ import numpy as np
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
-from olp_compensate.compensation.dialect_rules import ArmGeometry, krl_status, krl_turn
+from olp_compensate.compensation.dialect_rules import ArmGeometry
+from olp_compensate.programs.krl.rules import krl_status, krl_turn
 from olp_compensate.compensation.pose import Compensator
 from olp_compensate.io.calibration_file import write_calibration
 from olp_compensate.kinematics.conventions import MM, euler_zyx_from_matrix, euler_zyz_from_matrix
@@ -246,10 +247,10 @@ def where_time_goes(tree: Path, model: Path, config: Path | None, seconds_j1: fl
     """In-process: the set-up of a worker, the programs' work, the pickling of results."""
     from olp_compensate.cli import fix_batch
     from olp_compensate.cli.common import no_gc
-    from olp_compensate.cli.fix import EXTENSIONS
+    from olp_compensate.programs.languages import extensions
     from olp_compensate.cli.fix_inputs import plan_units
 
-    units = plan_units([str(tree)], None, "/nonexistent-out", EXTENSIONS)
+    units = plan_units([str(tree)], None, "/nonexistent-out", extensions())
     # the command's options; any other (added since) at its default, None
     options = defaultdict(lambda: None, emit="pose", unused="skip",
                           config=None if config is None else str(config))

@@ -321,8 +321,8 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
     garbage collector off as in the command)."""
     import gc
 
-    from olp_compensate.compensation import module_columns as mc
-    from olp_compensate.programs.rapid import parse_rapid_columns
+    from olp_compensate.programs.rapid import module_columns as mc
+    from olp_compensate.programs.rapid.reader import parse_rapid_columns
 
     gc.disable()
     try:

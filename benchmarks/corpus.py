@@ -2,7 +2,7 @@
 whether every target literal is accounted for, per dialect.
 
 Files under the folders given are sorted by dialect from their extension, as the library
-does (:data:`olp_compensate.compensation.files.EXTENSIONS`, any case): RAPID (.mod .modx
+does (:func:`olp_compensate.programs.languages.extensions`, any case): RAPID (.mod .modx
 .prg .sys), V+/AS (.pg .v2 .lc .loc .as), KUKA KRL (.src and .dat; a .src and the .dat of
 the same stem in one folder are one program, counted once), FANUC TP (.ls), Stäubli VAL3
 (.dtx), URScript (.script). Hidden files and names starting with ``$`` (KRL system data
@@ -53,7 +53,7 @@ import time
 from collections import Counter, defaultdict
 from pathlib import Path
 
-from olp_compensate.compensation.files import EXTENSIONS as DIALECT_OF
+from olp_compensate.programs.languages import extensions
 from olp_compensate.compensation.files import ProgramFiles, compensate_files
 from olp_compensate.compensation.program import compensate_program
 from olp_compensate.errors import OlpError, ParseError
@@ -280,12 +280,12 @@ def units_in(folders: list[str]) -> dict[str, list[list[Path]]]:
     for folder in folders:
         root = Path(folder)
         paths = [root] if root.is_file() else root.rglob("*")
-        found += [p for p in paths if p.is_file() and p.suffix.lower() in DIALECT_OF
+        found += [p for p in paths if p.is_file() and p.suffix.lower() in extensions()
                   and not p.name.startswith((".", "$"))]
     units: dict[str, list[list[Path]]] = defaultdict(list)
     krl: dict[tuple[Path, str], list[Path]] = defaultdict(list)
     for path in sorted(set(found)):
-        dialect = DIALECT_OF[path.suffix.lower()]
+        dialect = extensions()[path.suffix.lower()]
         if dialect == "krl":
             krl[(path.parent, path.stem.lower())].append(path)
         else:

@@ -93,7 +93,8 @@ def test_one_big_module_on_two_processes_writes_what_one_process_writes(
         calibrations, tmp_path, monkeypatch):
     """-j 2 on one module shares its chunks of targets with a forked process (chunks of
     8 targets and no size floor here); the program and report are -j 1's byte for byte."""
-    from olp_compensate.compensation import forked, module_columns
+    from olp_compensate.compensation import forked
+    from olp_compensate.programs.rapid import module_columns
 
     _, _, identified, _ = calibrations
     rng = np.random.default_rng(3)

@@ -268,10 +268,10 @@ def test_a_folder_report_is_each_programs_report_in_input_order(backup, tmp_path
     assert main([str(tree), "--model", str(model), "-o", str(tmp_path / "out"), "--report",
                  str(tmp_path / "all.csv"), "-j", "2", "-q"]) == 2
     from olp_compensate.cli.fix_inputs import plan_units
-    from olp_compensate.compensation.files import EXTENSIONS
+    from olp_compensate.programs.languages import extensions
 
     alone = []
-    for k, unit in enumerate(plan_units([str(tree)], None, None, EXTENSIONS)):
+    for k, unit in enumerate(plan_units([str(tree)], None, None, extensions())):
         program = unit.paths[0]     # a KRL .src brings its .dat
         main([str(program), "--model", str(model), "-o", str(tmp_path / f"{k}{program.suffix}"),
               "--report", str(tmp_path / f"{k}.csv"), "-q"])

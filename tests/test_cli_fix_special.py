@@ -173,7 +173,7 @@ def test_a_pool_worker_dies_with_its_parent():
 def test_krl_names_follow_the_output_files():
     """DEF/DEFDAT renamed after the output file when it differs, every other byte kept; a
     local DEF and the same word elsewhere untouched; a name KSS refuses is said."""
-    from olp_compensate.compensation.files import match_krl_names
+    from olp_compensate.programs.krl.names import match_krl_names
 
     src = (b"&ACCESS RVP\r\nGLOBAL DEF Cell( )\r\n  Cell_2()\r\nEND\r\n"
            b"DEF Cell_2( )\r\nEND\r\n")

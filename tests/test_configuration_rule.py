@@ -25,20 +25,21 @@ import pytest
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
-from olp_compensate.compensation.dialect_rules import KRL, ArmGeometry, krl_status, krl_turn
+from olp_compensate.compensation.dialect_rules import ArmGeometry
+from olp_compensate.programs.krl.rules import KRL, krl_status, krl_turn
 from olp_compensate.compensation.ik import branch_of, closed_form_inverse
 from olp_compensate.compensation.pose import Compensator
 from olp_compensate.compensation.program import compensate_program
-from olp_compensate.compensation.rules_fanuc import FANUC_TP, fanuc_letters, turn_number
-from olp_compensate.compensation.rules_val3 import VAL3, val3_config
+from olp_compensate.programs.fanuc.rules import FANUC_TP, fanuc_letters, turn_number
+from olp_compensate.programs.val3.rules import VAL3, val3_config
 from olp_compensate.kinematics.conventions import (MM, euler_xyz_from_matrix,
                                                    euler_zyx_from_matrix,
                                                    quat_wxyz_from_matrix)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
-from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
-from olp_compensate.programs.krl import parse_krl
-from olp_compensate.programs.val3 import parse_val3
+from olp_compensate.programs.fanuc.reader import parse_fanuc_tp
+from olp_compensate.programs.krl.reader import parse_krl
+from olp_compensate.programs.val3.reader import parse_val3
 from virtual_world import identified_world, nominal_arm
 
 import test_programs_fanuc as fanuc_case
@@ -402,8 +403,8 @@ def test_urscript_targets_5_m_away_are_unreachable_and_the_rest_ok():
     """URScript writes no configuration: a pose 5 m away is 'unreachable' (never
     'branch_changed'), its neighbours in the script stay 'ok'; joints in notes wrapped."""
     import test_programs_urscript as ur_case
-    from olp_compensate.compensation.rules_urscript import URSCRIPT
-    from olp_compensate.programs.urscript import parse_urscript
+    from olp_compensate.programs.urscript.rules import URSCRIPT
+    from olp_compensate.programs.urscript.reader import parse_urscript
 
     q = ur_case._walk(3, 2)
     poses = ur_case._targets_at(q)

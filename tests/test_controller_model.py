@@ -31,7 +31,7 @@ from olp_compensate.kinematics.dh_table import UR_NOMINAL, DHTable, mdh_rows
 from olp_compensate.kinematics.model import build_model, fixed_chain, forward
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.compensation.ik import refine
-from olp_compensate.programs.urscript import parse_urscript
+from olp_compensate.programs.urscript.reader import parse_urscript
 
 NAME = "ur10e"
 ROBOT = load_robot(NAME)

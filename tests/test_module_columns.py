@@ -14,7 +14,7 @@ import pytest
 from test_compensate import (TOLERANCE_M, World, _frames, _world, rapid_module, read_rapid_targets,
                              written_targets)
 
-from olp_compensate.compensation.module_columns import _plan, compensate_rapid_module
+from olp_compensate.programs.rapid.module_columns import _plan, compensate_rapid_module
 from olp_compensate.compensation.pose import Compensator
 from olp_compensate.compensation.report import ReportRows
 from olp_compensate.compensation.task import compensate_task
@@ -22,7 +22,7 @@ from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.conventions import (MM, invert_pose, quat_wxyz_from_matrix,
                                                    rotation_angle_between)
 from olp_compensate.programs import loads
-from olp_compensate.programs.rapid import parse_rapid_columns
+from olp_compensate.programs.rapid.reader import parse_rapid_columns
 
 HERE = Path(__file__).parent
 MODULES = sorted([*HERE.glob("programs/rapid_*/input.*"), *HERE.glob("tasks/*/*.mod"),
@@ -135,7 +135,7 @@ def test_transfer_in_columns_is_the_object_paths(comp):
 def _left_in_columns(text: str) -> list[str]:
     """The table targets that stay in columns once the rows whose meaning is not plain
     went to the object path (the module's plan made on what is left)."""
-    from olp_compensate.compensation.module_columns import _plain_parts
+    from olp_compensate.programs.rapid.module_columns import _plain_parts
 
     ((program, columns),) = _plain_parts([parse_rapid_columns(text)])
     assert _plan(program, columns) is not None
@@ -215,7 +215,8 @@ def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatc
     in a forked process: the text, CSV, counts and warnings are one process's exactly,
     with targets out of reach, bad and unused rows in both halves (their retries gathered
     across the processes)."""
-    from olp_compensate.compensation import forked, module_columns
+    from olp_compensate.compensation import forked
+    from olp_compensate.programs.rapid import module_columns
 
     world = _world("abb_irb2400")
     program_tool, wobj, tool_rot, _ = _frames(world, 3)
@@ -250,7 +251,8 @@ def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatc
 def test_without_a_process_to_fork_everything_runs_in_this_one(monkeypatch):
     """A fork or temporary file refused (a process limit, a full disk) is no error: the
     module is compensated in this process, with the same result."""
-    from olp_compensate.compensation import forked, module_columns
+    from olp_compensate.compensation import forked
+    from olp_compensate.programs.rapid import module_columns
 
     world = _world("abb_irb2400")
     program_tool, wobj, tool_rot, _ = _frames(world, 3)
@@ -300,7 +302,7 @@ ENDMODULE
 
 
 def _task_both(texts, names, comp, unused="skip"):
-    from olp_compensate.compensation.module_columns import compensate_rapid_task
+    from olp_compensate.programs.rapid.module_columns import compensate_rapid_task
 
     expected, report = compensate_task([loads(t, "rapid", n) for t, n in zip(texts, names)],
                                        comp, unused=unused)
@@ -311,7 +313,7 @@ def _task_both(texts, names, comp, unused="skip"):
 
 
 def _task_plans(texts, names):
-    from olp_compensate.compensation.module_columns import _task_plans as plans
+    from olp_compensate.programs.rapid.module_columns import _task_plans as plans
 
     parsed = [parse_rapid_columns(t, n) for t, n in zip(texts, names)]
     return [p is not None for p in plans([p for p, _ in parsed], [c for _, c in parsed])]

@@ -23,7 +23,9 @@ from olp_compensate.kinematics.conventions import (invert_pose, matrix_from_quat
 from olp_compensate.kinematics.model import fixed_chain
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
+from olp_compensate.programs.krl.payload import loads_with as krl_loads_with
 from olp_compensate.programs.payloads import program_loads
+from olp_compensate.programs.rapid.payload import loads_of as rapid_loads_of
 
 ROBOT = load_robot("abb_irb6400")
 GUN_KG = 60.0
@@ -46,7 +48,7 @@ def test_krl_load_literal_and_load_data_from_config():
     src = ("DEF cell()\n$LOAD={M 60.0,CM {X 0.0,Y 0.0,Z 250.0,A 0,B 0,C 0},J {X 1,Y 1,Z 1}}\n"
            "$LOAD=LOAD_DATA[2]\n$LOAD=my_load\nEND\n")
     config = "LOAD_DATA[2]={M 12.5,CM {X 10.0,Y -5.0,Z 80.0,A 0,B 0,C 0},J {X 0,Y 0,Z 0}}\n"
-    found = program_loads("krl", {"CELL.src": src}, frames_text=config)
+    found = krl_loads_with({"CELL.src": src}, config)
     assert [(x.kg, x.cog_mm) for x in found.loads] == [(60.0, (0.0, 0.0, 250.0)),
                                                          (12.5, (10.0, -5.0, 80.0))]
     assert found.runtime == ("CELL.src:4: $LOAD=my_load",)
@@ -80,7 +82,8 @@ def test_rapid_loads_of_the_tools_moved_with_and_gripload():
     text = rapid_module([np.eye(4)], [(0, 0, 0, 0)], (0, 0, 300), (0, 0, 250),
                         extra="    GripLoad piece;")
     program = loads(text, "rapid", "cell.mod")
-    found = program_loads("rapid", {"cell.mod": text}, [program])
+    found = program_loads("rapid", {"cell.mod": text})
+    assert found == rapid_loads_of([program])
     assert [(x.kg, x.cog_mm, x.source) for x in found.loads] == [
         (60.0, (0.0, 0.0, 250.0), "tooldata gun")]      # grip is declared, never moved with
     assert found.runtime == ("cell.mod:8: GripLoad piece",)
@@ -253,5 +256,5 @@ def test_rapid_task_tool_declared_in_another_module():
             "[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()\n    MoveL p1, v100, fine, gun;\n"
             "  ENDPROC\nENDMODULE\n")
     programs = [loads(data, "rapid", "CalibData.mod"), loads(main, "rapid", "Main.mod")]
-    found = program_loads("rapid", {}, programs)
+    found = rapid_loads_of(programs)
     assert [(x.kg, x.source) for x in found.loads] == [(60.0, "tooldata gun")]

@@ -15,12 +15,12 @@ from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
 from olp_compensate.compensation.ik import closed_form_inverse
-from olp_compensate.compensation.rules_fanuc import (FANUC_TP, fanuc_letters, fanuc_rules,
+from olp_compensate.programs.fanuc.rules import (FANUC_TP, fanuc_letters, fanuc_rules,
                                                      turn_number)
 from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert_pose,
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
+from olp_compensate.programs.fanuc.reader import parse_fanuc_tp
 from virtual_world import assert_the_gap_closed, identified_world, misses_mm, nominal_arm
 
 ROBOT = load_robot("fanuc_r2000ic_165f")
@@ -422,7 +422,7 @@ $MNUTOOL  Storage: CMOS  Access: RW  : ARRAY[1,3] OF POSITION
 
 
 def test_sysframe_va_reader_reads_group_1_frames_at_their_numbers():
-    from olp_compensate.programs.fanuc_frames import read_system_frames
+    from olp_compensate.programs.fanuc.frames import read_system_frames
 
     for newline in ("\n", "\r\n"):
         frames = read_system_frames(READER_TEXT.replace("\n", newline), "SYSFRAME.VA")
@@ -442,7 +442,7 @@ def test_sysframe_va_reader_reads_group_1_frames_at_their_numbers():
 
 
 def test_sysframe_va_of_one_variable_only():
-    from olp_compensate.programs.fanuc_frames import read_system_frames
+    from olp_compensate.programs.fanuc.frames import read_system_frames
 
     text = READER_TEXT.split("$MNUTOOL  Storage")[0]
     frames = read_system_frames(text, "SYSTEM.VA")
@@ -464,7 +464,7 @@ def test_sysframe_va_of_one_variable_only():
 ])
 def test_a_sysframe_entry_that_cannot_be_read_is_a_parse_error(old, new, line, column, words):
     from olp_compensate.errors import ParseError
-    from olp_compensate.programs.fanuc_frames import read_system_frames
+    from olp_compensate.programs.fanuc.frames import read_system_frames
 
     assert old in READER_TEXT
     with pytest.raises(ParseError) as info:
@@ -476,7 +476,7 @@ def test_a_sysframe_entry_that_cannot_be_read_is_a_parse_error(old, new, line, c
 
 def test_a_file_without_frames_is_a_parse_error():
     from olp_compensate.errors import ParseError
-    from olp_compensate.programs.fanuc_frames import read_system_frames
+    from olp_compensate.programs.fanuc.frames import read_system_frames
 
     with pytest.raises(ParseError, match=r"neither \$MNUFRAME nor \$MNUTOOL") as info:
         read_system_frames("[*SYSTEM*]$MNUFRAMENUM  Storage: SHADOW  Access: RW  : ARRAY[1] "

@@ -13,13 +13,13 @@ import pytest
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.files import ProgramFiles, compensate_files
-from olp_compensate.compensation.rules_fanuc import FANUC_TP, fanuc_letters, turn_number
+from olp_compensate.programs.fanuc.rules import FANUC_TP, fanuc_letters, turn_number
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.conventions import invert_pose
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.backup_files import BackupFiles, parse_turn_axes
-from olp_compensate.programs.fanuc_backup import read_position_registers, read_turn_axes
-from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
+from olp_compensate.programs.fanuc.backup import read_position_registers, read_turn_axes
+from olp_compensate.programs.fanuc.reader import parse_fanuc_tp
 from test_programs_fanuc import (ROBOT, TOOL_MM, FanucController, _f, _program_joints, _wpr,
                                  ls_program)
 from virtual_world import assert_the_gap_closed, identified_world, misses_mm

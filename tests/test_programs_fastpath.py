@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 from olp_compensate.errors import ParseError
-from olp_compensate.programs import loads, rapid, rapid_fast
+from olp_compensate.programs import loads
+from olp_compensate.programs.rapid import fast as rapid_fast
+from olp_compensate.programs.rapid import reader as rapid
 from olp_compensate.programs.grammar import grammar_text
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -55,7 +55,7 @@ def parse_pose_case(paths: list[Path], dialect: str):
     them: latin-1, every byte kept)."""
     texts = {p.name: p.read_bytes().decode("latin-1") for p in paths}
     if dialect == "krl":
-        from olp_compensate.programs.krl import parse_krl
+        from olp_compensate.programs.krl.reader import parse_krl
 
         by_ext = {p.suffix.lower(): p.name for p in paths}
         src, dat = by_ext.get(".src"), by_ext.get(".dat")
@@ -63,14 +63,14 @@ def parse_pose_case(paths: list[Path], dialect: str):
                          src or "<src>", dat or "<dat>")
     (name, text), = texts.items()
     if dialect == "fanuc":
-        from olp_compensate.programs.fanuc_tp import parse_fanuc_tp
+        from olp_compensate.programs.fanuc.reader import parse_fanuc_tp
 
         return parse_fanuc_tp(text, name)
     if dialect == "val3":
-        from olp_compensate.programs.val3 import parse_val3
+        from olp_compensate.programs.val3.reader import parse_val3
 
         return parse_val3({name: text})
-    from olp_compensate.programs.urscript import parse_urscript
+    from olp_compensate.programs.urscript.reader import parse_urscript
 
     return parse_urscript(text, name)
 

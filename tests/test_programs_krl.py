@@ -12,12 +12,13 @@ import pytest
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
-from olp_compensate.compensation.dialect_rules import KRL, ArmGeometry, krl_status, krl_turn
+from olp_compensate.compensation.dialect_rules import ArmGeometry
+from olp_compensate.programs.krl.rules import KRL, krl_status, krl_turn
 from olp_compensate.compensation.ik import closed_form_inverse
 from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert_pose,
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.programs.krl import parse_krl, status_text, status_value
+from olp_compensate.programs.krl.reader import parse_krl, status_text, status_value
 from olp_compensate.programs.targets import Number
 from virtual_world import assert_the_gap_closed, identified_world, misses_mm, nominal_arm
 

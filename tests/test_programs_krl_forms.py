@@ -12,9 +12,9 @@ import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.dialect_program import compensate_pose_program
-from olp_compensate.compensation.dialect_rules import KRL
+from olp_compensate.programs.krl.rules import KRL
 from olp_compensate.errors import ParseError
-from olp_compensate.programs.krl import parse_krl
+from olp_compensate.programs.krl.reader import parse_krl
 from test_programs_krl import ROBOT, _program_joints, _targets_at
 from virtual_world import identified_world
 

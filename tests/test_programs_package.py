@@ -6,7 +6,8 @@ from __future__ import annotations
 import pytest
 
 from olp_compensate.data import data_folder
-from olp_compensate.programs import rapid, vplus
+from olp_compensate.programs.rapid import reader as rapid
+from olp_compensate.programs.vplus import reader as vplus
 from olp_compensate.programs.grammar import grammar_text, parser
 
 

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from olp_compensate.programs import grammar, loads, rapid
+from olp_compensate.programs import grammar, loads
+from olp_compensate.programs.rapid import reader as rapid
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = (ROOT / "samples" / "cell_a.mod").read_bytes().decode("latin-1")

@@ -268,7 +268,7 @@ def test_transfer_to_the_same_robot_gives_the_input_back(robot_b, taught_program
 
 
 def test_local_names_skip_comments_strings_and_routines():
-    from olp_compensate.programs.task import local_data_names
+    from olp_compensate.programs.rapid.task_scope import local_data_names
 
     text = ('MODULE M\n  LOCAL PERS tooldata tA:=[TRUE,[[0,0,1],[1,0,0,0]],'
             '[1,[0,0,1],[1,0,0,0],0,0,0]];\n'

@@ -13,11 +13,11 @@ import pytest
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.ik import closed_form_inverse
-from olp_compensate.compensation.rules_urscript import URSCRIPT
+from olp_compensate.programs.urscript.rules import URSCRIPT
 from olp_compensate.kinematics.conventions import (invert_pose, rotation_from_rotvec,
                                                    rotvec_from_rotation)
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.programs.urscript import parse_urscript
+from olp_compensate.programs.urscript.reader import parse_urscript
 from virtual_world import assert_the_gap_closed, identified_world, misses_mm, nominal_arm
 
 ROBOT = load_robot("ur10e")

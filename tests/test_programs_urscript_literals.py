@@ -10,10 +10,10 @@ import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.dialect_program import compensate_pose_program
-from olp_compensate.compensation.rules_urscript import URSCRIPT
+from olp_compensate.programs.urscript.rules import URSCRIPT
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.programs.urscript import parse_urscript
+from olp_compensate.programs.urscript.reader import parse_urscript
 
 ROBOT = load_robot("ur10e")
 

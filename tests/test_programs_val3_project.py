@@ -11,8 +11,8 @@ import numpy as np
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.files import ProgramFiles, compensate_files
-from olp_compensate.compensation.rules_val3 import VAL3
-from olp_compensate.programs.val3 import parse_val3
+from olp_compensate.programs.val3.rules import VAL3
+from olp_compensate.programs.val3.reader import parse_val3
 from test_programs_val3 import ROBOT, _attrs, _points_at, _program_joints, dtx_attributes
 from virtual_world import identified_world
 

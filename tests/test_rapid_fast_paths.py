@@ -10,11 +10,12 @@ import re
 import pytest
 
 from olp_compensate.errors import ParseError
-from olp_compensate.programs import loads, rapid_fast
+from olp_compensate.programs import loads
+from olp_compensate.programs.rapid import fast as rapid_fast
 from olp_compensate.programs.grammar import LineIndex, NewlineIndexedText
 from olp_compensate.programs.literals import NUMBER_RE
-from olp_compensate.programs.rapid import parse_rapid_columns
-from olp_compensate.programs.rapid_columns import with_objects
+from olp_compensate.programs.rapid.reader import parse_rapid_columns
+from olp_compensate.programs.rapid.columns import with_objects
 
 LITERAL = "[[1.5,-2,3E2],[1,0,0,0],[0,-1,2,1],[9E9,9E9,9E9,9E9,9E9,9E9]]"
 SPACED = "[ [1.5, -2,3E2],[1,0,0,0] ,[0,-1,2,1],\r\n  [9E9,9E9,9E9,9E9,9E9,9E9] ]"

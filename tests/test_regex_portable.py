@@ -13,7 +13,8 @@ import pytest
 
 from olp_compensate.cli.cal import main as cal
 from olp_compensate.cli.fix import main as fix
-from olp_compensate.programs import literals, rapid_fast, regex_compat
+from olp_compensate.programs import literals, regex_compat
+from olp_compensate.programs.rapid import fast as rapid_fast
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = ["900", "0", "1000", "1", "0", "0", "0", "0", "0", "0", "0",

@@ -173,12 +173,16 @@ def test_a_tool_fit_far_off_one_point_is_refused(tmp_path, capsys):
 
 
 def test_the_cli_constants_match_the_library():
-    from olp_compensate.compensation.files import DIALECTS, EXTENSIONS
     from olp_compensate.compensation.program import EMIT_MODES
     from olp_compensate.programs import DIALECTS as TEXT_DIALECTS
+    from olp_compensate.programs.languages import extensions, names
 
-    assert fix_cli.EMIT_MODES == EMIT_MODES and fix_cli.DIALECTS == DIALECTS
-    assert fix_cli.EXTENSIONS == EXTENSIONS and set(TEXT_DIALECTS) <= set(DIALECTS)
+    dialect = next(a for a in fix_cli.build_parser()._actions if a.dest == "dialect")
+    assert fix_cli.EMIT_MODES == EMIT_MODES and tuple(dialect.choices) == names()
+    assert set(TEXT_DIALECTS) <= set(names())
+    assert all(extensions()[ext] == name for ext, name in
+               [(".mod", "rapid"), (".pg", "vplus"), (".src", "krl"), (".dat", "krl"),
+                (".ls", "fanuc"), (".dtx", "val3"), (".script", "urscript")])
 
 
 @pytest.mark.parametrize("comment, line", [(b"! olp-robot: abb_irb2400\n", 2),

@@ -13,13 +13,13 @@ import argparse
 import dataclasses
 import gc
 import os
-import re
 import sys
 import time
 from pathlib import Path
 
 from .. import __version__
 from ..errors import DataError, ModelError, OlpError
+from ..programs.languages import extensions, language_named, languages, names
 from .common import (THREADS_HELP, exit_now, no_gc, refuse_clashes, run_guarded,
                      silence_stdout)
 from .fix_models import add_options as add_model_options
@@ -28,23 +28,20 @@ SHOWN_PROBLEMS = 20
 EMIT_MODES = ("pose", "joints")
 """As :data:`olp_compensate.compensation.program.EMIT_MODES` (a test checks), spelled here so
 that ``olp-fix --version`` and ``--help`` import nothing heavy."""
-DIALECTS = ("rapid", "vplus", "krl", "fanuc", "val3", "urscript")
-"""As :data:`olp_compensate.compensation.files.DIALECTS` (a test checks)."""
-EXTENSIONS = {".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
-              ".pg": "vplus", ".v2": "vplus", ".lc": "vplus", ".loc": "vplus", ".as": "vplus",
-              ".src": "krl", ".dat": "krl", ".ls": "fanuc", ".dtx": "val3",
-              ".script": "urscript", ".urscript": "urscript"}
-"""As :data:`olp_compensate.compensation.files.EXTENSIONS` (a test checks)."""
 ROBOT_COMMENT_SPAN = 65536
 """Only the program's first bytes are searched for the robot it names (its header)."""
+
+
+def _languages_help() -> str:
+    """Each language and its extensions, for ``--help``."""
+    return "; ".join(f"{lang.title} {' '.join(lang.extensions)}" for lang in languages())
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="olp-fix", description=__doc__.splitlines()[0])
     p.add_argument("program", nargs="+", metavar="PATH",
-                   help="program files (RAPID .mod .modx .prg .sys; V+/AS .pg .v2 .lc .loc "
-                        ".as; KRL .src/.dat; FANUC .ls; VAL3 .dtx; URScript .script .urscript), task "
-                        "folders or controller backups")
+                   help=f"program files ({_languages_help()}), task folders or "
+                        f"controller backups")
     p.add_argument("--model", required=True, help="calib.json from olp-cal identify/nominal")
     p.add_argument("-o", "--output", help="with one program: the compensated program to "
                                           "write (KRL: OUT.src, and OUT.dat beside it); "
@@ -55,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="'pose': rewrite Cartesian targets (default); 'joints': turn them "
                         "into joint targets (jointtarget + MoveAbsJ, V+ precision points)")
     p.add_argument("--report", help="CSV with one row per target use (mm, deg)")
-    p.add_argument("--dialect", choices=DIALECTS, help="default: from the file extension")
+    p.add_argument("--dialect", choices=names(), help="default: from the file extension")
     p.add_argument("--robot", help="refuse a calibration that is not of this robot (bundled "
                                    "name or URDF path)")
     p.add_argument("--taught-on", metavar="A.json",
@@ -138,7 +135,7 @@ def run(args, retain: list | None = None) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise DataError(f"-j/--jobs: expected a positive number of processes, got {args.jobs}")
     skipped: list[str] = []
-    units = plan_units(args.program, args.dialect, args.output, EXTENSIONS, skipped)
+    units = plan_units(args.program, args.dialect, args.output, extensions(), skipped)
     for line in skipped:
         print(f"olp-fix: warning: {line}", file=sys.stderr)
     args.config = _backup(args.config, getattr(args, "fanuc_turn_axes", None))
@@ -184,37 +181,29 @@ def load_calibrations(args):
     return calibration, taught_on
 
 
-V_PLUS_END = re.compile(rb"^[ \t]*\.END[ \t]*\r?$", re.MULTILINE | re.IGNORECASE)
-
-
 def check_not_cut_short(dialect: str, paths, names) -> None:
     """:class:`DataError` for a program without any target that looks empty or cut short:
-    every file blank, or a V+/AS file without one complete ``.END``-closed section. A file
-    that is complete but holds no location data (an AS dump of system or auxiliary data, a
-    KRL data list without positions) passes: it is written back as it is."""
+    every file blank, or what its language calls cut short (a V+/AS file without one
+    complete ``.END``-closed section). A file that is complete but holds no location data
+    (an AS dump of system data, a KRL data list without positions) passes: it is written
+    back as it is."""
     data = [Path(p).read_bytes() for p in paths]
-    if dialect == "vplus" and all(d.strip() for d in data) and all(
-            not line.strip() or line.lstrip().startswith(b".*")
-            for d in data for line in d.splitlines()):
-        raise DataError(f"{names[0]}: an AS save holding only its header ('.*' comment lines): "
-                        f"no program nor location data in it; nothing written")
-    cut = all(not d.strip() for d in data) or (
-        dialect == "vplus" and not any(V_PLUS_END.search(d) for d in data))
-    if cut:
+    if all(not d.strip() for d in data):
         raise DataError(f"{names[0]}: no robot target in the program (empty or cut "
                         f"short?); nothing written")
+    check = language_named(dialect).check_complete
+    if check is not None:
+        check(list(names), data)
 
 
 def loadable_outputs(unit, data: list) -> list:
     """The outputs' bytes with the names inside matching the file names where the
-    controller requires it (KRL ``DEF``/``DEFDAT``: see
-    :func:`~olp_compensate.compensation.files.match_krl_names`), each rename said on
-    stderr; other dialects' data as given."""
-    if unit.dialect != "krl":
+    controller requires it (the language's ``loadable_outputs``: KRL ``DEF``/``DEFDAT``),
+    each rename said on stderr; other languages' data as given."""
+    loadable = language_named(unit.dialect).loadable_outputs
+    if loadable is None:
         return data
-    from ..compensation.files import match_krl_names
-
-    data, notes = match_krl_names(unit.paths, unit.outputs, data)
+    data, notes = loadable(unit.paths, unit.outputs, data)
     for note in notes:
         print(f"olp-fix: warning: {note}", file=sys.stderr)
     return data
@@ -239,13 +228,13 @@ def _run_one(args, unit, retain: list | None) -> int:
     from ..compensation.files import ProgramFiles, compensate_files
     from ..io.atomic import write_files_atomic
 
-    from .fix_models import load_sensitive, read_controller, unit_load, warn_ur, with_load_notes
+    from .fix_models import load_sensitive, read_controller, unit_load, warn_no_controller_model, with_load_notes
 
     calibration, taught_on = load_calibrations(args)
     controller = read_controller(args, calibration)
     for path in unit.paths:
         check_robot(path, calibration, args.model)
-    warn_ur(unit.dialect, controller)
+    warn_no_controller_model(unit.dialect, controller)
     try:
         load, load_notes = unit_load(args, calibration, unit.dialect, unit.paths, unit.names)
         result = compensate_files(

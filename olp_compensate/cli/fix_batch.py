@@ -150,12 +150,13 @@ def _warm(units, init) -> None:
     """Load in this process what every worker needs before the pool forks: the
     calibration and closed form, and each dialect's parser (a grammar loads once)."""
     _start_worker(*init)
-    from ..programs import loads
+    from ..programs.languages import language_named
 
-    samples = {"rapid": "MODULE Warm\nENDMODULE\n", "vplus": ".PROGRAM warm()\n.END\n"}
-    for dialect in {u.dialect for u in units} & set(samples):
+    for dialect in {u.dialect for u in units}:
+        warm_up = language_named(dialect).warm_up
         try:
-            loads(samples[dialect], dialect, "<warm-up>")
+            if warm_up is not None:
+                warm_up()
         except OlpError:
             pass
     from importlib import import_module
@@ -235,12 +236,13 @@ def run_batch(args, units) -> int:
     program, not the sum), then the one report in the input order; print the table."""
     from ..io.atomic import write_files_atomic
     from .fix import load_calibrations, loadable_outputs
-    from .fix_models import read_controller, warn_ur
+    from .fix_models import read_controller, warn_no_controller_model
 
     started = time.perf_counter()
     calibration, _ = load_calibrations(args)      # refuse bad calibrations before the work
-    if any(u.dialect == "urscript" for u in units):
-        warn_ur("urscript", read_controller(args, calibration))
+    controller = read_controller(args, calibration)
+    for dialect in dict.fromkeys(u.dialect for u in units):   # each language's warning once
+        warn_no_controller_model(dialect, controller)
     summaries: list[UnitSummary | None] = [None] * len(units)
     spool = ReportSpool(calibration.robot.n_joints)
     try:

@@ -7,7 +7,7 @@ units compensated together, and where each output goes.
   or the modules side by side in one folder. A task's modules resolve each other's
   declarations (system modules first).
 - A folder (a task folder, a controller backup) is searched recursively for program files
-  of every dialect (:data:`~olp_compensate.compensation.files.EXTENSIONS`, any case);
+  of every dialect (:func:`~olp_compensate.programs.languages.extensions`, any case);
   outputs of an earlier run (``*_compensated.*``), hidden files and KRL system data lists
   (``$config.dat``, ``$machine.dat``...: frame data is given with ``--config``) are skipped.
 - Only regular files are read (through links): a FIFO, a device (a link to ``/dev/zero``), a
@@ -26,12 +26,12 @@ units compensated together, and where each output goes.
 from __future__ import annotations
 
 import os
-import re
 import stat
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DataError
+from ..programs.languages import language_named
 
 SUFFIX = "_compensated"
 
@@ -88,39 +88,24 @@ def _files_under(folder: Path, extensions: dict[str, str], skipped: list[str]) -
     return found
 
 
-def _task_root(path: Path, given_alone: bool) -> Path | None:
-    """The folder whose RAPID modules form one task with ``path``: the ``TASKn`` folder of
-    a backup, else the module's folder; None for modules named on the command line (they
-    form one task together)."""
-    if given_alone:
-        return None
-    for parent in path.parents:
-        if re.fullmatch(r"TASK\d+", parent.name, re.IGNORECASE):
-            return parent
-    return path.parent
-
-
 def _group(files: list[tuple[Path, str]], dialect: str | None, extensions,
            alone: set[Path]) -> list[tuple]:
-    """(dialect, [(path, name), ...]) units: KRL .src/.dat of one stem together, a RAPID
-    task's modules together (system modules first)."""
-    units = []
-    krl: dict[tuple[Path, str], list[tuple[Path, str]]] = {}
-    tasks: dict[Path | None, list[tuple[Path, str]]] = {}
+    """(dialect, [(path, name), ...]) units: files of one language with the same
+    ``unit_key`` together (KRL .src/.dat of one stem, a RAPID task's modules), in the
+    language's ``member_order``; every other file alone."""
+    units, together = [], {}
     for path, name in files:
-        d = dialect or extensions[path.suffix.lower()]
-        if d == "krl":
-            krl.setdefault((path.parent, path.stem.lower()), []).append((path, name))
-        elif d == "rapid":
-            tasks.setdefault(_task_root(path, path in alone), []).append((path, name))
+        language = language_named(dialect or extensions[path.suffix.lower()])
+        if language.unit_key is None:
+            units.append((language.name, [(path, name)]))
         else:
-            units.append((d, [(path, name)]))
-    for members in krl.values():
-        members.sort(key=lambda m: m[0].suffix.lower() != ".src")     # .src first
-        units.append(("krl", members))
-    for members in tasks.values():
-        members.sort(key=lambda m: (m[0].suffix.lower() != ".sys", m[1].lower()))
-        units.append(("rapid", members))
+            key = (language.name, language.unit_key(path, path in alone))
+            together.setdefault(key, []).append((path, name))
+    for (name, _), members in together.items():
+        order = language_named(name).member_order
+        if order is not None:
+            members.sort(key=lambda m: order(*m))
+        units.append((name, members))
     units.sort(key=lambda u: str(u[1][0][0]))
     return units
 
@@ -144,8 +129,8 @@ def plan_units(paths: list[str], dialect: str | None, output: str | None,
             continue
         _check_file(given, dialect, extensions)
         entries.append((path, given, None))
-        partner = _krl_partner(path) if (dialect or extensions.get(
-            path.suffix.lower())) == "krl" else None
+        find_partner = language_named(dialect or extensions[path.suffix.lower()]).partner
+        partner = None if find_partner is None else find_partner(path)
         if partner is not None and all(partner != e[0] for e in entries):
             entries.append((partner, str(Path(given).with_name(partner.name)), None))
     files = [(p, name) for p, name, _ in entries]
@@ -222,15 +207,6 @@ def _check_output(paths: list[str], output: str | None, single_file: bool) -> No
                 raise DataError(f"{output}: -o is {where} {given}: the "
                                 f"outputs would be mixed with the inputs (and read as inputs "
                                 f"by the next run); choose a folder outside it")
-
-
-def _krl_partner(path: Path) -> Path | None:
-    """The ``.dat`` of a ``.src`` (or the reverse), same stem, any case, if it exists."""
-    want = ".dat" if path.suffix.lower() == ".src" else ".src"
-    for candidate in path.parent.glob(f"{path.stem}.*"):
-        if candidate.suffix.lower() == want and candidate.stem == path.stem:
-            return candidate
-    return None
 
 
 def mirror_folder(folder: Path) -> Path:

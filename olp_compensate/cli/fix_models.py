@@ -9,13 +9,6 @@ from pathlib import Path
 
 from ..errors import DataError
 
-UR_WARNING = ("warning: UR controllers run their own factory calibration (calibration.conf), "
-              "not the data sheet: without --controller the targets are written for the "
-              "data-sheet model and miss by the difference (about 1-2 mm); write "
-              "controller.json with 'olp-cal controller calibration.conf --robot NAME' and "
-              "pass --controller")
-
-
 def add_options(p) -> None:
     """The options of this module, on ``olp-fix``'s parser."""
     p.add_argument("--controller", metavar="CONTROLLER.json",
@@ -103,23 +96,10 @@ def unit_load(args, calibration, dialect: str, paths, names):
 
 
 def _stated(args, dialect, paths, names):
-    from ..programs import loads
     from ..programs.payloads import program_loads
 
     texts = {name: Path(p).read_bytes().decode("latin-1") for p, name in zip(paths, names)}
-    programs = ([loads(text, "rapid", name) for name, text in texts.items()]
-                if dialect == "rapid" else ())
-    frames = None
-    if dialect == "krl":
-        from ..programs.backup_files import backup_files
-
-        # the $config.dat among the --config files: the one that declares LOAD_DATA
-        for path in backup_files(args.config).paths:
-            text = Path(path).read_bytes().decode("latin-1")
-            if "LOAD_DATA" in text.upper():
-                frames = text
-                break
-    return program_loads(dialect, texts, programs, frames)
+    return program_loads(dialect, texts, args.config)
 
 
 def with_load_notes(report, load, notes, sensitive: bool):
@@ -152,7 +132,12 @@ def _noted(rows, words: str):
                  for r in rows)
 
 
-def warn_ur(dialect: str, controller) -> None:
-    """The warning of a URScript run without a controller model (stderr)."""
-    if dialect == "urscript" and controller is None:
-        print(UR_WARNING, file=sys.stderr)
+def warn_no_controller_model(dialect: str, controller) -> None:
+    """The language's warning for a run without the controller's own model (stderr): a UR
+    controller runs its factory calibration, not the data sheet."""
+    from ..programs.languages import language_named
+
+    warning = language_named(dialect).controller_warning
+    text = None if warning is None else warning(controller)
+    if text:
+        print(text, file=sys.stderr)

@@ -11,97 +11,23 @@ its file, line, column and reason.
 
 from __future__ import annotations
 
-import re
 from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..calibration.calibration import Calibration
-from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
-                                      pose_from_rotation_translation, rotation_angle_between)
-from ..programs import format_like, splice
+from ..kinematics.conventions import MM, invert_pose, rotation_angle_between
+from ..programs.emit import format_like, splice
 from ..programs.pose_dialects import JOINTS, PoseProgram, PoseTarget
 from ..programs.targets import Edit
-from .config_rule import decide
-from .dialect_rules import ArmGeometry, DialectRules, krl_status, krl_turn
-from .ik import IKSolution, closed_form_inverse
+from .dialect_config import (choose_all, config_namer, dialect_asked, geometry_of, on_rows,
+                             rule_alone)
+from .dialect_rules import ArmGeometry, DialectRules
 from .pose import COMPENSATED, Compensator, explain_failures
-from .program_tools import program_tool as calibrated_program_tool
-from .program_tools import program_tool_note
+from .frame_lookup import FrameLookup
 from .regions import RegionalCompensator
-from .rules_fanuc import fanuc_letters
-from .rules_val3 import val3_config
 from .report import CompensationReport, TargetReport
-
-_GEOMETRY: dict[int, ArmGeometry] = {}
-
-
-@dataclass(frozen=True)
-class FrameLookup:
-    """Where a tool or base reference of the program gets its pose: the program's own
-    frame data (``program.frames``, file units), then a calibrated tool of that name."""
-
-    program: PoseProgram
-    rules: DialectRules
-    calibration: Calibration
-
-    def program_frame(self, key: str | None, kind: str) -> tuple[np.ndarray | None, str]:
-        """(pose (4, 4) m or None, why not)."""
-        if key is None:
-            return np.eye(4), f"no {kind} set before the motion: the {kind} frame taken as " \
-                              f"the {'flange' if kind == 'tool' else 'robot base'}"
-        if key in self.program.frames:
-            return self.rules.convention.pose(np.array(self.program.frames[key])), ""
-        if self.rules.is_identity(key):
-            return np.eye(4), ""
-        tool = self._calibrated(key)
-        if tool is not None:
-            return tool, ""
-        hint = ("the controller's $config.dat" if self.rules.name == "krl"
-                else "the program nor the frames given")
-        return None, f"{kind} {key} unknown: not defined in {hint} nor a calibrated tool " \
-                     f"of that name in calib.json"
-
-    def _calibrated(self, key: str) -> np.ndarray | None:
-        found = calibrated_program_tool(self.calibration, _names_of(key))
-        if found is None:
-            return None
-        tool = found[1]
-        rotation = np.eye(3) if tool.quat_wxyz is None else matrix_from_quat_wxyz(tool.quat_wxyz)
-        return pose_from_rotation_translation(rotation, tool.xyz_m)
-
-    def real_tool(self, key: str | None, program_tool: np.ndarray) -> tuple[np.ndarray, str]:
-        """The real tool: a calibrated tool of the reference's name (its point; the program
-        tool's orientation where the calibration has none), else the program's."""
-        if key is None:
-            return program_tool, ""
-        found = calibrated_program_tool(self.calibration, _names_of(key))
-        if found is None:
-            return program_tool, ""
-        cal_name, tool = found
-        rotation = (program_tool[:3, :3] if tool.quat_wxyz is None
-                    else matrix_from_quat_wxyz(tool.quat_wxyz))
-        return (pose_from_rotation_translation(rotation, tool.xyz_m),
-                program_tool_note(key, cal_name))
-
-
-def _names_of(key: str) -> list[str]:
-    """Names a calibrated tool may carry for a program's tool reference: the reference
-    itself, and ``toolN`` for a numbered tool (KRL ``TOOL_DATA[N]``, FANUC ``UTN``)."""
-    names = [key]
-    numbered = re.fullmatch(r"(?:TOOL_DATA\[(\d+)\]|UT(\d+))", key, re.I)
-    if numbered:
-        names.append(f"tool{int(numbered.group(1) or numbered.group(2))}")
-    return names
-
-
-def _geometry(comp: Compensator) -> ArmGeometry:
-    key = id(comp.robot)
-    if key not in _GEOMETRY:
-        _GEOMETRY[key] = ArmGeometry(comp.robot)
-    return _GEOMETRY[key]
-
 
 @dataclass
 class _Job:
@@ -129,7 +55,7 @@ def compensate_pose_program(program: PoseProgram, rules: DialectRules,
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
     teacher = (None if taught_on is None else taught_on if isinstance(taught_on, Compensator)
                else Compensator(taught_on, comp.controller))
-    geometry = _geometry(comp)
+    geometry = geometry_of(comp)
     frames = FrameLookup(program, rules, comp.calibration)
     rows: list[TargetReport] = []
     jobs = _jobs(program, rules, frames, rows)
@@ -319,17 +245,17 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
     requested = np.array([j.base @ j.wobj_T_target @ invert_pose(j.tool) for j in jobs])
     desired = (requested @ np.array([j.tool for j in jobs])
                @ invert_pose(np.array([j.real_tool for j in jobs])))
-    chosen, previous_of = _choose_all(comp, geometry, rules, jobs, requested)
-    asked = _dialect_asked(rules, geometry, jobs, previous_of)
-    words = _config_namer(rules, geometry, jobs)
+    chosen, previous_of = choose_all(comp, geometry, rules, jobs, requested)
+    asked = dialect_asked(rules, geometry, jobs, previous_of)
+    words = config_namer(rules, geometry, jobs)
     q_nominal = chosen.copy()
     unchosen = np.flatnonzero(~np.all(np.isfinite(chosen), axis=1))
     if len(unchosen):
         # no branch of the nominal arm has the written configuration: the calibrated arm's
         # may (then its joints stand in for the controller's), else the rule says why not
-        found = _rule_alone(comp, desired[unchosen], _on_rows(asked, unchosen))
+        found = rule_alone(comp, desired[unchosen], on_rows(asked, unchosen))
         explained = explain_failures(comp, found, desired[unchosen], None,
-                                     _on_rows(words, unchosen))
+                                     on_rows(words, unchosen))
         for r, i in enumerate(unchosen.tolist()):
             if found.success[r]:
                 chosen[i] = robot.controller_from_joints(found.q[r][None])[0]
@@ -344,9 +270,9 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
     confdata = comp.confdata(robot.joints_from_controller(q_chosen))
     if teacher is not None:                     # where the teaching robot's real tool went
         desired = _taught(comp, teacher, rules, jobs, q_nominal, requested, desired)
-    options = {} if isinstance(comp, RegionalCompensator) else {"asked": _on_rows(asked, keep)}
+    options = {} if isinstance(comp, RegionalCompensator) else {"asked": on_rows(asked, keep)}
     q, flange, solution, _ = comp.compensate_flanges(desired, None, confdata, **options)
-    failures = explain_failures(comp, solution, desired, confdata, _on_rows(words, keep))
+    failures = explain_failures(comp, solution, desired, confdata, on_rows(words, keep))
     for i, job in enumerate(jobs):
         if not solution.success[i]:
             rows.append(_failure_row(job, rules, failures[i], robot))
@@ -354,120 +280,6 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
         q_ctrl = robot.controller_from_joints(q[i][None])[0]
         rows.append(_solved_row(job, rules, geometry, q_ctrl, flange[i], q_nominal[i],
                                 str(solution.reason[i]), robot, edits))
-
-
-def _choose_all(comp: Compensator, geometry: ArmGeometry, rules: DialectRules,
-                jobs: list[_Job], requested: np.ndarray) -> tuple[np.ndarray, list]:
-    """The controller joints (m, n) the dialect's nominal controller takes for each job
-    (NaN where no branch has the written configuration), in program order, and the joints
-    before each (None for the first)."""
-    robot = geometry.robot
-    branches = closed_form_inverse(comp.family, requested)                  # (m, 8, n) URDF
-    m, k, n = branches.shape
-    branches_ctrl = robot.controller_from_joints(branches.reshape(-1, n)).reshape(m, k, n)
-    geometry.prepare(branches_ctrl)          # the configuration words of every branch at once
-    chosen = np.full((m, n), np.nan)
-    previous_of: list = [None] * m
-    previous = None
-    for i, job in enumerate(jobs):
-        previous_of[i] = previous
-        q, _, *note = rules.choose(geometry, job.target, branches_ctrl[i], previous)
-        if note and note[0]:
-            job.note = "; ".join(x for x in (note[0], job.note) if x)
-        if q is not None:
-            chosen[i] = q
-            previous = q
-    return chosen, previous_of
-
-
-@dataclass(frozen=True)
-class _Asked:
-    """What the rule's predicates read of a pose that is no program's target."""
-
-    target: PoseTarget
-
-
-def decide_unchosen(comp: Compensator, rules: DialectRules, targets: list[PoseTarget],
-                    previous_of: list, desired: np.ndarray):
-    """The configuration rule on dialect poses for which no nominal branch has the written
-    configuration (``targets``: their configuration numbers; ``previous_of``: the
-    controller joints of the pose before each, or None; ``desired`` (k, 4, 4): the real
-    flange poses, base frame, m), as olp-fix decides them in a program:
-    ``(solution, failures)``; where ``solution.success`` the calibrated arm reaches the pose
-    on the asked configuration inside the ranges (its joints stand in for the nominal
-    ones), else ``failures[r]`` holds the status and note."""
-    geometry = _geometry(comp)
-    asked_of = [_Asked(t) for t in targets]
-    rows = np.arange(len(targets))
-    asked = _dialect_asked(rules, geometry, asked_of, previous_of)
-    found = _rule_alone(comp, desired, _on_rows(asked, rows))
-    words = _config_namer(rules, geometry, asked_of)
-    return found, explain_failures(comp, found, desired, None, _on_rows(words, rows))
-
-
-def _on_rows(function, rows: np.ndarray):
-    """``function`` of rows of a sub-batch, called with the rows of the whole batch."""
-    def on(sub, *args):
-        return function(rows[sub], *args)
-    return on
-
-
-def _rule_alone(comp: Compensator, desired: np.ndarray, asked) -> IKSolution:
-    """The configuration rule on poses no nominal branch was chosen for (no solve on a
-    branch first: the search is the whole answer)."""
-    k, n = len(desired), comp.robot.n_joints
-    blank = IKSolution(q=np.full((k, n), np.nan), success=np.zeros(k, bool),
-                       reason=np.full(k, "unreachable", dtype="<U14"),
-                       iterations=np.zeros(k, int), position_error_m=np.full(k, np.nan),
-                       rotation_error_rad=np.full(k, np.nan))
-    return decide(comp, blank, desired, None, asked)
-
-
-def _dialect_asked(rules: DialectRules, geometry: ArmGeometry, jobs: list[_Job],
-                   previous_of: list):
-    """The configuration rule's predicate of the written configuration: among a row's
-    candidate joints, the ones the dialect's controller takes (its ``choose``)."""
-    def asked(rows: np.ndarray, q: np.ndarray, usable: np.ndarray) -> np.ndarray:
-        k, b, n = q.shape
-        out = np.full((k, n), np.nan)
-        if np.any(usable):
-            geometry.prepare(q[usable])
-        for i, row in enumerate(rows.tolist()):
-            candidates = q[i][usable[i]]
-            if len(candidates):
-                picked, *_ = rules.choose(geometry, jobs[row].target, candidates,
-                                          previous_of[row])
-                if picked is not None:
-                    out[i] = picked
-        return out
-    return asked
-
-
-def _config_namer(rules: DialectRules, geometry: ArmGeometry, jobs: list[_Job]):
-    """``words(row, q_ctrl)``: the configuration of joints ``q_ctrl`` in the dialect's
-    words (as many values as the target writes, all where it writes none); with None,
-    the written one ('' where none is written)."""
-    def words(row: int, q_ctrl) -> str:
-        target = jobs[row].target
-        if q_ctrl is None:
-            return rules.config_words(rules.written(target))
-        if rules.name == "urscript":
-            return rules.config_words(tuple(q_ctrl))
-        return (rules.config_words(rules.config(geometry, q_ctrl, target))
-                or _full_words(rules.name, geometry, q_ctrl))
-    return words
-
-
-def _full_words(dialect: str, geometry: ArmGeometry, q_ctrl: np.ndarray) -> str:
-    """The whole configuration of ``q_ctrl`` in a dialect's words, for a target that writes
-    none (KRL S and T, FANUC's letters, VAL3's words)."""
-    if dialect == "krl":
-        return f"S {krl_status(geometry, q_ctrl)} T {krl_turn(q_ctrl)}"
-    if dialect == "fanuc_tp":
-        return " ".join(fanuc_letters(geometry, q_ctrl))
-    if dialect == "val3":
-        return " ".join(val3_config(geometry, q_ctrl))
-    return "joints [" + ", ".join(f"{v:.1f}" for v in np.degrees(q_ctrl)) + "] deg"
 
 
 def _failure_row(job: _Job, rules: DialectRules, failure, robot) -> TargetReport:

@@ -4,7 +4,7 @@ A RAPID task is many modules (``CalibData.mod`` with the tools and work objects,
 modules with the motions, system modules such as ``user.sys``); a target's tool and work
 object are often declared in another module than the motion. :func:`compensate_task`
 resolves every module's targets with the controller's scope rules across the task
-(:func:`~olp_compensate.programs.semantics.resolve_task`, :mod:`olp_compensate.programs.task`),
+(:func:`~olp_compensate.programs.semantics.resolve_task`, :mod:`olp_compensate.programs.rapid.task_scope`),
 compensates each module as :mod:`.program` does, and gives one report over the task.
 """
 
@@ -61,7 +61,7 @@ def compensate_task(programs: list[Program], calibration: Calibration | Compensa
     if len(dialects) != 1:
         raise DataError(f"programs: expected modules of one dialect, got {', '.join(dialects)}")
     comp = calibration if isinstance(calibration, Compensator) else Compensator(calibration)
-    teacher = _teacher(taught_on, comp)
+    teacher = teacher_of(taught_on, comp)
     not_moved = NOT_MOVED if len(programs) == 1 else NOT_MOVED_IN_TASK
     resolutions = resolve_task(programs)
     if len(programs) > 1:
@@ -114,7 +114,7 @@ def _called(reason: str) -> str:
     return reason.split(" ", 1)[0].lower()
 
 
-def _teacher(taught_on, comp: Compensator) -> Compensator | None:
+def teacher_of(taught_on, comp: Compensator) -> Compensator | None:
     """The Compensator of the teaching robot, checked to be of the same robot model."""
     if taught_on is None:
         return None

@@ -1,4 +1,5 @@
-"""Robot programs: parse ABB RAPID and V+ location files, and write them back losslessly.
+"""Robot programs: one folder per robot language (``rapid/``, ``vplus/``, ``krl/``, ``fanuc/``,
+``val3/``, ``urscript/``, registered in :mod:`.languages`) and what they share.
 
 A façade like the ``json`` module::
 
@@ -18,13 +19,24 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from ..errors import ParseError
-from .emit import (edits_for_targets, format_like, joint_emit_edits, joint_target_edits,
-                   splice, target_edits, tool_edits)
-from .rapid import parse_rapid
-from .semantics import Resolution, ResolvedTarget, resolve
-from .targets import (CartesianTarget, Edit, JointTarget, MotionUse, NameReference, Number,
-                      Program, Routine, RuntimeTarget, SourceLocation, ToolData, WorkObject)
+
+if TYPE_CHECKING:
+    from .targets import Program
+
+_LAZY = {
+    "edits_for_targets": "emit", "format_like": "emit", "joint_emit_edits": "emit",
+    "joint_target_edits": "emit", "splice": "emit", "target_edits": "emit",
+    "tool_edits": "emit", "parse_rapid": "rapid.reader", "parse_vplus": "vplus.reader",
+    "Resolution": "semantics", "ResolvedTarget": "semantics", "resolve": "semantics",
+    **{name: "targets" for name in (
+        "CartesianTarget", "Edit", "JointTarget", "MotionUse", "NameReference", "Number",
+        "Program", "Routine", "RuntimeTarget", "SourceLocation", "ToolData", "WorkObject")},
+}
+"""Public names loaded on first use (PEP 562): the language registry and ``olp-fix --help``
+import this package without loading a parser."""
 
 ENCODING = "latin-1"
 DIALECTS = ("rapid", "vplus")
@@ -67,25 +79,30 @@ def loads(text: str | bytes, dialect: str, file: str = "<string>") -> Program:
     if isinstance(text, (bytes, bytearray)):
         text = bytes(text).decode(ENCODING)
     if dialect == "rapid":
+        from .rapid.reader import parse_rapid
+
         return parse_rapid(text, file)
     if dialect == "vplus":
-        from .vplus import parse_vplus
+        from .vplus.reader import parse_vplus
 
         return parse_vplus(text, file)
     raise ValueError(f"dialect: expected one of {DIALECTS}, got {dialect!r}")
 
 
 def __getattr__(name: str):
-    # the V+ reader is imported when first used: a RAPID run never needs it (PEP 562)
-    if name == "parse_vplus":
-        from .vplus import parse_vplus
+    if name in _LAZY:
+        from importlib import import_module
 
-        return parse_vplus
+        value = getattr(import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def dumps(program: Program, edits=()) -> str:
     """The program text with ``edits`` applied (no edits: the text exactly as read)."""
+    from .emit import splice
+
     return splice(program.text, edits)
 
 

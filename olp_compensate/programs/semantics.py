@@ -29,7 +29,7 @@ from ..kinematics.conventions import invert_pose
 from .target_values import (WRITTEN_COLUMNS, bad_values, target_poses,  # noqa: F401
                             value_problem, written_values)
 from .targets import CartesianTarget, JointTarget, MotionUse, Program, ToolData, WorkObject
-from .task import TaskScope, local_data_names
+from .rapid.task_scope import TaskScope, local_data_names
 
 IDENTITY = np.eye(4)
 IDENTITY.flags.writeable = False

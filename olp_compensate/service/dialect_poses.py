@@ -23,14 +23,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compensation.dialect_rules import KRL, ArmGeometry
+from ..compensation.dialect_rules import ArmGeometry
 from ..compensation.ik import closed_form_inverse
-from ..compensation.rules_fanuc import FANUC_TP
-from ..compensation.rules_urscript import URSCRIPT
-from ..compensation.rules_val3 import VAL3
 from ..kinematics.conventions import invert_pose
+from ..programs.fanuc.rules import FANUC_TP
+from ..programs.krl.rules import KRL
 from ..programs.pose_dialects import PoseTarget
 from ..programs.targets import Number
+from ..programs.urscript.rules import URSCRIPT
+from ..programs.val3.rules import VAL3
 from .calls import INVALID_PARAMS, ServiceError
 
 RULES = {"krl": KRL, "fanuc": FANUC_TP, "val3": VAL3, "urscript": URSCRIPT}
@@ -129,7 +130,7 @@ def _decide(comp, dialects, requested, unchosen, targets, confdata, failed) -> N
     olp-fix applies in a program (:func:`~olp_compensate.compensation.dialect_program.
     decide_unchosen`), per dialect: the calibrated arm's joints where it reaches them as
     asked, else the rule's status and note."""
-    from ..compensation.dialect_program import decide_unchosen
+    from ..compensation.dialect_config import decide_unchosen
 
     for dialect in sorted({dialects[row] for _, row, _ in unchosen}):
         mine = [(j, row, prev) for j, row, prev in unchosen if dialects[row] == dialect]

@@ -8,7 +8,7 @@ import dataclasses
 import math
 from pathlib import Path
 
-from ..compensation.files import ProgramFiles, _parse_pose_dialect
+from ..compensation.files import CompensationRun, ProgramFiles
 from ..compensation.pose import Compensator
 
 
@@ -23,16 +23,16 @@ def compensate_text(comp: Compensator, dialect: str, text: str, file: str,
         new, report = compensate_program(text, dialect, comp, file=file)
         out = {"text": new}
     else:
-        from ..compensation.dialect_program import compensate_pose_program
+        from ..programs.languages import language_named
 
         names = (file,) if dat is None else (file, str(Path(file).with_suffix(".dat")))
         files = ProgramFiles(dialect=dialect, paths=tuple(map(Path, names)), names=names)
-        program, rules = _parse_pose_dialect(files, [text] if dat is None else [text, dat],
-                                             frames_path)
-        texts, report = compensate_pose_program(program, rules, comp)
-        out = {"text": texts[file]}
+        result = language_named(dialect).compensate(
+            files, [text] if dat is None else [text, dat], CompensationRun(comp, frames=frames_path))
+        report = result.report
+        out = {"text": result.data[0].decode("latin-1")}
         if dat is not None:
-            out["dat"] = texts[names[1]]
+            out["dat"] = result.data[1].decode("latin-1")
     out["rows"] = [row_dict(r, report.n_joints) for r in report.rows]
     return out
 

@@ -1,0 +1,272 @@
+"""Columns of a big RAPID module's plainest statements, without an object per statement.
+
+A generated module holds tens of thousands of module-level ``CONST robtarget p := [...];``
+and ``MoveL p, v, z, tool\\WObj:=w;``. Parsed by
+:func:`~.rapid.parse_rapid_columns`, the fast paths (rapid_fast.py) append those to the
+two tables here instead of making a :class:`~.targets.CartesianTarget` or
+:class:`~.targets.MotionUse` each: names and flat arrays of offsets (about 150 bytes a
+row, against 3 KB as objects; the numbers' values are read in batches,
+:meth:`TargetTable.values`). Everything else of the module is parsed into objects as
+always.
+
+:meth:`TargetTable.target` and :meth:`MoveTable.use` make the object of one row, equal
+to what the object parse makes; :func:`with_objects` turns a column parse into the
+ordinary :class:`~.targets.Program`. Offsets are into the decoded program text; numbers
+are as written (mm, quaternion w first, confdata, external axes)."""
+
+from __future__ import annotations
+
+import dataclasses
+import heapq
+from array import array
+from itertools import repeat
+
+import numpy as np
+
+from ..literals import ROBTARGET_RE
+from ..targets import QUAT_WXYZ, CartesianTarget, MotionUse, Program
+
+NUMBERS = 17
+"""Numbers of a robtarget literal: x y z, q1..q4, cf1 cf4 cf6 cfx, eax_a..eax_f."""
+SPANS = 6
+_BRACKETS = {ord("["): " ", ord("]"): " "}
+
+
+class TargetTable:
+    """Module-level plain robtarget declarations, in text order.
+
+    Per row: ``names`` and ``storage`` ('CONST', 'PERS', 'VAR') as written; ``spans``:
+    the literal's (start, end), the type word's (start, end), where its first number (x)
+    starts and where its fourth (quaternion) number ends; ``line``, ``column`` of the name
+    (1-based; set by :meth:`place`, after the parse). The 17 numbers' values come from
+    :meth:`values` (one batch), their texts and offsets from :meth:`target`.
+    """
+
+    __slots__ = ("names", "storage", "spans", "offsets", "line", "column", "_words")
+
+    def __init__(self):
+        self.names: list[str] = []
+        self.storage: list[str] = []
+        self.spans = array("q")      # SPANS per row
+        self.offsets = array("q")    # where each name starts
+        self.line = self.column = np.zeros(0, np.int64)
+        self._words: dict[str, str] = {}   # written storage word -> upper case, one string
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def append(self, name: str, storage: str, regs) -> None:
+        """Add a row from the ``regs`` of a declaration match (see rapid_fast.py
+        ``_row_pattern``: group 3 the name, 2 the type word, 4 the literal, 5 its first
+        number, 6 its seventh)."""
+        self.names.append(name)
+        word = self._words.get(storage)
+        if word is None:
+            word = self._words[storage] = storage.upper()
+        self.storage.append(word)
+        literal, kind = regs[4], regs[2]
+        self.offsets.append(regs[3][0])
+        self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
+
+    def place(self, line_starts: np.ndarray) -> None:
+        """Set ``line`` and ``column`` from the offsets where the text's lines start."""
+        self.line, self.column = _lines_and_columns(self.offsets, line_starts)
+
+    def span_columns(self) -> np.ndarray:
+        """(n, 6) int: literal start, end, type word start, end, first number start,
+        fourth number end."""
+        return np.frombuffer(self.spans, np.int64).reshape(-1, SPANS) if len(self) else \
+            np.zeros((0, SPANS), np.int64)
+
+    def values(self, text: str, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """(k, 17) the numbers as written of rows ``start:stop``, converted in one batch
+        (the same floats as ``float()`` of each number's text)."""
+        stop = len(self) if stop is None else stop
+        n = stop - start
+        if n <= 0:
+            return np.zeros((0, NUMBERS))
+        spans = self.spans
+        joined = ",".join([text[spans[k]:spans[k + 1]] for k in range(
+            SPANS * start, SPANS * stop, SPANS)]).translate(_BRACKETS)
+        values = np.fromstring(joined, sep=",")
+        if values.shape != (NUMBERS * n,):   # cannot be: each literal holds 17 numbers
+            raise AssertionError("robtarget literals do not hold 17 numbers each")
+        return values.reshape(n, NUMBERS)
+
+    def subset(self, keep: np.ndarray) -> TargetTable:
+        """A table of the rows where ``keep`` (n,) bool is true, in order."""
+        out = TargetTable()
+        rows = np.flatnonzero(keep).tolist()
+        out.names = [self.names[k] for k in rows]
+        out.storage = [self.storage[k] for k in rows]
+        out.spans = array("q", self.span_columns()[keep].ravel().tolist())
+        out.offsets = array("q", [self.offsets[k] for k in rows])
+        out.line, out.column = self.line[keep], self.column[keep]
+        out._words = self._words
+        return out
+
+    def target(self, i: int, text: str, file: str) -> CartesianTarget:
+        """Row ``i`` as the :class:`CartesianTarget` the object parse makes."""
+        s = self.spans[SPANS * i:SPANS * (i + 1)]
+        m = ROBTARGET_RE.match(text, s[0], s[1])
+        return CartesianTarget(
+            name=self.names[i], source=(file, int(self.line[i]), int(self.column[i])),
+            texts=m.groups(), starts=tuple(map(m.start, range(1, NUMBERS + 1))),
+            orientation_kind=QUAT_WXYZ, span=(s[0], s[1]), storage=self.storage[i],
+            array_index=None, routine=None, type_span=(s[2], s[3]))
+
+    def targets(self, text: str, file: str) -> list[CartesianTarget]:
+        """Every row as :meth:`target` makes it (in one pass)."""
+        s = self.spans.tolist()
+        matches = map(ROBTARGET_RE.match, repeat(text), s[0::SPANS], s[1::SPANS])
+        make, numbers = CartesianTarget._make, range(1, NUMBERS + 1)
+        return [make((name, (file, line, column), m.groups(), tuple(map(m.start, numbers)),
+                      QUAT_WXYZ, (a, b), storage, None, None, (ta, tb)))
+                for m, name, line, column, storage, a, b, ta, tb in zip(
+                    matches, self.names, self.line.tolist(), self.column.tolist(),
+                    self.storage, s[0::SPANS], s[1::SPANS], s[2::SPANS], s[3::SPANS])]
+
+
+class MoveTable:
+    """Plain ``MoveL``/``MoveJ`` to a named target (``p`` or ``p{k}``), in text order.
+
+    Per row: ``instructions``, ``target_names``, ``tools``, ``wobjs`` (None: wobj0) and
+    ``routines`` as written (repeated words stored once); ``indices`` (the literal array
+    index, -1 for none); ``spans``: the instruction word, the statement (without ';') and
+    the target argument, (start, end) each; ``line``, ``column`` of the target argument
+    (set by :meth:`place`, after the parse).
+    """
+
+    __slots__ = ("instructions", "target_names", "tools", "wobjs", "routines", "indices",
+                 "spans", "line", "column", "_words")
+
+    def __init__(self):
+        self.instructions: list[str] = []
+        self.target_names: list[str] = []
+        self.tools: list[str] = []
+        self.wobjs: list[str | None] = []
+        self.routines: list[str | None] = []
+        self.indices = array("q")
+        self.spans = array("q")      # 6 per row
+        self.line = self.column = np.zeros(0, np.int64)
+        self._words: dict[str, str] = {}
+
+    def __len__(self) -> int:
+        return len(self.target_names)
+
+    def append(self, instruction: str, name: str, index: str | None, tool: str,
+               wobj: str | None, routine: str | None, spans) -> None:
+        """Add a row; ``spans``: the instruction's, the statement's and the target's."""
+        words = self._words
+        self.instructions.append(words.setdefault(instruction, instruction))
+        self.target_names.append(name)
+        self.tools.append(words.setdefault(tool, tool))
+        self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
+        self.routines.append(routine)
+        self.indices.append(-1 if index is None else int(index))
+        self.spans.extend(spans)
+
+    def place(self, line_starts: np.ndarray) -> None:
+        """Set ``line`` and ``column`` from the offsets where the text's lines start."""
+        self.line, self.column = _lines_and_columns(self.spans[4::6], line_starts)
+
+    def subset(self, keep: np.ndarray) -> MoveTable:
+        """A table of the rows where ``keep`` (n,) bool is true, in order."""
+        out = MoveTable()
+        rows = np.flatnonzero(keep).tolist()
+        for name in ("instructions", "target_names", "tools", "wobjs", "routines"):
+            column = getattr(self, name)
+            setattr(out, name, [column[k] for k in rows])
+        out.indices = array("q", [self.indices[k] for k in rows])
+        spans = np.frombuffer(self.spans, np.int64).reshape(-1, 6) if len(self) else \
+            np.zeros((0, 6), np.int64)
+        out.spans = array("q", spans[keep].ravel().tolist())
+        out.line, out.column = self.line[keep], self.column[keep]
+        out._words = self._words
+        return out
+
+    def use(self, i: int, file: str) -> MotionUse:
+        """Row ``i`` as the :class:`MotionUse` the object parse makes."""
+        s = self.spans[6 * i:6 * i + 6]
+        index = self.indices[i]
+        return MotionUse(
+            instruction=self.instructions[i],
+            source=(file, int(self.line[i]), int(self.column[i])),
+            role="to", target_name=self.target_names[i],
+            target_index=None if index < 0 else (index,), inline=None, runtime=None,
+            tool=self.tools[i], tool_inline=None, wobj=self.wobjs[i], wobj_inline=None,
+            joint=False, routine=self.routines[i], instruction_span=(s[0], s[1]),
+            statement_span=(s[2], s[3]), target_span=(s[4], s[5]))
+
+    def uses(self, file: str) -> list[MotionUse]:
+        """Every row as :meth:`use` makes it (in one pass)."""
+        s = self.spans.tolist()
+        make = MotionUse._make
+        return [make((instruction, (file, line, column), "to", name,
+                      None if index < 0 else (index,), None, None, tool, None, wobj, None,
+                      False, routine, (a, b), (c, d), (e, f)))
+                for instruction, line, column, name, index, tool, wobj, routine, a, b, c, d,
+                e, f in zip(self.instructions, self.line.tolist(), self.column.tolist(),
+                            self.target_names, self.indices, self.tools, self.wobjs,
+                            self.routines, s[0::6], s[1::6], s[2::6], s[3::6], s[4::6],
+                            s[5::6])]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ModuleColumns:
+    """The tables of one column parse (see the module docstring)."""
+
+    targets: TargetTable
+    moves: MoveTable
+
+    def place(self, line_starts) -> None:
+        """Give every row its line and column (``line_starts``: where the lines start)."""
+        starts = np.asarray(line_starts, np.int64)
+        self.targets.place(starts)
+        self.moves.place(starts)
+
+
+def _lines_and_columns(offsets, line_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1-based (line, column) arrays of character ``offsets``."""
+    at = np.asarray(offsets, np.int64)
+    line = np.searchsorted(line_starts, at, side="right")
+    return line, at - line_starts[line - 1] + 1
+
+
+def with_objects(program: Program, columns: ModuleColumns) -> Program:
+    """The ordinary :class:`Program` of a column parse: the table rows made into objects
+    and merged in text order with the others (what the object parse gives)."""
+    targets = columns.targets.targets(program.text, program.file)
+    motions = columns.moves.uses(program.file)
+    return dataclasses.replace(
+        program,
+        targets=_merged(program.targets, targets, lambda t: t.span[0]),
+        motions=_merged(program.motions, motions, lambda u: u.target_span or u.statement_span))
+
+
+def split(program: Program, columns: ModuleColumns, keep_targets: np.ndarray,
+          keep_moves: np.ndarray) -> tuple[Program, ModuleColumns]:
+    """``(program, columns)`` with the table rows not kept (``keep_targets`` (n,) and
+    ``keep_moves`` (k,) bool) made into objects of the program, merged in text order, and
+    the kept rows left in the tables: :func:`with_objects` of the result is that of the
+    input."""
+    if keep_targets.all() and keep_moves.all():
+        return program, columns
+    text, file = program.text, program.file
+    targets = [columns.targets.target(i, text, file) for i in np.flatnonzero(~keep_targets)]
+    motions = [columns.moves.use(i, file) for i in np.flatnonzero(~keep_moves)]
+    program = dataclasses.replace(
+        program,
+        targets=_merged(program.targets, targets, lambda t: t.span[0]),
+        motions=_merged(program.motions, motions, lambda u: u.target_span or u.statement_span))
+    return program, ModuleColumns(columns.targets.subset(keep_targets),
+                                  columns.moves.subset(keep_moves))
+
+
+def _merged(objects: tuple, rows: list, key) -> tuple:
+    """``objects`` and ``rows`` (each in order of ``key``) as one tuple in that order."""
+    if not rows:
+        return objects
+    if not objects:
+        return tuple(rows)
+    return tuple(heapq.merge(objects, rows, key=key))
