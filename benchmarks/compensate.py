@@ -321,6 +321,7 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
     garbage collector off as in the command)."""
     import gc
 
+    from olp_compensate.programs.rapid import column_plans
     from olp_compensate.programs.rapid import module_columns as mc
     from olp_compensate.programs.rapid.reader import parse_rapid_columns
 
@@ -333,7 +334,7 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         stages["read and parse"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         comp = Compensator(cal)
-        plan = mc._plan(program, columns)
+        plan = column_plans.plan(program, columns)
         (res,) = mc.resolve_task([program])
         rows, _, edits = mc.module_rows_and_edits(program, res, comp, emit="pose",
                                                   unused="skip")

@@ -55,7 +55,7 @@ from pathlib import Path
 
 from olp_compensate.programs.languages import extensions
 from olp_compensate.compensation.files import ProgramFiles, compensate_files
-from olp_compensate.compensation.program import compensate_program
+from olp_compensate.programs.object_model.task import compensate_program
 from olp_compensate.errors import OlpError, ParseError
 from olp_compensate.programs import load
 

@@ -31,11 +31,11 @@ import numpy as np
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.pose import COMPENSATED, Compensator
-from olp_compensate.compensation.program import solve_entries
 from olp_compensate.errors import DataError
 from olp_compensate.kinematics.robot import bundled_robot_names, library_records, load_robot
 from olp_compensate.kinematics.robot_names import robot_named_in
 from olp_compensate.programs import load
+from olp_compensate.programs.object_model.program import solve_entries
 from olp_compensate.programs.semantics import resolve
 from olp_compensate.programs.targets import JointTarget
 

@@ -33,9 +33,9 @@ import time
 
 import numpy as np
 
-from olp_compensate.compensation.confdata import abb_confdata, select_branch
-from olp_compensate.kinematics.conventions import rotvec_from_rotation
 from olp_compensate.compensation.ik import OPWParameters, opw_inverse, solve
+from olp_compensate.kinematics.conventions import rotvec_from_rotation
+from olp_compensate.programs.object_model.confdata import abb_confdata, select_branch
 
 PI = np.pi
 # ABB IRB 2400 in standard DH, ABB joint directions (see tests/test_ik.py)

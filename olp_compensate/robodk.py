@@ -221,7 +221,7 @@ def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
     """Compensate the kept targets in one batch, each on the configuration of the joints
     RoboDK gave (its nominal solution) and with the calibrated tool of its tool's name."""
     from .compensation.explained import compensate_explained, confdata_of_joints
-    from .compensation.program import _real_tool
+    from .programs.object_model.program import _real_tool
 
     n = comp.robot.n_joints
     joints = [np.asarray(t.joints.tolist() if hasattr(t.joints, "tolist") else t.joints,

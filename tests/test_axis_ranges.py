@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
+from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.ik import closed_form_inverse
 from olp_compensate.compensation.pose import Compensator, compensate_pose
 from olp_compensate.io.calibration_file import calibration_from_dict, calibration_to_dict
-from olp_compensate.compensation.program import compensate_program
 from olp_compensate.kinematics.robot import bundled_robot_names, load_robot, robot_from_urdf_text
-from olp_compensate.calibration.simulate import random_joints
+from olp_compensate.programs.object_model.task import compensate_program
 
 ISSUE_TARGET = """MODULE T
   PROC main()

@@ -10,12 +10,12 @@ import json
 import numpy as np
 import pytest
 
-from olp_compensate.calibration.base import (PoorlyDeterminedBase, recalibrate_base, tilt_of)
+from olp_compensate.calibration.base import PoorlyDeterminedBase, recalibrate_base, tilt_of
 from olp_compensate.calibration.calibration import ToolPoint, nominal_calibration
 from olp_compensate.calibration.simulate import VirtualRobot
 from olp_compensate.cli import cal_base
-from olp_compensate.compensation.pose import compensate_poses
 from olp_compensate.cli.common import run_guarded
+from olp_compensate.compensation.pose import compensate_poses
 from olp_compensate.io.calibration_file import read_calibration, write_calibration
 from olp_compensate.kinematics.conventions import MM, rot_x, rot_y, rot_z
 from olp_compensate.kinematics.robot import load_robot

@@ -215,7 +215,7 @@ def test_targets_inside_a_region_are_solved_on_its_model(tmp_path):
     import dataclasses
 
     from olp_compensate.calibration.calibration import RegionBox, RegionCalibration
-    from olp_compensate.compensation.program import compensate_program
+    from olp_compensate.programs.object_model.task import compensate_program
 
     robot = load_robot("abb_irb2400")
     nominal = nominal_calibration(robot)
@@ -230,7 +230,7 @@ def test_targets_inside_a_region_are_solved_on_its_model(tmp_path):
              text.decode("latin-1"), "global model")):
         regional = dataclasses.replace(nominal, regions=(RegionCalibration(
             name="cell", box=box, calibration=local),))
-        from olp_compensate.cli.fix import make_compensator
+        from olp_compensate.cli.fix_unit import make_compensator
 
         out, report = compensate_program(text, "rapid", make_compensator(regional, None))
         assert out == expected

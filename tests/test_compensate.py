@@ -18,19 +18,21 @@ import numpy as np
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.compensation.pose import (Compensator, compensate_pose, compensate_poses,
-                                             explain_failures)
-from olp_compensate.kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz, matrix_from_quat_wxyz,
-                                        pose_from_rotation_translation, quat_wxyz_from_matrix,
-                                        rotation_angle_between, rotation_from_rotvec)
-from olp_compensate.compensation.ik import branch_of, closed_form_inverse, fit_family, select_branch
 from olp_compensate.calibration.identify import IdentificationOptions, identify
-from olp_compensate.compensation.program import compensate_program
-from olp_compensate.programs import loads, resolve
-from olp_compensate.kinematics.model import build_model, forward, joint_frames
 from olp_compensate.calibration.registration import kabsch
-from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
+from olp_compensate.compensation.ik import branch_of, closed_form_inverse, fit_family, select_branch
+from olp_compensate.compensation.pose import (Compensator, compensate_pose, compensate_poses,
+                                              explain_failures)
+from olp_compensate.kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz,
+                                                   matrix_from_quat_wxyz,
+                                                   pose_from_rotation_translation,
+                                                   quat_wxyz_from_matrix, rotation_angle_between,
+                                                   rotation_from_rotvec)
+from olp_compensate.kinematics.model import build_model, forward, joint_frames
+from olp_compensate.kinematics.robot import load_robot
+from olp_compensate.programs import loads, resolve
+from olp_compensate.programs.object_model.task import compensate_program
 
 NOISE_M = 0.01e-3
 TOLERANCE_M = 0.05e-3

@@ -26,25 +26,23 @@ from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
-from olp_compensate.programs.krl.rules import KRL, krl_status, krl_turn
 from olp_compensate.compensation.ik import branch_of, closed_form_inverse
 from olp_compensate.compensation.pose import Compensator
-from olp_compensate.compensation.program import compensate_program
-from olp_compensate.programs.fanuc.rules import FANUC_TP, fanuc_letters, turn_number
-from olp_compensate.programs.val3.rules import VAL3, val3_config
-from olp_compensate.kinematics.conventions import (MM, euler_xyz_from_matrix,
-                                                   euler_zyx_from_matrix,
+from olp_compensate.kinematics.conventions import (MM, euler_xyz_from_matrix, euler_zyx_from_matrix,
                                                    quat_wxyz_from_matrix)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
 from olp_compensate.programs.fanuc.reader import parse_fanuc_tp
+from olp_compensate.programs.fanuc.rules import FANUC_TP, fanuc_letters, turn_number
 from olp_compensate.programs.krl.reader import parse_krl
+from olp_compensate.programs.krl.rules import KRL, krl_status, krl_turn
+from olp_compensate.programs.object_model.task import compensate_program
 from olp_compensate.programs.val3.reader import parse_val3
-from virtual_world import identified_world, nominal_arm
-
+from olp_compensate.programs.val3.rules import VAL3, val3_config
 import test_programs_fanuc as fanuc_case
 import test_programs_krl as krl_case
 import test_programs_val3 as val3_case
+from virtual_world import identified_world, nominal_arm
 
 ROBOTS = {"rapid": "abb_irb2400", "krl": "kuka_kr16_2", "fanuc": "fanuc_r2000ic_165f",
           "val3": "staubli_tx2_60"}
@@ -361,7 +359,7 @@ def _golden_reports():
     """(case name, robot, report) of every golden program that parses and of the task,
     with the nominal calibration of the maker's robot (as the golden tests run them)."""
     import test_programs_golden as golden
-    from olp_compensate.compensation.task import compensate_task
+    from olp_compensate.programs.object_model.task import compensate_task
     from olp_compensate.errors import ParseError
     from test_programs_task import task_programs
 

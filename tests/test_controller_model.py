@@ -19,18 +19,17 @@ from olp_compensate.calibration.calibration import Calibration
 from olp_compensate.calibration.controller_fit import controller_chain, fit_controller
 from olp_compensate.cli.cal import main as cal
 from olp_compensate.cli.fix import main as fix
+from olp_compensate.compensation.ik import refine
 from olp_compensate.errors import ParseError
 from olp_compensate.io.calibration_file import read_calibration, write_calibration
 from olp_compensate.io.ur_kinematics import (UrKinematics, dumps_conf, dumps_urp, dumps_yaml,
-                                             loads_conf, loads_urp, loads_yaml,
-                                             segments_from_table)
+                                             loads_conf, loads_urp, loads_yaml, segments_from_table)
 from olp_compensate.kinematics.conventions import (invert_pose, quat_wxyz_from_matrix,
-                                                   rotation_angle_between,
-                                                   rotation_from_rotvec, rotvec_from_rotation)
+                                                   rotation_angle_between, rotation_from_rotvec,
+                                                   rotvec_from_rotation)
 from olp_compensate.kinematics.dh_table import UR_NOMINAL, DHTable, mdh_rows
 from olp_compensate.kinematics.model import build_model, fixed_chain, forward
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.compensation.ik import refine
 from olp_compensate.programs.urscript.reader import parse_urscript
 
 NAME = "ur10e"

@@ -13,13 +13,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from olp_compensate.cli.cal import main
 from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict
+from olp_compensate.calibration.simulate import (HIDDEN_KINDS, make_virtual_robot,
+                                                 random_hidden_effect, random_joints, scaled_effect)
+from olp_compensate.cli.cal import main
 from olp_compensate.errors import DataError
 from olp_compensate.io.calibration_file import read_calibration
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.calibration.simulate import (HIDDEN_KINDS, make_virtual_robot, random_hidden_effect,
-                                     random_joints, scaled_effect)
 
 NOISE = 0.05e-3
 POSES = 60

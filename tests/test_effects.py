@@ -9,18 +9,18 @@ import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.effects import (Backlash, Conditions, GearHarmonic, JointCompliance,
-                                    JointScale, ThermalExpansion, effect_from_dict, effect_inputs,
-                                    make_effect)
-from olp_compensate.errors import DataError, ModelError
+                                                JointScale, ThermalExpansion, effect_from_dict,
+                                                effect_inputs, make_effect)
 from olp_compensate.calibration.gravity import gravity_model
 from olp_compensate.calibration.identify import IdentificationOptions, identify, measurement_inputs
 from olp_compensate.calibration.problem import IdentificationProblem
+from olp_compensate.calibration.simulate import (HiddenEffect, UNIT_VALUES, make_virtual_robot,
+                                                 random_joints, scaled_effect)
+from olp_compensate.errors import DataError, ModelError
 from olp_compensate.io.calibration_file import (calibration_from_dict, calibration_to_dict,
                                                 dumps_calibration)
 from olp_compensate.kinematics.model import build_model
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.calibration.simulate import (HiddenEffect, UNIT_VALUES, make_virtual_robot,
-                                     random_joints, scaled_effect)
 
 ABB = load_robot("abb_irb2400")  # controller axes differ from the URDF joints (J2/J3 linkage)
 

@@ -6,19 +6,21 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from olp_compensate.cli.cal import main
-from olp_compensate.kinematics.conventions import (matrix_from_quat_wxyz, quat_wxyz_from_matrix,
-                                        rotation_angle_between, rotvec_from_rotation)
-from olp_compensate.calibration.effects import GearHarmonic, JointCompliance, JointScale, ThermalExpansion
-from olp_compensate.errors import DataError
+from olp_compensate.calibration.effects import (GearHarmonic, JointCompliance, JointScale,
+                                                ThermalExpansion)
 from olp_compensate.calibration.identify import IdentificationOptions, identify, measurement_inputs
 from olp_compensate.calibration.problem import IdentificationProblem
+from olp_compensate.calibration.simulate import (VirtualRobot, make_virtual_robot, random_joints,
+                                                 random_rotation)
+from olp_compensate.cli.cal import main
+from olp_compensate.errors import DataError
 from olp_compensate.io.calibration_file import calibration_from_dict, calibration_to_dict
 from olp_compensate.io.measurements import (format_measurements, parse_measurements,
                                             read_measurements)
+from olp_compensate.kinematics.conventions import (matrix_from_quat_wxyz, quat_wxyz_from_matrix,
+                                                   rotation_angle_between, rotvec_from_rotation)
 from olp_compensate.kinematics.model import build_model
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints, random_rotation
 
 ABB = load_robot("abb_irb2400")
 NOISE = 0.05e-3

@@ -8,21 +8,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from olp_compensate.compensation.confdata import (abb_confdata, select_branch, vplus_branch,
-                                     vplus_configuration)
-from olp_compensate.kinematics.conventions import (pose_from_rotation_translation, quat_wxyz_from_matrix,
-                                        rot_x, rot_z, rotvec_from_rotation)
-from olp_compensate.errors import DataError, ModelError
 from olp_compensate.compensation import ik
-from olp_compensate.compensation.ik.configuration import (configuration_margins,
-                                                          select_on_branch, shift_into)
+from olp_compensate.compensation.ik import (REASONS, IKSolution, OPWParameters, ReachBound,
+                                            URParameters, branch_of, closed_form_forward,
+                                            closed_form_inverse, configuration_bits, fit_family,
+                                            opw_forward, opw_inverse, refine, solve, ur_forward,
+                                            ur_inverse)
+from olp_compensate.compensation.ik.configuration import (configuration_margins, select_on_branch,
+                                                          shift_into)
 from olp_compensate.compensation.ik.jacobians import nominal_jacobian
 from olp_compensate.compensation.ik.solver import BLOCK, CLOSED_FORM_STEPS
-from olp_compensate.compensation.ik import (REASONS, IKSolution, OPWParameters, ReachBound, URParameters,
-                               branch_of,
-                               closed_form_forward, closed_form_inverse, configuration_bits,
-                               fit_family, opw_forward, opw_inverse, refine, solve,
-                               ur_forward, ur_inverse)
+from olp_compensate.errors import DataError, ModelError
+from olp_compensate.kinematics.conventions import (pose_from_rotation_translation,
+                                                   quat_wxyz_from_matrix, rot_x, rot_z,
+                                                   rotvec_from_rotation)
+from olp_compensate.programs.object_model.confdata import (abb_confdata, select_branch,
+                                                           vplus_branch, vplus_configuration)
 
 PI = np.pi
 

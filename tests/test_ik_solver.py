@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from olp_compensate.compensation.confdata import abb_confdata
 from olp_compensate.compensation.ik import ReachBound, configuration_bits, refine
 from olp_compensate.compensation.ik.configuration import flip_wrist
 from olp_compensate.compensation.ik.solver import CLOSED_FORM_STEPS, SolveOptions, _BranchSolver
-from test_ik import (IRB2400, IRB2400_LIMITS, IRB2400_OPW, _arm_forward, _chain,
-                     _stretched_elbow, pose_errors)
+from olp_compensate.programs.object_model.confdata import abb_confdata
+from test_ik import (IRB2400, IRB2400_LIMITS, IRB2400_OPW, _arm_forward, _chain, _stretched_elbow,
+                     pose_errors)
 
 
 def _solver(robot, target, confdata, limits=None, reach=None):

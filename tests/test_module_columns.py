@@ -11,18 +11,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_compensate import (TOLERANCE_M, World, _frames, _world, rapid_module, read_rapid_targets,
-                             written_targets)
 
-from olp_compensate.programs.rapid.module_columns import _plan, compensate_rapid_module
 from olp_compensate.compensation.pose import Compensator
 from olp_compensate.compensation.report import ReportRows
-from olp_compensate.compensation.task import compensate_task
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.conventions import (MM, invert_pose, quat_wxyz_from_matrix,
                                                    rotation_angle_between)
 from olp_compensate.programs import loads
+from olp_compensate.programs.object_model.task import compensate_task
+from olp_compensate.programs.rapid.column_plans import plan as _plan
+from olp_compensate.programs.rapid.module_columns import compensate_rapid_module
 from olp_compensate.programs.rapid.reader import parse_rapid_columns
+from test_compensate import (TOLERANCE_M, World, _frames, _world, rapid_module, read_rapid_targets,
+                             written_targets)
 
 HERE = Path(__file__).parent
 MODULES = sorted([*HERE.glob("programs/rapid_*/input.*"), *HERE.glob("tasks/*/*.mod"),
@@ -313,7 +314,7 @@ def _task_both(texts, names, comp, unused="skip"):
 
 
 def _task_plans(texts, names):
-    from olp_compensate.programs.rapid.module_columns import _task_plans as plans
+    from olp_compensate.programs.rapid.column_plans import task_plans as plans
 
     parsed = [parse_rapid_columns(t, n) for t, n in zip(texts, names)]
     return [p is not None for p in plans([p for p, _ in parsed], [c for _, c in parsed])]

@@ -4,15 +4,15 @@ and the CLI plans a campaign that olp-cal simulate can measure."""
 import numpy as np
 import pytest
 
+from olp_compensate.calibration.identify import IdentificationOptions, identify
+from olp_compensate.calibration.pose_planning import (_Design, design_quality, plan_poses,
+                                                      planning_space)
+from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 from olp_compensate.cli.cal import main
 from olp_compensate.errors import DataError
-from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.io.measurements import read_measurements
 from olp_compensate.io.poses import read_poses
-from olp_compensate.calibration.pose_planning import (_Design, design_quality, plan_poses,
-                                          planning_space)
 from olp_compensate.kinematics.robot import load_robot
-from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 
 NOISE = 0.05e-3
 

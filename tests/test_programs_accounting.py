@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.compensation.program import compensate_program
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import load
+from olp_compensate.programs.object_model.task import compensate_program
 
 FOLDER = Path(__file__).parent / "programs"
 CASES = sorted(FOLDER.glob("rapid_*/input.*")) + [FOLDER.parent.parent / "samples" / "cell_a.mod"]

@@ -19,11 +19,11 @@ import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.simulate import random_joints
-from olp_compensate.compensation.program import compensate_program
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.conventions import euler_zyz_from_matrix
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
+from olp_compensate.programs.object_model.task import compensate_program
 
 N_TRANS = 8
 

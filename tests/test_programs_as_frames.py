@@ -6,10 +6,10 @@ from __future__ import annotations
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.cli.fix import main
-from olp_compensate.compensation.task import compensate_task
 from olp_compensate.io.calibration_file import write_calibration
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
+from olp_compensate.programs.object_model.task import compensate_task
 
 ROBOT = load_robot("unimation_puma560")
 PROGRAM = """.PROGRAM main()

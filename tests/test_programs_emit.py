@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from olp_compensate.kinematics.conventions import matrix_from_euler_zyz
 from olp_compensate.errors import DataError
-from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like,
-                                     joint_emit_edits, joint_target_edits, load, loads,
-                                     splice, target_edits, tool_edits)
-from olp_compensate.programs.emit import (EditColumns, EditsInTurn, SplicedText,
-                                          aligned_quaternion, nearest_euler_zyz_deg)
+from olp_compensate.kinematics.conventions import matrix_from_euler_zyz
+from olp_compensate.programs import (Edit, dumps, edits_for_targets, format_like, joint_emit_edits,
+                                     joint_target_edits, load, loads, splice, target_edits,
+                                     tool_edits)
+from olp_compensate.programs.emit import (EditColumns, EditsInTurn, SplicedText, aligned_quaternion,
+                                          nearest_euler_zyz_deg)
 from olp_compensate.programs.semantics import written_values
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -15,12 +15,11 @@ from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
 from olp_compensate.compensation.ik import closed_form_inverse
-from olp_compensate.programs.fanuc.rules import (FANUC_TP, fanuc_letters, fanuc_rules,
-                                                     turn_number)
 from olp_compensate.kinematics.conventions import (euler_zyx_from_matrix, invert_pose,
                                                    matrix_from_euler_zyx)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.fanuc.reader import parse_fanuc_tp
+from olp_compensate.programs.fanuc.rules import FANUC_TP, fanuc_letters, fanuc_rules, turn_number
 from virtual_world import assert_the_gap_closed, identified_world, misses_mm, nominal_arm
 
 ROBOT = load_robot("fanuc_r2000ic_165f")

@@ -18,10 +18,10 @@ import pytest
 
 from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.compensation.files import ProgramFiles, compensate_files
-from olp_compensate.compensation.program import compensate_program
 from olp_compensate.errors import ParseError
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import load
+from olp_compensate.programs.object_model.task import compensate_program
 
 CASES = sorted(p for p in (Path(__file__).parent / "programs").iterdir() if p.is_dir())
 POSE_PREFIXES = {"krl_": "krl", "fanuc_": "fanuc", "val3_": "val3", "urscript_": "urscript"}

@@ -81,7 +81,7 @@ def test_the_library_leaves_the_garbage_collector_alone(monkeypatch):
     import gc
 
     from olp_compensate.calibration.calibration import nominal_calibration
-    from olp_compensate.compensation.program import compensate_program
+    from olp_compensate.programs.object_model.task import compensate_program
     from olp_compensate.errors import ParseError
     from olp_compensate.kinematics.robot import load_robot
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from olp_compensate.kinematics.conventions import (MM, invert_pose, matrix_from_euler_zyz,
-                                        matrix_from_quat_wxyz, pose_from_rotation_translation)
+                                                   matrix_from_quat_wxyz,
+                                                   pose_from_rotation_translation)
 from olp_compensate.programs import load, loads, resolve
 from olp_compensate.programs.targets import CartesianTarget
 

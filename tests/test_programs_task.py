@@ -22,12 +22,12 @@ from olp_compensate.calibration.calibration import nominal_calibration
 from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 from olp_compensate.compensation.pose import Compensator
-from olp_compensate.compensation.program import compensate_program
-from olp_compensate.compensation.task import compensate_task
 from olp_compensate.errors import DataError
 from olp_compensate.kinematics.conventions import MM, invert_pose, pose_from_rotation_translation
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import load, loads
+from olp_compensate.programs.object_model.task import compensate_program
+from olp_compensate.programs.object_model.task import compensate_task
 from olp_compensate.programs.semantics import resolve_task
 from test_compensate import (NOISE_M, World, as_program_tool, rapid_module, read_rapid_targets,
                              written_targets)

@@ -15,11 +15,11 @@ from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.dialect_program import compensate_pose_program
 from olp_compensate.compensation.dialect_rules import ArmGeometry
 from olp_compensate.compensation.ik import closed_form_inverse
-from olp_compensate.programs.val3.rules import VAL3, val3_config
-from olp_compensate.kinematics.conventions import (euler_xyz_from_matrix, invert_pose, rot_x,
-                                                   rot_y, rot_z)
+from olp_compensate.kinematics.conventions import (euler_xyz_from_matrix, invert_pose, rot_x, rot_y,
+                                                   rot_z)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs.val3.reader import parse_val3
+from olp_compensate.programs.val3.rules import VAL3, val3_config
 from virtual_world import assert_the_gap_closed, identified_world, misses_mm, nominal_arm
 
 ROBOT = load_robot("staubli_tx2_60")

@@ -4,9 +4,9 @@ are Latin-1's (a routine or target named with an accented letter reads)."""
 from __future__ import annotations
 
 from olp_compensate.calibration.calibration import nominal_calibration
-from olp_compensate.compensation.program import compensate_program
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
+from olp_compensate.programs.object_model.task import compensate_program
 
 TARGET = "[[1200,100,900],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]"
 FUNCS = f"""MODULE R

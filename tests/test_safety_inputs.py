@@ -173,7 +173,7 @@ def test_a_tool_fit_far_off_one_point_is_refused(tmp_path, capsys):
 
 
 def test_the_cli_constants_match_the_library():
-    from olp_compensate.compensation.program import EMIT_MODES
+    from olp_compensate.programs.object_model.program import EMIT_MODES
     from olp_compensate.programs import DIALECTS as TEXT_DIALECTS
     from olp_compensate.programs.languages import extensions, names
 

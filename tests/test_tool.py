@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from olp_compensate.kinematics.conventions import MM, rotation_from_rotvec
-from olp_compensate.errors import DataError
 from olp_compensate.calibration.tool import (COND_LIMIT, PoorlyDeterminedTool, ToolRequest,
-                                             calibrate_tool, rapid_tooldata,
-                                             tool_from_fixed_point, tool_from_known_marks)
+                                             calibrate_tool, rapid_tooldata, tool_from_fixed_point,
+                                             tool_from_known_marks)
+from olp_compensate.errors import DataError
 from olp_compensate.io.tool_marks import format_marks_csv, read_marks_csv, write_tool_json
+from olp_compensate.kinematics.conventions import MM, rotation_from_rotvec
 
 DH_A = np.array([0.1, 0.705, 0.135, 0.0, 0.0, 0.0])
 DH_ALPHA = np.array([-np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0])

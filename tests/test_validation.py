@@ -16,8 +16,7 @@ from olp_compensate.calibration.calibration import ToolPoint, nominal_calibratio
 from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.calibration.measurements import Measurements
 from olp_compensate.calibration.simulate import VirtualRobot, make_virtual_robot, random_joints
-from olp_compensate.calibration.validation import (OUTSIDE, error_stats, validate,
-                                                   validation_to_dict)
+from olp_compensate.calibration.validation import OUTSIDE, error_stats, validate, validation_to_dict
 from olp_compensate.cli import cal_validate
 from olp_compensate.cli.common import run_guarded
 from olp_compensate.io.calibration_file import write_calibration

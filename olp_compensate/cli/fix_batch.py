@@ -30,7 +30,7 @@ class UnitOutcome:
 
 
 def _start_worker(model: str, robot: str | None, taught_on: str | None, options: dict) -> None:
-    from .fix import make_compensator
+    from .fix_unit import make_compensator
     from ..io.calibration_file import read_calibration
     from ..kinematics.robot import load_robot
 
@@ -47,7 +47,7 @@ def _start_worker(model: str, robot: str | None, taught_on: str | None, options:
 def _compensator_for(dialect: str, paths, names):
     """The worker's compensator, or one under the load this program states (or the
     override) when the calibration holds load-dependent effects; and the load's notes."""
-    from .fix import make_compensator
+    from .fix_unit import make_compensator
     from .fix_models import unit_load
 
     args = _STATE["options"]["args"]
@@ -87,7 +87,7 @@ def _end_with(parent: int) -> None:
 def _work(index: int, dialect: str, paths: tuple, names: tuple) -> UnitOutcome:
     """Compensate one unit in this process (see :func:`_start_worker`)."""
     from ..compensation.files import ProgramFiles, compensate_files
-    from .fix import check_not_cut_short, check_robot
+    from .fix_unit import check_not_cut_short, check_robot
     from .fix_models import load_sensitive, with_load_notes
 
     started = time.perf_counter()
@@ -235,7 +235,7 @@ def run_batch(args, units) -> int:
     unit's outputs and spool its report rows as it completes (memory bounded by the largest
     program, not the sum), then the one report in the input order; print the table."""
     from ..io.atomic import write_files_atomic
-    from .fix import load_calibrations, loadable_outputs
+    from .fix_unit import load_calibrations, loadable_outputs
     from .fix_models import read_controller, warn_no_controller_model
 
     started = time.perf_counter()

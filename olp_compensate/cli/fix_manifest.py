@@ -126,14 +126,14 @@ def sha256_of(path: Path) -> str:
 
 def _controller_option() -> bool:
     """Whether this olp-fix has a ``--controller`` option to pass the column on to."""
-    from .fix import build_parser as fix_parser
+    from .fix_run import build_parser as fix_parser
 
     return any("--controller" in a.option_strings for a in fix_parser()._actions)
 
 
 def _run_entry(entry: Entry, manifest: Path, folder: Path) -> tuple[int, list[dict]]:
     """Compensate one row's program; (exit code, its report rows as dicts)."""
-    from .fix import build_parser as fix_parser, run as fix_run
+    from .fix_run import build_parser as fix_parser, run as fix_run
 
     argv = [str(entry.input), "--model", str(entry.calibration), "-o", str(entry.output),
             "--report", str(folder / "report.csv"), "-q"]

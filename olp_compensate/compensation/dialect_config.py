@@ -13,8 +13,9 @@ import numpy as np
 from ..programs.pose_dialects import PoseTarget
 from .config_rule import decide
 from .dialect_rules import ArmGeometry, DialectRules
+from .failures import explain_failures
 from .ik import IKSolution, closed_form_inverse
-from .pose import Compensator, explain_failures
+from .pose import Compensator
 
 _GEOMETRY: dict[int, ArmGeometry] = {}
 

@@ -24,8 +24,9 @@ from ..programs.targets import Edit
 from .dialect_config import (choose_all, config_namer, dialect_asked, geometry_of, on_rows,
                              rule_alone)
 from .dialect_rules import ArmGeometry, DialectRules
-from .pose import COMPENSATED, Compensator, explain_failures
+from .failures import explain_failures
 from .frame_lookup import FrameLookup
+from .pose import COMPENSATED, Compensator
 from .regions import RegionalCompensator
 from .report import CompensationReport, TargetReport
 

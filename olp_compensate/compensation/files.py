@@ -4,8 +4,8 @@ several, a KRL ``.src`` with its ``.dat``, a VAL3 data file, a URScript, a FANUC
 :func:`compensate_files` reads the files of one :class:`ProgramFiles` together (latin-1,
 every byte kept) and hands them to their language
 (:func:`~olp_compensate.programs.languages.language_named`), which compensates them with
-the shared machinery (:func:`pose_program_result` for six-number targets,
-:func:`object_model_result` for the named-target object model) and returns the new bytes of
+the shared machinery (:func:`pose_program_result` for six-number targets;
+:mod:`olp_compensate.programs.object_model` for RAPID and V+/AS) and returns the new bytes of
 each file and one report whose rows name the files as the user knows them.
 """
 
@@ -144,17 +144,3 @@ def pose_program_result(files: ProgramFiles, program, rules, run: CompensationRu
     new, report = compensate_pose_program(program, rules, run.comp, taught_on=run.taught_on)
     return FilesResult(new=tuple(new[name].encode(ENCODING) for name in files.names),
                        report=report)
-
-
-def object_model_result(files: ProgramFiles, texts: list[str],
-                        run: CompensationRun) -> FilesResult:
-    """The result of programs of the named-target object model
-    (:class:`~olp_compensate.programs.targets.Program`: RAPID, V+/AS), compensated as one
-    task (:func:`.task.compensate_task`)."""
-    from ..programs import loads
-    from .task import compensate_task
-
-    programs = [loads(t, files.dialect, n) for t, n in zip(texts, files.names)]
-    new, report = compensate_task(programs, run.comp, emit=run.emit, unused=run.unused,
-                                  taught_on=run.taught_on)
-    return FilesResult(new=tuple(t.encode(ENCODING) for t in new), report=report)

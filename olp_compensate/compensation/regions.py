@@ -25,8 +25,10 @@ import numpy as np
 from ..calibration.calibration import GLOBAL_MODEL, Calibration
 from ..errors import DataError
 from ..kinematics.conventions import invert_pose
+from .failures import FailureReport
+from .failures import explain_failures as explain_on
 from .ik import IKSolution
-from .pose import Compensator, FailureReport, explain_failures as explain_on
+from .pose import Compensator
 
 __all__ = ["RegionalCompensator", "RegionalSolution", "GLOBAL_MODEL", "explain_failures"]
 
@@ -188,7 +190,7 @@ class RegionalCompensator(Compensator):
 
     def explain_failures(self, solution: IKSolution, regional: RegionalSolution,
                          confdata: np.ndarray | None) -> list[FailureReport | None]:
-        """:func:`~olp_compensate.compensation.pose.explain_failures` of each failed row
+        """:func:`~olp_compensate.compensation.failures.explain_failures` of each failed row
         on the model that solved it (``regional`` from :meth:`solve_regions`)."""
         out: list[FailureReport | None] = [None] * len(solution.success)
         for name in dict.fromkeys(regional.regions.tolist()):
@@ -208,7 +210,7 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
                      regional: RegionalSolution | None = None) -> list[FailureReport | None]:
     """Why each failed row failed, on the model that solved it: with a
     :class:`RegionalCompensator` and the ``regional`` part of its :meth:`solve_regions`,
-    per region; otherwise :func:`olp_compensate.compensation.pose.explain_failures`."""
+    per region; otherwise :func:`olp_compensate.compensation.failures.explain_failures`."""
     if isinstance(comp, RegionalCompensator) and regional is not None:
         return comp.explain_failures(solution, regional, confdata)
     return explain_on(comp, solution, desired_flange, confdata)

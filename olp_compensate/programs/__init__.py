@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-
 from typing import TYPE_CHECKING
 
 from ..errors import ParseError
@@ -27,7 +26,7 @@ if TYPE_CHECKING:
     from .targets import Program
 
 _LAZY = {
-    "edits_for_targets": "emit", "format_like": "emit", "joint_emit_edits": "emit",
+    "edits_for_targets": "emit_batch", "format_like": "emit", "joint_emit_edits": "emit_joints",
     "joint_target_edits": "emit", "splice": "emit", "target_edits": "emit",
     "tool_edits": "emit", "parse_rapid": "rapid.reader", "parse_vplus": "vplus.reader",
     "Resolution": "semantics", "ResolvedTarget": "semantics", "resolve": "semantics",

@@ -16,12 +16,11 @@ from collections.abc import Iterable, Iterator, Sequence
 
 from ..errors import DataError
 from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_quaternion,
-                            check_values, format_int_like, format_like,
-                            nearest_euler_zyz_deg)
+                            check_values, format_int_like, format_like, nearest_euler_zyz_deg)
 from .targets import QUAT_WXYZ, CartesianTarget, Edit, JointTarget, ToolData
 
-__all__ = ["splice", "splice_in_order", "SplicedText", "EditColumns", "EditsInTurn", "target_edits", "tool_edits", "joint_target_edits", "edits_for_targets",
-           "joint_emit_edits", "format_like", "format_int_like", "aligned_quaternion",
+__all__ = ["splice", "splice_in_order", "SplicedText", "EditColumns", "EditsInTurn",
+           "target_edits", "tool_edits", "joint_target_edits", "format_like", "format_int_like", "aligned_quaternion",
            "nearest_euler_zyz_deg", "MM_DECIMALS", "QUAT_DECIMALS", "DEG_DECIMALS"]
 
 
@@ -244,11 +243,3 @@ def tool_edits(tool: ToolData, position_mm=None, quat_wxyz=None) -> list[Edit]:
         _quaternion_edits([n.text for n in numbers], [n.start for n in numbers], 0,
                           quat_wxyz, out)
     return out
-
-
-# ---- --emit joints --------------------------------------------------------------------
-
-
-# the batch and joint emitters use the single-target edits above
-from .emit_batch import edits_for_targets  # noqa: E402
-from .emit_joints import joint_emit_edits  # noqa: E402

@@ -32,7 +32,7 @@ from ..programs.pose_dialects import PoseTarget
 from ..programs.targets import Number
 from ..programs.urscript.rules import URSCRIPT
 from ..programs.val3.rules import VAL3
-from .calls import INVALID_PARAMS, ServiceError
+from .requests import INVALID_PARAMS, ServiceError
 
 RULES = {"krl": KRL, "fanuc": FANUC_TP, "val3": VAL3, "urscript": URSCRIPT}
 _GEOMETRY: dict[int, ArmGeometry] = {}

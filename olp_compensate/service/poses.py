@@ -20,7 +20,7 @@ import numpy as np
 
 from ..compensation.explained import compensate_explained
 from ..compensation.pose import Compensator
-from .calls import DIALECTS, INVALID_PARAMS, ORTHONORMAL_TOL, ServiceError, matrix
+from .requests import DIALECTS, INVALID_PARAMS, ORTHONORMAL_TOL, ServiceError, matrix
 
 MAX_POSES = 100_000
 """Poses accepted in one request (the request size limit comes first in practice)."""
@@ -79,7 +79,7 @@ def read_requests(poses, scale: float) -> PoseRequests:
 
 def _matrices(poses: list[dict], key: str, scale: float) -> np.ndarray:
     """The ``key`` matrices of every pose (identity where absent) as (m, 4, 4) m, checked
-    all at once; a bad one is named by :func:`~.calls.matrix`."""
+    all at once; a bad one is named by :func:`~.requests.matrix`."""
     values = [p.get(key) for p in poses]
     if values.count(None) == len(values):          # none given: the identity for every pose
         return np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()

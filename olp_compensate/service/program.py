@@ -18,7 +18,7 @@ def compensate_text(comp: Compensator, dialect: str, text: str, file: str,
     (KRL: a .src, with its .dat's text ``dat`` when given, answered as ``"dat"`` too;
     FANUC and KRL frames from ``frames_path``)."""
     if dialect in ("rapid", "vplus"):
-        from ..compensation.program import compensate_program
+        from ..programs.object_model.task import compensate_program
 
         new, report = compensate_program(text, dialect, comp, file=file)
         out = {"text": new}

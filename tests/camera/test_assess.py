@@ -9,8 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from olp_compensate.camera.assess import (ErrorStats, assess_moves, mean_rotation,
-                                          parse_moves)
+from olp_compensate.camera.assess import ErrorStats, assess_moves, mean_rotation, parse_moves
 from olp_compensate.camera.board import Board, write_board
 from olp_compensate.camera.calibrate import CameraCalibration, ViewResult
 from olp_compensate.camera.campaign import board_centre

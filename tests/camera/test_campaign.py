@@ -10,13 +10,14 @@ import math
 
 import numpy as np
 import pytest
+from test_assess import write_true_camera
 
 from olp_compensate.calibration.pose_planning import design_quality, planning_space
 from olp_compensate.calibration.simulate import VirtualRobot
 from olp_compensate.camera.board import Board, write_board
-from olp_compensate.camera.campaign import (CAMERA_TOOL, ViewLimits, board_centre,
-                                            choose_poses, make_camera_robot, nominal_inverse,
-                                            plan_campaign, read_campaign_truth, write_campaign)
+from olp_compensate.camera.campaign import (CAMERA_TOOL, ViewLimits, board_centre, choose_poses,
+                                            make_camera_robot, nominal_inverse, plan_campaign,
+                                            read_campaign_truth, write_campaign)
 from olp_compensate.camera.detect import detect_dots
 from olp_compensate.camera.model import CameraIntrinsics, project_points
 from olp_compensate.camera.render import RenderOptions
@@ -28,8 +29,6 @@ from olp_compensate.io.images import read_grey
 from olp_compensate.kinematics.conventions import (invert_pose, pose_from_rotation_translation,
                                                    rotation_angle_between)
 from olp_compensate.kinematics.robot import load_robot
-
-from test_assess import write_true_camera
 
 CAMERA = CameraIntrinsics(fx=800.0, mu=1.0, cx=322.0, cy=241.0, k1=0.05, width=640,
                           height=480)

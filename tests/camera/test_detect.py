@@ -10,12 +10,12 @@ import math
 import numpy as np
 import pytest
 
-from olp_compensate.camera.board import Board
 from olp_compensate.camera.blobs import (CONTRAST_THRESHOLDS, dark_mask, darkness, find_blobs,
                                          paper_level)
+from olp_compensate.camera.board import Board
 from olp_compensate.camera.detect import (BORDER_MARGIN_PX, Detection, DetectionFailure,
-                                          circle_centre_bias, detect_dots, detect_many,
-                                          match_grid, refine_centres)
+                                          circle_centre_bias, detect_dots, detect_many, match_grid,
+                                          refine_centres)
 from olp_compensate.camera.model import CameraIntrinsics, project_points
 from olp_compensate.camera.render import RenderOptions, random_views, render_board
 from olp_compensate.kinematics.conventions import pose_from_rotation_translation, rot_x

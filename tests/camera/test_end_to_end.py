@@ -32,16 +32,15 @@ from olp_compensate.camera.render import RenderOptions, random_views, render_boa
 from olp_compensate.cli import cal_camera
 from olp_compensate.cli.common import run_guarded
 from olp_compensate.compensation.ik import branch_of, fit_family
-from olp_compensate.compensation.program import compensate_program
 from olp_compensate.io.camera_file import read_camera
 from olp_compensate.io.images import write_png
 from olp_compensate.io.measurements import read_measurements
 from olp_compensate.kinematics.conventions import (MM, pose_from_rotation_translation,
-                                                   quat_wxyz_from_matrix,
-                                                   rotation_angle_between,
+                                                   quat_wxyz_from_matrix, rotation_angle_between,
                                                    rotation_from_rotvec)
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.programs import loads
+from olp_compensate.programs.object_model.task import compensate_program
 
 CAMERA = CameraIntrinsics(fx=900.0, mu=1.0, cx=323.0, cy=238.0, k1=0.06, width=640,
                           height=480)

@@ -8,10 +8,9 @@ import pytest
 
 from olp_compensate.camera.board import Board
 from olp_compensate.camera.model import CameraIntrinsics, project_points
-from olp_compensate.camera.render import (RenderOptions, board_in_view, random_views,
-                                          render_board)
-from olp_compensate.kinematics.conventions import invert_pose
+from olp_compensate.camera.render import RenderOptions, board_in_view, random_views, render_board
 from olp_compensate.errors import DataError
+from olp_compensate.kinematics.conventions import invert_pose
 
 BOARD = Board(rows=9, cols=9, pitch_m=0.025, dot_diameter_m=0.005, marker_diameter_m=0.008)
 CAMERA = CameraIntrinsics(fx=1100.0, mu=0.98, cx=484.0, cy=355.0, k1=0.1, width=960,

@@ -26,8 +26,8 @@ from olp_compensate.camera.campaign import (CAMERA_TOOL, ViewLimits, make_camera
                                             plan_campaign, write_campaign)
 from olp_compensate.camera.model import CameraIntrinsics
 from olp_compensate.camera.render import RenderOptions, random_views, render_board
-from olp_compensate.camera.scale import (BoardScale, from_scale_bar, read_reference,
-                                         scaled_board, unverified_note, unverified_rows)
+from olp_compensate.camera.scale import (BoardScale, from_scale_bar, read_reference, scaled_board,
+                                         unverified_note, unverified_rows)
 from olp_compensate.cli.cal import main
 from olp_compensate.errors import DataError
 from olp_compensate.io.camera_file import read_camera

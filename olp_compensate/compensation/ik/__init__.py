@@ -23,13 +23,12 @@ modules follow the pipeline:
 Branch numbering. The 8 solutions of both closed forms are ordered so that the index *is*
 the configuration number: ``index = 4 * behind + 2 * elbow + wrist``, with the three bits of
 :func:`configuration_bits`. For OPW arms this is ABB's ``cfx`` (see
-:mod:`olp_compensate.compensation.confdata`). Unreachable branches are NaN. Failure of an
+:mod:`olp_compensate.programs.object_model.confdata`). Unreachable branches are NaN. Failure of an
 iterative solve is a value in :class:`IKSolution`, never an exception.
 """
 
 from .closed_form import closed_form_branch, closed_form_forward, closed_form_inverse
-from .configuration import (branch_of, configuration_bits, nominal_joints_on_branch,
-                            select_branch)
+from .configuration import branch_of, configuration_bits, nominal_joints_on_branch, select_branch
 from .families import OPWParameters, URParameters
 from .fitting import fit_family
 from .newton import refine

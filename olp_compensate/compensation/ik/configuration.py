@@ -35,7 +35,7 @@ def configuration_margins(params, q):
 def configuration_bits(params: OPWParameters | URParameters, q, tolerance: float = 0.0):
     """Configuration bits ``(m, 3)`` int of joints ``q (m, 6)``: (behind, elbow, wrist).
 
-    OPW arms (ABB's cfx, see :mod:`olp_compensate.compensation.confdata`): *behind* = wrist
+    OPW arms (ABB's cfx, see :mod:`olp_compensate.programs.object_model.confdata`): *behind* = wrist
     centre behind axis 1 (its x in the arm plane < 0), *elbow* = wrist centre behind the lower arm
     (``sin(theta3 + atan2(a2, c3)) < 0``), *wrist* = axis 5 negative
     (``sign5 * sin(theta5) < 0``). UR arms: *behind* = wrist point (frame 5 origin) on the

@@ -37,13 +37,12 @@ from __future__ import annotations
 import re
 
 from ...errors import ParseError
-from .backup import PositionRegisters, config_numbers
-from .frames import SystemFrames
-from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget,
-                            is_finite_number, line_column,
-                            line_starts_of)
+from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, is_finite_number,
+                             line_column, line_starts_of)
 from ..targets import Number
 from ..text_checks import check_not_non_finite, check_number_end, check_text
+from .backup import PositionRegisters, config_numbers
+from .frames import SystemFrames
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _SECTION = re.compile(r"^/(PROG|ATTR|APPL|MN|POS|END)\b", re.M)

@@ -33,13 +33,12 @@ import re
 
 from ...errors import ParseError
 from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
-                            is_finite_number, line_column, line_starts_of)
-from .frames import FIELD as _FIELD
-from .frames import POSE_FIELDS, ToolBase
-from .structs import (closing_brace, frame_assignments, frame_fields, is_frame_literal,
-                          struc_fields)
+                             is_finite_number, line_column, line_starts_of)
 from ..targets import Number
 from ..text_checks import check_closed, check_not_non_finite, check_number_end, check_text
+from .frames import FIELD as _FIELD
+from .frames import POSE_FIELDS, ToolBase
+from .structs import closing_brace, frame_assignments, frame_fields, is_frame_literal, struc_fields
 
 POSE_TYPES = {"E6POS", "POS", "FRAME"}
 AXIS_TYPES = {"E6AXIS", "AXIS"}

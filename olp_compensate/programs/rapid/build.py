@@ -13,12 +13,12 @@ import re
 
 from ..grammar import PositionedBuilder
 from ..literals import LiteralError, literal_error, read_elements
-from .instructions import MOTIONS, RUNTIME_FUNCS, MotionSpec
+from ..targets import (CartesianTarget, MotionUse, NameReference, Routine, RuntimeTarget,
+                       TargetCopy, TargetProblem, ToolData, WorkObject)
 from .fast import value_ex
+from .instructions import MOTIONS, RUNTIME_FUNCS, MotionSpec
 from .records import CallRecord, Decl, Ex, Sink
 from .values import READERS, Placement, read_robtarget, read_tooldata, read_wobjdata
-from ..targets import (CartesianTarget, MotionUse, NameReference, Routine, RuntimeTarget,
-                      TargetCopy, TargetProblem, ToolData, WorkObject)
 
 TARGET_TYPES = ("robtarget", "jointtarget", "tooldata", "wobjdata")
 UNKNOWN_INSTRUCTION = "unknown_instruction"

@@ -19,8 +19,8 @@ from lark import Token
 from ..grammar import current_sink
 from ..literals import NUMBER_GROUP, ROBTARGET_PATTERN
 from ..regex_compat import portable
-from .records import Arg, Decl, Ex, Opt, Sink, call_record_of
 from ..targets import QUAT_WXYZ, CartesianTarget, MotionUse
+from .records import Arg, Decl, Ex, Opt, Sink, call_record_of
 
 
 # ---- the two hot-path tokens ----------------------------------------------------------

@@ -41,12 +41,13 @@ def compensate(files, texts: list[str], run):
 
 
 def _readable(files, texts: list[str], run):
-    from ...compensation.files import FilesResult, object_model_result
+    from ...compensation.files import FilesResult
+    from ..object_model.units import object_model_result
 
     if run.emit != "pose":
         return object_model_result(files, texts, run)
-    from ...compensation.program import check_options
-    from ...compensation.task import teacher_of
+    from ..object_model.program import check_options
+    from ..object_model.task import teacher_of
     from .module_columns import compensate_rapid_task
 
     check_options(run.emit, run.unused)

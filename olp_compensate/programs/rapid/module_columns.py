@@ -34,20 +34,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...compensation.pose import Compensator
+from ...compensation.report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport,
+                                    ReportRows, RowColumns, TargetReport, config_texts)
 from ...kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
-                                      pose_from_rotation_translation, quat_wxyz_from_matrix)
+                                       pose_from_rotation_translation, quat_wxyz_from_matrix)
 from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
-from .reader import parse_rapid_columns
-from .columns import ModuleColumns, TargetTable, split, with_objects
-from ..semantics import Resolver, frame_pair, resolve_task
+from ..object_model.program import module_rows_and_edits, solve_entries
+from ..object_model.rows import failure_row, solved_note, written_row
+from .column_plans import Plan, modules_sharing_names, named_elsewhere, task_plans
+from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
-from ..targets import MotionUse, Program
-from ...compensation.pose import Compensator
-from ...compensation.program import module_rows_and_edits, solve_entries
-from ...compensation.report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport, ReportRows,
-                     RowColumns, TargetReport, config_texts, failure_row, solved_note,
-                     written_row)
+from ..targets import Program
+from .columns import ModuleColumns, TargetTable, split, with_objects
+from .reader import parse_rapid_columns
 
 __all__ = ["compensate_rapid_module", "compensate_rapid_task", "CHUNK", "PARALLEL_MIN"]
 
@@ -60,7 +61,6 @@ targets, 0.82x at 100,000, on two cores)."""
 RETRY_CHUNK = 2048
 """Targets retried together (eight starts each): 12,000 targets out of reach took 7.1 s
 in one batch, 5.6 s 4,096 at a time, 4.9 s 2,048 at a time and 5.2 s 1,024 at a time."""
-_DEFAULT_KEY = (("tool0",), ("wobj0",))
 _START = operator.itemgetter(0)
 
 
@@ -89,11 +89,11 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
     :data:`PARALLEL_MIN` table targets or more has half its chunks compensated in a
     forked process (where the platform forks), and half its retry batches where there
     are two or more, with the same result."""
-    from ...compensation.task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
+    from ..object_model.task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
 
     parsed = [parse_rapid_columns(text, file) for text, file in zip(texts, files)]
     parsed = _plain_parts(parsed)
-    plans = _task_plans([p for p, _ in parsed], [c for _, c in parsed])
+    plans = task_plans([p for p, _ in parsed], [c for _, c in parsed])
     programs = [p if plan is not None else with_objects(p, c)
                 for (p, c), plan in zip(parsed, plans)]
     if all(plan is None for plan in plans):
@@ -133,9 +133,9 @@ def _plain_parts(parsed: list[tuple[Program, ModuleColumns]]
     module (:func:`_plain_rows`) made into objects: a run-time use, copy or routine
     argument of one target sends that target and its motions to the object path, not the
     whole module. Modules of a task whose tables share names are left whole (their plan
-    is decided for the module, :func:`_task_plans`)."""
+    is decided for the module, :func:`.column_plans.task_plans`)."""
     if len(parsed) > 1:
-        shared = _modules_sharing_names([p for p, _ in parsed], [c for _, c in parsed])
+        shared = modules_sharing_names([p for p, _ in parsed], [c for _, c in parsed])
     else:
         shared = set()
     out = []
@@ -162,7 +162,7 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     for k, name in enumerate(lower):
         if row_of.setdefault(name, k) != k:
             twice.add(name)
-    named = (twice | _named_elsewhere(program)) & row_of.keys()
+    named = (twice | named_elsewhere(program)) & row_of.keys()
     keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
     rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
                         for name in moves.target_names), np.intp, len(moves))
@@ -176,108 +176,6 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     keep_moves = (rows >= 0) & ~indexed
     keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
     return keep_targets, keep_moves
-
-
-def _task_plans(programs: list[Program], columns: list[ModuleColumns]) -> list:
-    """Each module's :class:`_Plan`, or None where its table targets are not plain within
-    the task: a name declared in another module's table too, named by any module's objects
-    or moved to by another module's table motions."""
-    shared = _modules_sharing_names(programs, columns)
-    resolver = Resolver(programs) if any(len(c.targets) for c in columns) else None
-    return [None if m in shared or not len(c.targets) else _plan(program, c, resolver, m)
-            for m, (program, c) in enumerate(zip(programs, columns))]
-
-
-def _modules_sharing_names(programs: list[Program], columns: list[ModuleColumns]) -> set:
-    """The modules with a table target declared in another module too, named by any
-    module's objects or moved to by another module's table motions (one dict of the
-    table names, no lower-case copies of names already in lower case)."""
-    owner: dict[str, int] = {}    # lower-case table name -> the first module declaring it
-    shared = set()
-    for m, c in enumerate(columns):
-        for name in c.targets.names:
-            first = owner.setdefault(name if name.islower() else name.lower(), m)
-            if first != m:
-                shared.update((first, m))
-    if not owner:
-        return shared
-    for name in set().union(*map(_named_elsewhere, programs)):
-        if name in owner:
-            shared.add(owner[name])
-    if len(columns) > 1:
-        for m, c in enumerate(columns):
-            for name in c.moves.target_names:
-                first = owner.get(name if name.islower() else name.lower(), m)
-                if first != m:
-                    shared.add(first)
-    return shared
-
-
-@dataclass(frozen=True, eq=False)
-class _Plan:
-    """How the table targets resolve: ``pair`` (n,) each one's index into ``pairs``
-    (tool0/wobj0 for a target no motion moves to) and ``uses`` (n,) its motions."""
-
-    pair: np.ndarray
-    uses: np.ndarray
-    pairs: tuple
-
-
-def _plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = None,
-          m: int = 0) -> _Plan | None:
-    """The resolution of the table targets of module ``m`` (``resolver``: of the task's
-    modules, default of this one alone), or None where their meaning is not plain."""
-    table, moves = columns.targets, columns.moves
-    row_of = {name if name.islower() else name.lower(): k for k, name in enumerate(table.names)}
-    if len(row_of) < len(table) or any(k >= 0 for k in moves.indices):
-        return None
-    if not _named_elsewhere(program).isdisjoint(row_of):
-        return None
-    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
-                        for name in moves.target_names),
-                       np.intp, len(moves))
-    if np.any(rows < 0):
-        return None
-    resolver = Resolver([program]) if resolver is None else resolver
-    keys: dict = {}    # pair key -> index into pairs
-    infos: list = []
-    memo: dict = {}    # (tool, wobj, routine) -> pair index
-    move_pair = np.empty(len(moves), np.intp)
-    for k, triple in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
-        p = memo.get(triple)
-        if p is None:
-            tool, wobj, routine = triple
-            key, info = resolver.frames_of(MotionUse(instruction="MoveL", source=(
-                program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), m)
-            p = memo[triple] = keys.setdefault(key, len(keys))
-            if p == len(infos):
-                infos.append(info)
-        move_pair[k] = p
-    uses = np.bincount(rows, minlength=len(table))
-    pair = np.full(len(table), -1, np.intp)
-    pair[rows[::-1]] = move_pair[::-1]     # each target's first motion's pair
-    if np.any(pair[rows] != move_pair):    # moved to with several pairs
-        return None
-    if np.any(uses == 0):
-        default = keys.setdefault(_DEFAULT_KEY, len(keys))
-        if default == len(infos):
-            infos.append((("tool0", None), ("wobj0", None)))
-        pair[uses == 0] = default
-    return _Plan(pair=pair, uses=uses, pairs=tuple(frame_pair(info) for info in infos))
-
-
-def _named_elsewhere(program: Program) -> set[str]:
-    """Lower-case names that the program's objects declare or use as targets."""
-    names = {t.name for t in program.targets + program.joint_targets if t.name}
-    names.update(u.target_name for u in program.motions if u.target_name)
-    names.update(r.base_name for r in program.runtime if r.base_name)
-    names.update(u.runtime.base_name for u in program.motions
-                 if u.runtime is not None and u.runtime.base_name)
-    names.update(r.name for r in program.references)
-    for c in program.copies:
-        names.update(n for n in (c.name, c.source_name) if n)
-    names.update(p for r in program.routines for p in r.parameters)
-    return {n.lower() for n in names}
 
 
 @dataclass(eq=False)
@@ -304,7 +202,7 @@ class _TablePart:
     is per Newton step whatever the number of targets (on a 100,000-target module with
     1.2 % out of reach, 1.0 s in chunks of 8,192)."""
 
-    def __init__(self, program: Program, table: TargetTable, plan: _Plan,
+    def __init__(self, program: Program, table: TargetTable, plan: Plan,
                  comp: Compensator, unused: str, teacher: Compensator | None,
                  not_moved: str = NOT_MOVED):
         self.program, self.table, self.plan = program, table, plan

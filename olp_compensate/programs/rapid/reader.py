@@ -17,15 +17,15 @@ from lark import Token
 from lark.exceptions import UnexpectedInput
 from lark.utils import TextSlice
 
-from ..grammar import (LineIndex, NewlineIndexedText, check_text, convert_lark_error,
-                      current_sink, error_at, newline_style, parser)
+from ..grammar import (LineIndex, NewlineIndexedText, check_text, convert_lark_error, current_sink,
+                       error_at, newline_style, parser)
+from ..targets import MotionUse, NameReference, Program, RuntimeTarget
 from .accounting import unaccounted_literals
 from .build import TARGET_TYPES, Builder
 from .columns import ModuleColumns, MoveTable, TargetTable
 from .fast import LEXER_CALLBACKS
-from .records import (Arg, Assignment, Decl, Ex, Opt, RoutineRecord, Sink, TypeDef,
-                            as_ex, call_record, end_of, start_of)
-from ..targets import MotionUse, NameReference, Program, RuntimeTarget
+from .records import (Arg, Assignment, Decl, Ex, Opt, RoutineRecord, Sink, TypeDef, as_ex,
+                      call_record, end_of, start_of)
 
 __all__ = ["parse_rapid", "parse_rapid_columns", "TARGET_TYPES"]
 

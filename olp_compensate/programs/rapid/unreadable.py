@@ -16,8 +16,8 @@ import dataclasses
 import re
 from collections.abc import Callable, Sequence
 
-from ...errors import ParseError
 from ...compensation.report import ChainedRows, CompensationReport, TargetReport
+from ...errors import ParseError
 
 __all__ = ["UNREADABLE", "compensate_readable"]
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from ..literals import (JOINTTARGET_RE, ROBTARGET_RE, Agg, Atom, LiteralError, fast_groups,
-                       numbers_of, read_aggregate, shape_of)
+                        numbers_of, read_aggregate, shape_of)
 from ..targets import (QUAT_WXYZ, CartesianTarget, JointTarget, Number, RuntimeTarget,
-                      SourceLocation, ToolData, WorkObject)
+                       SourceLocation, ToolData, WorkObject)
 
 class Placement(NamedTuple):
     """Where a literal stands: the declared name (None inline), the (file, line, column)

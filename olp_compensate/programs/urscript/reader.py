@@ -34,12 +34,10 @@ import re
 
 from ...errors import ParseError
 from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
-                            line_column,
-                            line_starts_of)
+                             line_column, line_starts_of)
 from ..targets import Number
 from ..text_checks import check_text
-from .literals import (check_blocks, check_elements, other_literals,
-                                relative_waypoints)
+from .literals import check_blocks, check_elements, other_literals, relative_waypoints
 
 MOTIONS = ("movej", "movel", "movep", "movec")
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"

@@ -42,7 +42,7 @@ import numpy as np
 from ...errors import ParseError
 from ...kinematics.conventions import euler_xyz_from_matrix, matrix_from_euler_xyz
 from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, line_column,
-                            line_starts_of)
+                             line_starts_of)
 from ..targets import Number
 from ..text_checks import check_text, check_xml
 

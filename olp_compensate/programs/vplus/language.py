@@ -16,7 +16,7 @@ SECTION_END = re.compile(rb"^[ \t]*\.END[ \t]*\r?$", re.MULTILINE | re.IGNORECAS
 def compensate(files, texts: list[str], run):
     """The object model's result, refused when a precision point cannot be of the
     calibration's robot (:func:`.taught_joints.check_taught_joints`)."""
-    from ...compensation.files import object_model_result
+    from ..object_model.units import object_model_result
     from .taught_joints import check_taught_joints
 
     result = object_model_result(files, texts, run)

@@ -37,13 +37,12 @@ import re
 import lark
 from lark.exceptions import UnexpectedInput
 
-from ..grammar import (PositionedBuilder, LineIndex, convert_lark_error, current_sink,
-                      error_at, newline_style, parser)
+from ..grammar import (PositionedBuilder, LineIndex, convert_lark_error, current_sink, error_at,
+                       newline_style, parser)
+from ..targets import (EULER_ZYZ_DEG, CartesianTarget, JointTarget, MotionUse, Program, Routine,
+                       RuntimeTarget, SourceLocation, ToolData)
 from ..text_checks import check_text
-from ..targets import (EULER_ZYZ_DEG, CartesianTarget, JointTarget, MotionUse, Program,
-                      Routine, RuntimeTarget, SourceLocation, ToolData)
-from .expressions import (first_name, location_expression, skip_blanks, term_at,
-                                top_level_comma)
+from .expressions import first_name, location_expression, skip_blanks, term_at, top_level_comma
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _NUM_RE = re.compile(_NUM)

@@ -29,25 +29,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibration.calibration import GLOBAL_MODEL, Calibration
-from ..errors import DataError
-from ..kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
-                                      pose_from_rotation_translation, rotation_angle_between)
-from ..programs import Program, loads
-from ..programs.emit import splice
-from ..programs.targets import JointTarget
+from ...calibration.calibration import GLOBAL_MODEL, Calibration
+from ...compensation.failures import explain_failures
+from ...compensation.ik import OPWParameters
+from ...compensation.pose import COMPENSATED, Compensator
+from ...compensation.program_tools import program_tool, program_tool_note
+from ...compensation.report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
+                                    config_texts)
+from ...compensation.residual_map import add_range_notes, residual_map_pass
+from ...errors import DataError
+from ...kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
+                                       pose_from_rotation_translation, rotation_angle_between)
+from ..emit import splice
+from ..targets import JointTarget, Program
 from .confdata import vplus_configuration, written_confdata
-from .ik import OPWParameters
-from .pose import COMPENSATED, Compensator, explain_failures
-from .residual_map import add_range_notes, residual_map_pass
-from .program_edits import program_edits
 from .frame_rows import frame_rows
-from .program_tools import program_tool, program_tool_note
-from .report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
-                     config_texts, failure_row, joint_target_row, motion_row, row_name,
-                     solved_note, written_row)
+from .program_edits import program_edits
+from .rows import failure_row, joint_target_row, motion_row, row_name, solved_note, written_row
 
-__all__ = ["TargetReport", "CompensationReport", "compensate_program", "compensate_module",
+__all__ = ["TargetReport", "CompensationReport", "compensate_module",
            "ModuleResult", "check_options", "KEPT", "EMIT_MODES"]
 
 EMIT_MODES = ("pose", "joints")
@@ -84,37 +84,6 @@ def check_options(emit: str, unused: str) -> None:
         raise DataError(f"emit: expected one of {', '.join(EMIT_MODES)}, got {emit!r}")
     if unused not in ("skip", "tool0"):
         raise DataError(f"unused: expected 'skip' or 'tool0', got {unused!r}")
-
-
-def compensate_program(program: Program | str | bytes, dialect: str | None,
-                       calibration: Calibration | Compensator, *, emit: str = "pose",
-                       file: str = "<string>", unused: str = "skip",
-                       taught_on: Calibration | Compensator | None = None):
-    """Compensate every target of a program on a calibration.
-
-    program : a parsed :class:`Program`, or its text (str or latin-1 bytes) of ``dialect``
-        ('rapid' or 'vplus'), named ``file`` in messages.
-    emit : 'pose' rewrites Cartesian targets; 'joints' turns them into joint targets
-        (RAPID jointtarget + MoveAbsJ, V+ precision points) where every use allows it.
-    unused : 'skip' leaves targets never moved to as written; 'tool0' compensates them with
-        tool0 and wobj0 (for data modules whose motions live elsewhere).
-    taught_on : the calibration of the robot the targets were taught on (robot-to-robot
-        transfer; see :func:`~olp_compensate.compensation.task.compensate_task`).
-    Returns ``(text, report)``: the compensated program text and a
-    :class:`CompensationReport`. Raises :class:`~olp_compensate.errors.ParseError` for a
-    malformed program and DataError for bad arguments. The same as
-    :func:`~olp_compensate.compensation.task.compensate_task` of one module.
-    """
-    check_options(emit, unused)
-    if not isinstance(program, Program):
-        if dialect is None:
-            raise DataError("dialect: needed when the program is given as text")
-        program = loads(program, dialect, file)
-    from .task import compensate_task   # task.py builds on this module
-
-    (text,), report = compensate_task([program], calibration, emit=emit, unused=unused,
-                                      taught_on=taught_on)
-    return text, report
 
 
 @dataclass(frozen=True, eq=False)
@@ -341,7 +310,7 @@ def _regions(comp: Compensator, res, job: list[int], requested: np.ndarray):
     """With a :class:`~.regions.RegionalCompensator`: each row's region (by the program
     tool's TCP in the base frame; a stationary tool's by the flange) and the name of the
     calibrated tool that is its real TCP (None where none is); else None."""
-    from .regions import RegionalCompensator
+    from ...compensation.regions import RegionalCompensator
 
     if not isinstance(comp, RegionalCompensator):
         return None

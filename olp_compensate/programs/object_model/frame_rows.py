@@ -3,8 +3,8 @@ frame, not a target, kept as written (every literal of a program has its report 
 
 from __future__ import annotations
 
-from ..programs.targets import CartesianTarget, Program
-from .report import TargetReport
+from ...compensation.report import TargetReport
+from ..targets import CartesianTarget, Program
 
 
 def frame_rows(program: Program, res) -> list[TargetReport]:

@@ -61,11 +61,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DataError, ModelError
-from .ik import OPWParameters, URParameters, branch_of, select_branch
-from .ik.configuration import configuration_margins
-from .ik.families import check_family
-from .ik.inputs import as_joints
+from ...compensation.ik import OPWParameters, URParameters, branch_of, select_branch
+from ...compensation.ik.configuration import configuration_margins
+from ...compensation.ik.families import check_family
+from ...compensation.ik.inputs import as_joints
+from ...errors import DataError, ModelError
 
 __all__ = ["abb_confdata", "select_branch", "vplus_configuration", "vplus_branch",
            "written_confdata", "BORDER_RAD"]

@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..calibration.calibration import Calibration
-from ..errors import DataError
-from ..programs.semantics import resolve_task
-from ..programs.targets import Program
-from .pose import Compensator
+from ...calibration.calibration import Calibration
+from ...compensation.pose import Compensator
+from ...compensation.report import NOT_MOVED, CompensationReport
+from ...errors import DataError
+from .. import loads
+from ..semantics import resolve_task
+from ..targets import Program
 from .program import check_options, compensate_module
-from .report import NOT_MOVED, CompensationReport
 
 __all__ = ["compensate_task", "NOT_MOVED_IN_TASK"]
 
@@ -36,7 +37,7 @@ def compensate_task(programs: list[Program], calibration: Calibration | Compensa
     programs : the parsed modules of the task, all of one dialect, in the order the
         controller loads them (it decides which declaration of a PERS declared in several
         modules gives its value: the first with a value).
-    emit, unused : as :func:`~olp_compensate.compensation.program.compensate_program`;
+    emit, unused : as :func:`~olp_compensate.programs.object_model.program.compensate_program`;
         a target is 'unused' when no module of the task moves to it.
     taught_on : the calibration (or Compensator) of the robot the targets were taught on,
         of the same robot model: the pose to reach is where that robot's real tool went at
@@ -125,3 +126,32 @@ def teacher_of(taught_on, comp: Compensator) -> Compensator | None:
                         f"is compensated for {comp.robot.name}: transfer needs one robot "
                         f"model")
     return teacher
+
+
+def compensate_program(program: Program | str | bytes, dialect: str | None,
+                       calibration: Calibration | Compensator, *, emit: str = "pose",
+                       file: str = "<string>", unused: str = "skip",
+                       taught_on: Calibration | Compensator | None = None):
+    """Compensate every target of a program on a calibration.
+
+    program : a parsed :class:`Program`, or its text (str or latin-1 bytes) of ``dialect``
+        ('rapid' or 'vplus'), named ``file`` in messages.
+    emit : 'pose' rewrites Cartesian targets; 'joints' turns them into joint targets
+        (RAPID jointtarget + MoveAbsJ, V+ precision points) where every use allows it.
+    unused : 'skip' leaves targets never moved to as written; 'tool0' compensates them with
+        tool0 and wobj0 (for data modules whose motions live elsewhere).
+    taught_on : the calibration of the robot the targets were taught on (robot-to-robot
+        transfer; see :func:`compensate_task`).
+    Returns ``(text, report)``: the compensated program text and a
+    :class:`CompensationReport`. Raises :class:`~olp_compensate.errors.ParseError` for a
+    malformed program and DataError for bad arguments. The same as
+    :func:`compensate_task` of one module.
+    """
+    check_options(emit, unused)
+    if not isinstance(program, Program):
+        if dialect is None:
+            raise DataError("dialect: needed when the program is given as text")
+        program = loads(program, dialect, file)
+    (text,), report = compensate_task([program], calibration, emit=emit, unused=unused,
+                                      taught_on=taught_on)
+    return text, report

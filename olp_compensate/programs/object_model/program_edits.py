@@ -1,6 +1,6 @@
 """How a compensated program's new targets are written: the edits of the numbers (or of
 whole targets turned into joint targets with ``--emit joints``), for
-:func:`~olp_compensate.compensation.program.compensate_module`."""
+:func:`~olp_compensate.programs.object_model.program.compensate_module`."""
 
 from __future__ import annotations
 
@@ -8,11 +8,12 @@ import operator
 
 import numpy as np
 
-from ..errors import DataError
-from ..kinematics.conventions import MM, quat_wxyz_from_matrix, rotation_angle_between
-from ..programs import Program
-from ..programs.emit import (edits_for_targets, joint_emit_edits, nearest_euler_zyz_deg,
-                             target_edits)
+from ...errors import DataError
+from ...kinematics.conventions import MM, quat_wxyz_from_matrix, rotation_angle_between
+from .. import Program
+from ..emit import nearest_euler_zyz_deg, target_edits
+from ..emit_batch import edits_for_targets
+from ..emit_joints import joint_emit_edits
 
 def orientations(targets, rotations: np.ndarray, vplus: bool) -> np.ndarray:
     """Orientation numbers for ``rotations`` (k, 3, 3): unit quaternions (RAPID; the

@@ -1,0 +1,147 @@
+"""Why a pose was not compensated, in words and numbers: the status the configuration rule
+gave it (:mod:`.config_rule`), the joints it came closest with and their configuration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from .config_rule import decide, turn_toward_ranges
+from .ik import IKSolution
+
+if TYPE_CHECKING:
+    from .pose import Compensator
+
+
+@dataclass(frozen=True)
+class FailureReport:
+    """Why one target was not compensated, for a user to act on.
+
+    note : the reason in words and numbers (axis, value, limit; configurations asked for
+        and found; distance out of reach).
+    joints : (n,) controller axes of the joints the rule keeps (see :mod:`.config_rule`),
+        each revolute axis turned as near its range as it goes, rad/m (NaN if none).
+    config : ABB confdata (cf1, cf4, cf6, cfx) of ``joints`` (None if none).
+    status : the rule's status ('branch_changed', 'joint_limit', 'unreachable',
+        'not_converged').
+    """
+
+    note: str
+    joints: np.ndarray
+    config: tuple[int, int, int, int] | None
+    status: str = ""
+
+
+def _config_words(conf) -> str:
+    return "[" + ",".join(str(int(c)) for c in conf) + "]"
+
+
+def _range_words(robot, q_ctrl: np.ndarray) -> list[str]:
+    """Each axis of ``q_ctrl (n,)`` outside the controller's range, and each URDF joint
+    outside its limits, as words with values in deg (mm)."""
+    ranges = robot.controller_ranges
+    edge = robot.to_degrees_or_mm(q_ctrl[None])[0]
+    lo, hi = (robot.to_degrees_or_mm(ranges[:, k][None])[0] for k in (0, 1))
+    unit = ["deg" if j.kind == "revolute" else "mm" for j in robot.joints]
+    words = []
+    listed = np.flatnonzero((q_ctrl < ranges[:, 0] - 1e-9) | (q_ctrl > ranges[:, 1] + 1e-9))
+    for a in listed:
+        past = lo[a] - edge[a] if edge[a] < lo[a] else edge[a] - hi[a]
+        side = "below" if edge[a] < lo[a] else "above"
+        words.append(f"axis {a + 1} = {edge[a]:.2f} {unit[a]} is {past:.2f} {unit[a]} {side} "
+                     f"the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
+    joints = robot.joints_from_controller(q_ctrl[None])[0]
+    jl, jh = robot.lower_limits, robot.upper_limits
+    joint_edge = robot.to_degrees_or_mm(joints[None])[0]
+    jlo, jhi = robot.to_degrees_or_mm(jl[None])[0], robot.to_degrees_or_mm(jh[None])[0]
+    for j in np.flatnonzero((joints < jl - 1e-9) | (joints > jh + 1e-9)):
+        if j in listed:            # the same axis, already named
+            continue
+        words.append(f"URDF {robot.joints[j].name} = {joint_edge[j]:.2f} {unit[j]} is outside "
+                     f"its limits {jlo[j]:.2f}..{jhi[j]:.2f} {unit[j]}")
+    return words
+
+
+ConfigWords = Callable[[int, "np.ndarray | None"], str]
+"""``words(row, q_ctrl)``: the configuration of controller joints ``q_ctrl`` (rad) of row
+``row`` in the program's own words, or, with ``q_ctrl`` None, the one the row asks for."""
+
+
+def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np.ndarray,
+                     confdata: np.ndarray | None, words: ConfigWords | None = None
+                     ) -> list[FailureReport | None]:
+    """A :class:`FailureReport` for each row of ``solution`` that failed (None for the
+    others): ``desired_flange (m, 4, 4)`` the real flange poses solved for, ``confdata
+    (m, 4)`` the configurations asked for (None: any); ``words`` names configurations
+    (default: ABB confdata ``[cf1,cf4,cf6,cfx]``). A solution the configuration rule has
+    not decided yet (:attr:`~.ik.IKSolution.on_asked` None) is decided on a copy first.
+    The notes, by the rule's status (:mod:`.config_rule`):
+
+    - 'joint_limit': each axis outside its range, its value (turned as near the range as
+      it goes) and the range; whether those joints are on the configuration asked for
+      (else which they are on); and that no configuration reaches it inside the ranges;
+    - 'branch_changed': the configuration asked for and the one that reaches the target
+      inside every range (the joints reported are that one's);
+    - 'unreachable' / 'not_converged': how close the calibrated arm comes over every
+      configuration (out of reach) or where the search stopped (not converged), in mm and
+      degrees.
+    """
+    robot = comp.robot
+    if solution.on_asked is None:
+        solution = decide(comp, _copy(solution), desired_flange, confdata)
+    failed = np.flatnonzero(~solution.success)
+    out: list[FailureReport | None] = [None] * len(solution.success)
+    for row in failed.tolist():
+        reason = str(solution.reason[row])
+        q = solution.q[row]
+        has_q = bool(np.all(np.isfinite(q)))
+        q_ctrl = (turn_toward_ranges(robot, robot.controller_from_joints(q[None]))[0]
+                  if has_q else np.full(robot.n_joints, np.nan))
+        config = (tuple(int(c) for c in comp.confdata(robot.joints_from_controller(
+            q_ctrl[None]))[0]) if has_q else None)
+        if words is not None:
+            asked = words(row, None) or None
+            found = words(row, q_ctrl) if has_q else "none"
+        else:
+            asked = None if confdata is None else _config_words(confdata[row])
+            found = _config_words(config) if config is not None else "none"
+        note = _note(robot, reason, q_ctrl, has_q, bool(solution.on_asked[row]), asked, found,
+                     float(solution.position_error_m[row]),
+                     float(solution.rotation_error_rad[row]))
+        out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
+    return out
+
+
+def _note(robot, reason: str, q_ctrl: np.ndarray, has_q: bool, on_asked: bool,
+          asked: str | None, found: str, dist_m: float, dist_rad: float) -> str:
+    """The report note of one failed row (see :func:`explain_failures`)."""
+    if reason == "joint_limit":
+        note = "; ".join(_range_words(robot, q_ctrl) if has_q else []) or \
+            "outside the joint limits"
+        if on_asked:
+            note += f" (on the configuration asked for, {asked})" if asked else ""
+        else:
+            note += f" (on configuration {found}" + (f", not the one asked for, {asked})"
+                                                     if asked else ")")
+        return note + "; no configuration reaches it inside the axis ranges"
+    if reason == "branch_changed":
+        where = f"asked for configuration {asked}, t" if asked else "T"
+        return (f"{where}he calibrated arm reaches the target inside every axis range only "
+                f"on another configuration: {found}")
+    if not np.isfinite(dist_m):
+        return "out of reach: no start of the search reaches near it on any configuration"
+    if reason == "unreachable":
+        return (f"out of reach on every configuration: the calibrated arm comes no closer "
+                f"than {dist_m * 1e3:.2f} mm and {np.degrees(dist_rad):.3f} deg")
+    return (f"not solved on any configuration: the search stopped short by "
+            f"{dist_m * 1e3:.2f} mm and {np.degrees(dist_rad):.3f} deg (on configuration "
+            f"{found})")
+
+
+def _copy(solution: IKSolution) -> IKSolution:
+    return IKSolution(q=solution.q.copy(), success=solution.success.copy(),
+                      reason=solution.reason.copy(), iterations=solution.iterations.copy(),
+                      position_error_m=solution.position_error_m.copy(),
+                      rotation_error_rad=solution.rotation_error_rad.copy())

@@ -1,0 +1,119 @@
+"""Which targets of a RAPID task's column tables are plain (their meaning a table row can
+hold: declared once, moved to by name, one tool and work object pair per target), and how
+they resolve (:class:`Plan`). A target that is not plain goes to the object model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..frame_pairs import frame_pair
+from ..semantics import Resolver
+from ..targets import MotionUse, Program
+from .columns import ModuleColumns
+
+DEFAULT_KEY = (("tool0",), ("wobj0",))
+"""The pair of a target no motion moves to."""
+
+
+def task_plans(programs: list[Program], columns: list[ModuleColumns]) -> list:
+    """Each module's :class:`Plan`, or None where its table targets are not plain within
+    the task: a name declared in another module's table too, named by any module's objects
+    or moved to by another module's table motions."""
+    shared = modules_sharing_names(programs, columns)
+    resolver = Resolver(programs) if any(len(c.targets) for c in columns) else None
+    return [None if m in shared or not len(c.targets) else plan(program, c, resolver, m)
+            for m, (program, c) in enumerate(zip(programs, columns))]
+
+
+def modules_sharing_names(programs: list[Program], columns: list[ModuleColumns]) -> set:
+    """The modules with a table target declared in another module too, named by any
+    module's objects or moved to by another module's table motions (one dict of the
+    table names, no lower-case copies of names already in lower case)."""
+    owner: dict[str, int] = {}    # lower-case table name -> the first module declaring it
+    shared = set()
+    for m, c in enumerate(columns):
+        for name in c.targets.names:
+            first = owner.setdefault(name if name.islower() else name.lower(), m)
+            if first != m:
+                shared.update((first, m))
+    if not owner:
+        return shared
+    for name in set().union(*map(named_elsewhere, programs)):
+        if name in owner:
+            shared.add(owner[name])
+    if len(columns) > 1:
+        for m, c in enumerate(columns):
+            for name in c.moves.target_names:
+                first = owner.get(name if name.islower() else name.lower(), m)
+                if first != m:
+                    shared.add(first)
+    return shared
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """How the table targets resolve: ``pair`` (n,) each one's index into ``pairs``
+    (tool0/wobj0 for a target no motion moves to) and ``uses`` (n,) its motions."""
+
+    pair: np.ndarray
+    uses: np.ndarray
+    pairs: tuple
+
+
+def plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = None,
+          m: int = 0) -> Plan | None:
+    """The resolution of the table targets of module ``m`` (``resolver``: of the task's
+    modules, default of this one alone), or None where their meaning is not plain."""
+    table, moves = columns.targets, columns.moves
+    row_of = {name if name.islower() else name.lower(): k for k, name in enumerate(table.names)}
+    if len(row_of) < len(table) or any(k >= 0 for k in moves.indices):
+        return None
+    if not named_elsewhere(program).isdisjoint(row_of):
+        return None
+    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
+                        for name in moves.target_names),
+                       np.intp, len(moves))
+    if np.any(rows < 0):
+        return None
+    resolver = Resolver([program]) if resolver is None else resolver
+    keys: dict = {}    # pair key -> index into pairs
+    infos: list = []
+    memo: dict = {}    # (tool, wobj, routine) -> pair index
+    move_pair = np.empty(len(moves), np.intp)
+    for k, triple in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
+        p = memo.get(triple)
+        if p is None:
+            tool, wobj, routine = triple
+            key, info = resolver.frames_of(MotionUse(instruction="MoveL", source=(
+                program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), m)
+            p = memo[triple] = keys.setdefault(key, len(keys))
+            if p == len(infos):
+                infos.append(info)
+        move_pair[k] = p
+    uses = np.bincount(rows, minlength=len(table))
+    pair = np.full(len(table), -1, np.intp)
+    pair[rows[::-1]] = move_pair[::-1]     # each target's first motion's pair
+    if np.any(pair[rows] != move_pair):    # moved to with several pairs
+        return None
+    if np.any(uses == 0):
+        default = keys.setdefault(DEFAULT_KEY, len(keys))
+        if default == len(infos):
+            infos.append((("tool0", None), ("wobj0", None)))
+        pair[uses == 0] = default
+    return Plan(pair=pair, uses=uses, pairs=tuple(frame_pair(info) for info in infos))
+
+
+def named_elsewhere(program: Program) -> set[str]:
+    """Lower-case names that the program's objects declare or use as targets."""
+    names = {t.name for t in program.targets + program.joint_targets if t.name}
+    names.update(u.target_name for u in program.motions if u.target_name)
+    names.update(r.base_name for r in program.runtime if r.base_name)
+    names.update(u.runtime.base_name for u in program.motions
+                 if u.runtime is not None and u.runtime.base_name)
+    names.update(r.name for r in program.references)
+    for c in program.copies:
+        names.update(n for n in (c.name, c.source_name) if n)
+    names.update(p for r in program.routines for p in r.parameters)
+    return {n.lower() for n in names}
