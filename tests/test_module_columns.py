@@ -1,4 +1,4 @@
-"""The column path of a RAPID module (compensation/module_columns.py) against the object
+"""The column path of a RAPID module (programs/rapid/module_columns.py) against the object
 path it replaces for big modules: the same bytes and report wherever both solve the same
 batch, the targets reached on the virtual robot when solved chunk by chunk, and the
 object path wherever the module's targets are not plain."""

@@ -161,7 +161,7 @@ def _warm(units, init) -> None:
             pass
     from importlib import import_module
 
-    for module in ("files", "task", "dialect_program"):   # imported to be inherited
+    for module in ("files", "dialect_program"):   # imported to be inherited
         import_module(f"..compensation.{module}", __package__)
 
 

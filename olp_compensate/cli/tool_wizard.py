@@ -211,22 +211,7 @@ def run_wizard(flange_pose: FlangePose, ask: Ask, say: Say, *,
             name = wizard.ask_name()
         else:
             say(f"Tool: {name}")
-        method = dialog.choose(
-            "Method: [1] known marks (touch marks with known coordinates), [2] fixed point "
-            "(touch one point from 4 or more orientations) [1]: ",
-            {"1": "known_marks", "known": "known_marks", "2": "fixed_point",
-             "fixed": "fixed_point"}, "1")
-        frame = "base"
-        if method == "known_marks":
-            frame = dialog.choose("Mark coordinates are in the robot [b]ase frame or a "
-                                  "[w]orld frame? [b]: ",
-                                  {"b": "base", "base": "base", "w": "world", "world": "world"},
-                                  "b")
-            say(f"Touch at least {MIN_MARKS[(method, frame)]} marks (6 recommended), changing "
-                f"the tool's tilt by 30 degrees or more between marks.")
-        else:
-            say("Touch one fixed point (a cone tip, a sharp pin) from at least 4 orientations "
-                "(6 recommended), tilting the tool by 30 degrees or more about different axes.")
+        method, frame = _method_and_frame(dialog, say)
         while True:
             wizard.collect(name, method, frame, max_marks)
             try:
@@ -241,28 +226,59 @@ def run_wizard(flange_pose: FlangePose, ask: Ask, say: Say, *,
             if not more or len(wizard.joints) >= max_marks:
                 raise _Cancelled
         wizard.report(result, mass_kg, cog_mm)
-        if save is not None:
-            where = f" to {save_to(name)}" if save_to is not None else ""
-            if dialog.choose(f"Write tool {name}{where}? [y/N]: ",
-                             {"y": True, "yes": True, "n": False, "no": False}, "n"):
-                written = save(result, wizard.request(name, method, frame))
-                say(f"Written {', '.join(map(str, written))}.")
-            else:
-                say("Not written.")
-        elif out_path is not None:
-            out_path = Path(out_path)
-            marks_path = out_path.with_name(out_path.stem + "_marks.csv")
-            write = dialog.choose(f"Write tool {name} to {out_path} (touches to "
-                                  f"{marks_path.name})? [y/N]: ",
-                                  {"y": True, "yes": True, "n": False, "no": False}, "n")
-            if write:
-                write_tool_json(result, out_path)
-                write_text_atomic(marks_path,
-                                  format_marks_csv(wizard.request(name, method, frame)))
-                say(f"Written {out_path} and {marks_path}.")
-            else:
-                say("Not written.")
+        _offer_to_write(dialog, say, wizard, result, name, (method, frame), save, save_to,
+                        out_path)
         return result
     except _Cancelled:
         say("Cancelled; nothing written.")
         return None
+
+
+def _method_and_frame(dialog: _Dialog, say: Say) -> tuple[str, str]:
+    """The method asked (known marks or fixed point) and the frame of the marks' coordinates,
+    with the touching instructions for it."""
+    method = dialog.choose(
+        "Method: [1] known marks (touch marks with known coordinates), [2] fixed point "
+        "(touch one point from 4 or more orientations) [1]: ",
+        {"1": "known_marks", "known": "known_marks", "2": "fixed_point",
+         "fixed": "fixed_point"}, "1")
+    frame = "base"
+    if method == "known_marks":
+        frame = dialog.choose("Mark coordinates are in the robot [b]ase frame or a "
+                              "[w]orld frame? [b]: ",
+                              {"b": "base", "base": "base", "w": "world", "world": "world"},
+                              "b")
+        say(f"Touch at least {MIN_MARKS[(method, frame)]} marks (6 recommended), changing "
+            f"the tool's tilt by 30 degrees or more between marks.")
+    else:
+        say("Touch one fixed point (a cone tip, a sharp pin) from at least 4 orientations "
+            "(6 recommended), tilting the tool by 30 degrees or more about different axes.")
+    return method, frame
+
+
+def _offer_to_write(dialog: _Dialog, say: Say, wizard: _Wizard, result: ToolCalibration,
+                    name: str, method_frame: tuple[str, str], save, save_to, out_path) -> None:
+    """Ask before writing the tool (through ``save``, or to ``out_path`` with the touches
+    beside it); nothing is written without a yes."""
+    method, frame = method_frame
+    if save is not None:
+        where = f" to {save_to(name)}" if save_to is not None else ""
+        if dialog.choose(f"Write tool {name}{where}? [y/N]: ",
+                         {"y": True, "yes": True, "n": False, "no": False}, "n"):
+            written = save(result, wizard.request(name, method, frame))
+            say(f"Written {', '.join(map(str, written))}.")
+        else:
+            say("Not written.")
+    elif out_path is not None:
+        out_path = Path(out_path)
+        marks_path = out_path.with_name(out_path.stem + "_marks.csv")
+        write = dialog.choose(f"Write tool {name} to {out_path} (touches to "
+                              f"{marks_path.name})? [y/N]: ",
+                              {"y": True, "yes": True, "n": False, "no": False}, "n")
+        if write:
+            write_tool_json(result, out_path)
+            write_text_atomic(marks_path,
+                              format_marks_csv(wizard.request(name, method, frame)))
+            say(f"Written {out_path} and {marks_path}.")
+        else:
+            say("Not written.")

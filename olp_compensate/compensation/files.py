@@ -114,7 +114,7 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
                      frames_path: str | Path | None = None, jobs: int = 1) -> FilesResult:
     """Compensate the files of ``files`` with their language's machinery.
 
-    emit, unused : as :func:`.program.compensate_program` (``emit="joints"`` only where
+    emit, unused : as :func:`~olp_compensate.programs.object_model.task.compensate_program` (``emit="joints"`` only where
         the language can write joints).
     taught_on : the calibration of the robot the targets were taught on: the pose to reach
         is where that robot's real tool went (robot-to-robot transfer).

@@ -135,7 +135,7 @@ def resolve(program: Program) -> Resolution:
 
 def resolve_task(programs) -> tuple[Resolution, ...]:
     """Resolve the targets of the modules of one task (RAPID scope rules across modules,
-    see :mod:`.task`): one :class:`Resolution` per program, in order, each holding that
+    see :mod:`.rapid.task_scope`): one :class:`Resolution` per program, in order, each holding that
     module's targets, the motions of that module whose target is unknown, and the
     warnings about that module."""
     programs = list(programs)

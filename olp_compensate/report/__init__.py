@@ -1,0 +1,2 @@
+"""Figures and HTML reports of calibrations and compensations (matplotlib, written files
+only)."""

@@ -1,6 +1,6 @@
 """What a FANUC controller backup holds beyond its programs: the turn axes of the
 configuration (``SYSMAST.VA``) and the position registers (``POSREG.VA``), read as ASCII
-``.VA`` dumps (the layout of :mod:`.fanuc_frames`: a variable starts at
+``.VA`` dumps (the layout of :mod:`.frames`: a variable starts at
 ``[section]$NAME  Storage: ...``, an array element at ``[g,n] =``).
 
 - ``$SCR_GRP[g].$TURN_AXIS``: the three axes the turn numbers of a position's

@@ -25,7 +25,7 @@ tabs, ``-.131`` number forms and labels ``P[1:"App"]`` / ``P[1:App]``):
 Frames (``UFRAME``/``UTOOL`` data) live in the controller's system variables, not in the
 program: pass them as ``frames={"UF1": (x, y, z, w, p, r), "UT4": (...)}`` (mm, deg), or as
 the ``$MNUFRAME``/``$MNUTOOL`` of a backup's ``SYSFRAME.VA``
-(``system_frames=read_system_frames(text, "SYSFRAME.VA")``, :mod:`.fanuc_frames`); a frame
+(``system_frames=read_system_frames(text, "SYSFRAME.VA")``, :mod:`.frames`); a frame
 the program uses that the file holds no value for (uninitialized, or not in the file) is
 named in a note with the file, and its targets stay unresolved (unless calib.json has a tool
 of that name).

@@ -1,4 +1,4 @@
-"""The tool and base in force while a KRL ``.src`` is read in text order (see :mod:`.krl`):
+"""The tool and base in force while a KRL ``.src`` is read in text order (see :mod:`.reader`):
 ``FDAT_ACT`` with ``BAS(#PTP_PARAMS|#CP_PARAMS, ...)`` (the FDAT's ``TOOL_NO``/``BASE_NO``),
 ``BAS(#TOOL, n)``, ``BAS(#BASE, n)``, ``$TOOL=TOOL_DATA[n]``, ``$BASE=BASE_DATA[n]``, a
 spline motion's ``WITH $TOOL=STOOL2(FP1)``, and ``$TOOL = {X .., Y .., ...}`` written as a

@@ -1,4 +1,4 @@
-"""KRL forms around the targets that :mod:`.krl` reads: user ``STRUC`` types whose fields
+"""KRL forms around the targets that :mod:`.reader` reads: user ``STRUC`` types whose fields
 are frames (``STRUC CNCPOS FRAME fCnC, REAL grFeedrate``; a value ``{fCnC {X ..}, grFeedrate
 2000}``, moved to as ``gsCNC1[1].fCnC``), and frame assignments with the geometric operator
 (``TOOL_DATA[2] = TOOL_DATA[11] : {X 0, Y 0, Z 100, A 0, B 0, C 0}``).

@@ -1,9 +1,9 @@
 """RAPID: the parse records of one module turned into the shared target model.
 
-The grammar callbacks and the fast paths leave :mod:`.rapid_records` records in a
+The grammar callbacks and the fast paths leave :mod:`.records` records in a
 :class:`~.rapid_records.Sink`; :class:`Builder` reads each kind in turn (declarations,
 calls, assignments) and finally accounts for every robtarget literal it did not take as a
-target (:mod:`.rapid_accounting`).
+target (:mod:`.accounting`).
 """
 
 from __future__ import annotations

@@ -64,7 +64,9 @@ def _stated_loads(texts, config=None):
 
 
 def _warm_up() -> None:
+    """The parser loaded and the object model imported (a pool's workers inherit them)."""
     from .. import loads
+    from ..object_model import task  # noqa: F401
 
     loads("MODULE Warm\nENDMODULE\n", "rapid", "<warm-up>")
 

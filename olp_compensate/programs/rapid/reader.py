@@ -219,7 +219,7 @@ def parse_rapid(text: str, file: str = "<string>") -> Program:
 
 def parse_rapid_columns(text: str, file: str = "<string>") -> tuple[Program, ModuleColumns]:
     """:func:`parse_rapid` keeping the module-level plain robtarget declarations and the
-    plain MoveL/MoveJ in columns (:mod:`.rapid_columns`): ``(program, columns)``, where
+    plain MoveL/MoveJ in columns (:mod:`.columns`): ``(program, columns)``, where
     ``program`` holds everything else; ``with_objects(program, columns)`` is what
     :func:`parse_rapid` gives."""
     columns = ModuleColumns(TargetTable(), MoveTable())

@@ -1,7 +1,7 @@
 """URScript pose literals that are not motion targets, each reported with what it is, and
-the checks that refuse a damaged script (see :mod:`.urscript`).
+the checks that refuse a damaged script (see :mod:`.reader`).
 
-Every ``p[...]`` of a script gets a report row: the targets :mod:`.urscript` reads, and
+Every ``p[...]`` of a script gets a report row: the targets :mod:`.reader` reads, and
 here the others, by the call they are an argument of (UR Script Manual, e-Series):
 ``set_tcp`` (a tool), ``force_mode`` (its task frame), ``calculate_point_to_move_towards``
 (a Polyscope Direction node's feature pose: the point moved to is computed at run time),

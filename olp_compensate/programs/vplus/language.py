@@ -38,7 +38,9 @@ def check_complete(names: list[str], data: list[bytes]) -> None:
 
 
 def _warm_up() -> None:
+    """The parser loaded and the object model imported (a pool's workers inherit them)."""
     from .. import loads
+    from ..object_model import task  # noqa: F401
 
     loads(".PROGRAM warm()\n.END\n", "vplus", "<warm-up>")
 

@@ -19,7 +19,7 @@ def check_taught_joints(report: CompensationReport, robot) -> None:
     """:class:`ModelError` when a precision point of the program (joints as taught, a
     ``joint_target`` row) cannot be of the calibration's robot: fewer values than its axes
     (a 6-axis program against a 7-axis arm; more are external axes, see
-    :func:`.task._external_axes_in_notes`), or a value outside a controller axis range
+    :func:`..object_model.task._external_axes_in_notes`), or a value outside a controller axis range
     (a PUMA's ``#ready`` on an IRB 2400): the program is for another robot."""
     ranges = robot.controller_ranges
     scale = np.array([1e3 if j.kind == "prismatic" else math.degrees(1.0)
