@@ -37,6 +37,8 @@ from __future__ import annotations
 import re
 
 from ...errors import ParseError
+from ..brackets import closing
+from ..brackets import line_end as next_line_break
 from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, is_finite_number,
                              line_column, line_starts_of)
 from ..targets import Number
@@ -61,22 +63,6 @@ _SET_NUM = re.compile(r"\b(UFRAME_NUM|UTOOL_NUM)[ \t]*=[ \t]*(\d+|\S+)")
 _RUNTIME_OPTIONS = re.compile(r"\b(Tool_Offset|VOFFSET|Offset|INC)\b", re.I)
 
 POSE_FIELDS = ("X", "Y", "Z", "W", "P", "R")
-
-
-def _bracket(text: str, start: int) -> int:
-    """Offset just past the ``]`` closing the ``[`` at ``start`` (nesting counted), or -1."""
-    depth = 0
-    for k in range(start, len(text)):
-        c = text[k]
-        if c == "[":
-            depth += 1
-        elif c == "]":
-            depth -= 1
-            if depth == 0:
-                return k + 1
-        elif c in "\r\n":
-            return -1
-    return -1
 
 
 def _sections(text: str) -> dict[str, tuple[int, int]]:
@@ -249,7 +235,7 @@ def _motion(text, file, starts, instruction, where, at, line_end, program, frame
     if p is None:
         program.unknown.append((where, instruction))
         return
-    close = _bracket(text, p.end() - 1)
+    close = closing(text, p.end() - 1, next_line_break(text, p.end() - 1), "[]") or -1
     if close < 0:
         program.unknown.append((where, instruction))
         return

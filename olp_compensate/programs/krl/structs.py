@@ -15,6 +15,7 @@ import re
 import numpy as np
 
 from ...kinematics.conventions import euler_zyx_from_matrix, matrix_from_euler_zyx
+from ..brackets import closing
 
 _STRUC = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?STRUC[ \t]+"
                     r"([A-Za-z_]\w*)[ \t]+([^\r\n]*)", re.I | re.M)
@@ -72,15 +73,7 @@ def frame_fields(clean: str, lo: int, hi: int, fields: dict[str, str],
 def closing_brace(text: str, start: int, hi: int) -> int | None:
     """Offset just past the ``}`` closing the aggregate whose ``{`` is at ``start``,
     searched before ``hi``; None when it is not closed there."""
-    depth = 0
-    for k in range(start, hi):
-        if text[k] == "{":
-            depth += 1
-        elif text[k] == "}":
-            depth -= 1
-            if depth == 0:
-                return k + 1
-    return None
+    return closing(text, start, hi, "{}")
 
 
 def _close(text: str, start: int, hi: int) -> int:

@@ -33,6 +33,7 @@ from __future__ import annotations
 import re
 
 from ...errors import ParseError
+from ..brackets import argument_spans, strip_span
 from ..pose_dialects import (JOINTS, POSE, PoseMotion, PoseProgram, PoseTarget, blank_comments,
                              line_column, line_starts_of)
 from ..targets import Number
@@ -63,35 +64,16 @@ def blank_strings(text: str) -> str:
 
 
 def _args(clean: str, open_at: int) -> tuple[list[tuple[int, int]], int]:
-    """Top-level argument spans of the call whose ``(`` is at ``open_at``; and the offset
-    just past its ``)`` (-1 when unclosed)."""
-    depth, start, spans = 0, open_at + 1, []
-    in_string = False
-    for k in range(open_at, len(clean)):
-        c = clean[k]
-        if c == '"':
-            in_string = not in_string
-        if in_string:
-            continue
-        if c in "([{":
-            depth += 1
-        elif c in ")]}":
-            depth -= 1
-            if depth == 0:
-                spans.append((start, k))
-                return [_strip(clean, a, b) for a, b in spans if clean[a:b].strip()], k + 1
-        elif c == "," and depth == 1:
-            spans.append((start, k))
-            start = k + 1
-    return [], -1
+    """Top-level argument spans of the call whose ``(`` is at ``open_at``, blanks and empty
+    arguments left out; and the offset just past its ``)`` (-1 when unclosed)."""
+    spans, end = argument_spans(clean, open_at, "([{", ")]}", quote='"')
+    if end < 0:
+        return [], -1
+    return [_strip(clean, a, b) for a, b in spans if clean[a:b].strip()], end
 
 
 def _strip(text: str, a: int, b: int) -> tuple[int, int]:
-    while a < b and text[a] in " \t\r\n":
-        a += 1
-    while b > a and text[b - 1] in " \t\r\n":
-        b -= 1
-    return a, b
+    return strip_span(text, a, b, " \t\r\n")
 
 
 def _numbers(text: str, a: int, b: int) -> tuple[Number, ...]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import re
 
+from ..brackets import argument_spans, strip_span
 from ..pose_dialects import JOINTS, PoseMotion, PoseProgram, line_column, line_starts_of
 from ..text_checks import check_text, check_xml
 
@@ -37,28 +38,9 @@ def _blank_comments(code: str) -> str:
 
 
 def _args(code: str, open_at: int) -> list[tuple[int, int]]:
-    """Top-level argument spans of the call whose ``(`` is at ``open_at``."""
-    depth, start, spans = 0, open_at + 1, []
-    for k in range(open_at, len(code)):
-        c = code[k]
-        if c in "([":
-            depth += 1
-        elif c in ")]":
-            depth -= 1
-            if depth == 0:
-                spans.append((start, k))
-                break
-        elif c == "," and depth == 1:
-            spans.append((start, k))
-            start = k + 1
-    out = []
-    for a, b in spans:
-        while a < b and code[a].isspace():
-            a += 1
-        while b > a and code[b - 1].isspace():
-            b -= 1
-        out.append((a, b))
-    return out
+    """Top-level argument spans of the call whose ``(`` is at ``open_at``, blanks left out."""
+    spans, _ = argument_spans(code, open_at)
+    return [strip_span(code, a, b) for a, b in spans]
 
 
 def _ref(text: str) -> tuple[str | None, str | None]:
