@@ -197,6 +197,13 @@ def _varied_module(n: int, seed: int, newline: str) -> str:
         "IF n5 > 2 MoveL p{k}, v100, fine, tGun;",
         "MoveL p{k}, v100, fine, tGun; ! after a move",
         "TriggL p{k}, v500, trigg1, z10, tGun\\WObj:=wTable;",
+        # function calls the fast path reads whole, and ones it leaves to the grammar
+        "MoveL RelTool(p{k}, 0, 0, -20\\Rz:=45), v100, z10, tGun;",
+        "MoveJ Offs(arr{a}{{2}}, 10*2, -n5, 0.5E1), v100, z10, tGun\\WObj:=wTable;",
+        "MoveL Offs( p{k} ,n5+1, 0 , 0 ), v100, fine, tGun;",
+        "MoveL RelTool(Offs(p{k},0,0,10),0,0,0), v100, fine, tGun;",
+        "MoveL Offs(pv{v}.trans.x, 0, 0, 0), v100, fine, tGun;",
+        "MoveL Offs(p{k}, 0, 0, 10\\Ignored), v100, fine, tGun;",
     ]
     decl_of = {}
     for k in range(n):
@@ -263,6 +270,11 @@ MALFORMED = [  # (all but one are errors; '1.2.3' makes a runtime target)
     "MODULE A\n  PROC main()\n    MoveL p1, v100, fine, tool0 \\WObj:=;\n  ENDPROC\n"
     "ENDMODULE\n",
     "MODULE A\n  PROC main()\n    MoveL Offs(p1,1,2, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n",
+    "MODULE A\n  PROC main()\n    MoveL Offs(p1,0,0 50), v100, fine, tool0;\n  ENDPROC\n"
+    "ENDMODULE\n",
+    "MODULE A\n  PROC main()\n    MoveL Offs(p1,,0,0), v100, fine, tool0;\n  ENDPROC\nENDMODULE\n",
+    "MODULE A\n  PROC main()\n    MoveL RelTool(p1,0,0,0\\Rz:=), v100, fine, tool0;\n  ENDPROC\n"
+    "ENDMODULE\n",
     # literals of the wrong shape, in one-line declarations and motions
     "MODULE A\n  CONST robtarget p:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9]];\nENDMODULE\n",
     "MODULE A\n  CONST robtarget p:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,1.2.3]];\n"

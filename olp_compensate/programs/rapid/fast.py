@@ -181,9 +181,18 @@ def _leave_routine(tok: Token) -> Token:
     return tok
 
 
-_VAL = portable(r"-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
-                r"(?:\{[^{}]*\})?|\[(?:[^\[\]]++|\[[^\[\]]*+\])*+\]|\*"
-                r"|[A-Za-z_]\w*\((?:[^()]++|\((?:[^()]++|\([^()]*+\))*+\))*+\)")
+# a function call whose arguments are names, numbers and their sums and products (``Offs(p,
+# 0, 0, dz)``, ``RelTool(p{2}, 0, 0, -20\Rz:=45)``), read whole; any other call (nested,
+# strings, empty arguments) is left to the grammar, which reads it or says why not
+_TERM = (r"-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*(?:\{[^{}]*\})?"
+         r"|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
+_SUM = _TERM + r"(?:[ \t]*[-+*/][ \t]*" + _TERM + r")*"
+_CALL_ARG = (r"[ \t]*" + _SUM + r"(?:[ \t]*\\[A-Za-z_]\w*(?:[ \t]*:=[ \t]*" + _SUM + r")?)*"
+             r"[ \t]*")
+_CALL_VAL = r"[A-Za-z_]\w*\(" + _CALL_ARG + r"(?:," + _CALL_ARG + r")*\)"
+_VAL = portable(_CALL_VAL + r"|-?(?:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*"
+                r"|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+                r"(?:\{[^{}]*\})?|\[(?:[^\[\]]++|\[[^\[\]]*+\])*+\]|\*")
 _FAST_ITEM = re.compile(r"""
     [ \t]*(?:
       \\(?P<opt>[A-Za-z_]\w*)(?:[ \t]*(?P<op>:=|\?)[ \t]*(?P<oval>VAL))?
@@ -191,7 +200,7 @@ _FAST_ITEM = re.compile(r"""
     )?[ \t]*(?P<sep>[,;])?""".replace("VAL", _VAL), re.X)
 _NAME_RE = re.compile(r"[A-Za-z_]\w*")
 _IDX_RE = re.compile(r"([A-Za-z_]\w*)\{([^{}]*)\}")
-_CALL_RE = re.compile(r"([A-Za-z_]\w*)\(\s*([A-Za-z_]\w*)?")
+_CALL_RE = re.compile(r"([A-Za-z_]\w*)\(\s*([A-Za-z_]\w*(?=\s*[,){\\]))?")
 
 
 def value_ex(text: str, start: int, end: int) -> Ex:
