@@ -42,6 +42,9 @@ def test_wheel_ships_robots_and_grammars(tmp_path):
         "robots = sorted(p.name for p in resources.files('olp_compensate.robots').iterdir())\n"
         "grammars = sorted(p.name for p in resources.files('olp_compensate.grammars').iterdir())\n"
         "from olp_compensate.kinematics.robot import load_robot\n"
+        "from olp_compensate.programs.languages import languages\n"
+        "for language in languages():\n"
+        "    __import__(f'olp_compensate.programs.{language.name}.reader')\n"
         "print(load_robot('abb_irb2400').n_joints, robots, grammars)\n")
     out = subprocess.run([str(python), "-c", probe], check=True, capture_output=True, text=True,
                          cwd=tmp_path).stdout
@@ -49,6 +52,18 @@ def test_wheel_ships_robots_and_grammars(tmp_path):
     assert "abb_irb2400.robot.json" in out and "ur5e.robot.json" in out and "README.md" in out
     assert ".urdf" not in out.split("] [")[0]   # robots are records; URDFs are generated
     assert "README.md" in out.split("] [")[-1]  # the grammars folder ships
+
+
+def test_every_package_folder_ships():
+    """pyproject.toml lists its packages one by one: a folder added to the tree must be added
+    there, or the wheel leaves it out (a language folder, a subpackage)."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+                 ["packages"])
+    folders = {".".join(p.parent.relative_to(ROOT).parts)
+               for p in (ROOT / "olp_compensate").rglob("__init__.py")}
+    assert folders <= listed, sorted(folders - listed)
 
 
 def _readme_command(after: str) -> str:
