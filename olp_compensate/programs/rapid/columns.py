@@ -2,7 +2,7 @@
 
 A generated module holds tens of thousands of module-level ``CONST robtarget p := [...];``
 and ``MoveL p, v, z, tool\\WObj:=w;``. Parsed by
-:func:`~.rapid.parse_rapid_columns`, the fast paths (rapid_fast.py) append those to the
+:func:`~.reader.parse_rapid_columns`, the fast paths (fast.py) append those to the
 two tables here instead of making a :class:`~.targets.CartesianTarget` or
 :class:`~.targets.MotionUse` each: names and flat arrays of offsets (about 150 bytes a
 row, against 3 KB as objects; the numbers' values are read in batches,

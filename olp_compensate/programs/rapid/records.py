@@ -106,7 +106,7 @@ class Arg:
 class Sink:
     """The records of one parse. The fast paths build module-level robtarget declarations
     and the plainest MoveL/MoveJ into model objects at once (``targets``, ``motions``), or
-    (a column parse) into the tables of ``columns`` (rapid_columns.ModuleColumns);
+    (a column parse) into the tables of ``columns`` (columns.ModuleColumns);
     everything else is recorded for the builder."""
 
     __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",

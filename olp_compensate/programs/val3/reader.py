@@ -203,7 +203,7 @@ def parse_val3(texts: dict[str, str] | str, file: str = "<dtx>",
                programs: dict[str, str] | None = None) -> PoseProgram:
     """Read VAL3 data files: ``texts`` file name -> decoded text (or one text and its
     ``file`` name); ``programs``: the project's ``.pgx`` texts (file -> text), whose motions
-    say which point is reached with which tool (:mod:`.val3_programs`)."""
+    say which point is reached with which tool (:mod:`.programs`)."""
     if isinstance(texts, str):
         texts = {file: texts}
     program = PoseProgram(dialect="val3", texts=dict(texts), targets=[], motions=[])
