@@ -4,9 +4,10 @@ The grammar hands over runs of one-line declarations (FAST_DECLS) and calls (FAS
 single tokens; the lexer callbacks here split them with anchored regular expressions, in
 text order. The plainest forms (a module-level ``CONST robtarget p := [...]`` and
 ``MoveL p, v, z, tool\\WObj:=w``) each take one regex match and become a model object at
-once, or (a column parse) a row of the parse's tables (columns.py); the others become the same records the grammar
-rules produce (``Sink``), so one builder (build.py) handles both. A motion call these regexes cannot read is parsed again by
-the grammar (start symbol ``call``), which gives the exact error if it is wrong.
+once, or (a column parse) a row of the parse's tables (columns.py); the others become the
+same records the grammar rules produce (``Sink``), so one builder (build.py) handles both.
+A motion call these regexes cannot read is parsed again by the grammar (start symbol
+``call``), which gives the exact error if it is wrong.
 """
 
 from __future__ import annotations
