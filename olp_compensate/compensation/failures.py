@@ -93,12 +93,14 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
         solution = decide(comp, _copy(solution), desired_flange, confdata)
     failed = np.flatnonzero(~solution.success)
     out: list[FailureReport | None] = [None] * len(solution.success)
-    q_ctrl_of, config_of = _turned_and_configs(comp, solution.q[failed])
-    for k, row in enumerate(failed.tolist()):
+    for row in failed.tolist():
         reason = str(solution.reason[row])
-        q_ctrl = q_ctrl_of[k]
-        config = config_of[k]
-        has_q = config is not None
+        q = solution.q[row]
+        has_q = bool(np.all(np.isfinite(q)))
+        q_ctrl = (turn_toward_ranges(robot, robot.controller_from_joints(q[None]))[0]
+                  if has_q else np.full(robot.n_joints, np.nan))
+        config = (tuple(int(c) for c in comp.confdata(robot.joints_from_controller(
+            q_ctrl[None]))[0]) if has_q else None)
         if words is not None:
             asked = words(row, None) or None
             found = words(row, q_ctrl) if has_q else "none"
@@ -110,22 +112,6 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
                      float(solution.rotation_error_rad[row]))
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
     return out
-
-
-def _turned_and_configs(comp: Compensator, q_urdf: np.ndarray):
-    """For joints ``q_urdf (k, n)`` (URDF axes; a NaN row: none found): the controller joints
-    turned toward the ranges (k, n) and each row's confdata as a tuple (None for NaN rows),
-    in one batch."""
-    robot = comp.robot
-    has = np.all(np.isfinite(q_urdf), axis=1)
-    q_ctrl = np.full((len(q_urdf), robot.n_joints), np.nan)
-    configs: list = [None] * len(q_urdf)
-    if np.any(has):
-        q_ctrl[has] = turn_toward_ranges(robot, robot.controller_from_joints(q_urdf[has]))
-        found = comp.confdata(robot.joints_from_controller(q_ctrl[has])).tolist()
-        for k, conf in zip(np.flatnonzero(has).tolist(), found):
-            configs[k] = tuple(conf)
-    return q_ctrl, configs
 
 
 def _note(robot, reason: str, q_ctrl: np.ndarray, has_q: bool, on_asked: bool,
