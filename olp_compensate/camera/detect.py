@@ -38,6 +38,10 @@ from .board import Board
 from .centres import (BORDER_MARGIN_PX, circle_centre_bias, ellipse_centres,  # noqa: F401
                       refine_centres, robust_centres)
 
+METHODS = ("centroid", "darkness", "ellipse")
+"""The centre estimates :func:`detect_dots` offers (the first is the default)."""
+
+
 @dataclass(frozen=True, eq=False)
 class Detection:
     """The board found in one image.
@@ -248,11 +252,13 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
     """Find every dot of ``board`` in an 8-bit grey (h, w) or RGB (h, w, 3) image.
 
     method : "centroid" (edge-weighted centroid, :func:`robust_centres`, the default and
-    the more accurate) or "ellipse" (centre of an ellipse fitted to the blob contour).
+    the more accurate), "darkness" (darkness-weighted centroid, :func:`refine_centres`,
+    the default before; it spends the noise of every pixel near the dot) or "ellipse"
+    (centre of an ellipse fitted to the blob contour).
     Returns a :class:`Detection`, or a :class:`DetectionFailure` with the reason.
     """
-    if method not in ("centroid", "ellipse"):
-        raise DataError(f"detect: method must be 'centroid' or 'ellipse', got {method!r}")
+    if method not in METHODS:
+        raise DataError(f"detect: method must be one of {', '.join(METHODS)}, got {method!r}")
     grey = _as_grey(image)
     if board.kind == "charuco":
         from .detect_opencv import find_charuco_corners
@@ -263,7 +269,7 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
         return _detection(name, board, corners, np.full(board.count, np.nan),
                           np.full(board.count, np.nan))
     if board.kind != "olp-dots":
-        return _detect_opencv(grey, board, name)
+        return _detect_opencv(grey, board, name, method)
     paper = paper_level(grey, board)
     first = None
     for threshold in CONTRAST_THRESHOLDS:
@@ -289,7 +295,7 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
         return DetectionFailure(name, f"board touches the image border (dot ({r}, {c}))")
     if method == "ellipse":
         centres = ellipse_centres(blobs, indices)
-    else:
+    elif method == "centroid":
         centres = robust_centres(grey, blobs, indices, centres).centres
     H = fit_homography(board.dot_positions()[:, :2], centres)
     rms = float(np.sqrt(np.mean(np.sum(
@@ -298,9 +304,10 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
                      contrast=contrast, homography=H, homography_rms_px=rms)
 
 
-def _detect_opencv(grey: np.ndarray, board: Board, name: str) -> Detection | DetectionFailure:
+def _detect_opencv(grey: np.ndarray, board: Board, name: str,
+                   method: str = "centroid") -> Detection | DetectionFailure:
     """An OpenCV circle grid as a :class:`Detection`: ``cv2.findCirclesGrid`` orders the
-    dots (:mod:`.detect_opencv`), our blobs and edge-weighted centroids measure them."""
+    dots (:mod:`.detect_opencv`), our blobs and centre estimates (``method``) measure them."""
     from .detect_opencv import find_opencv_grid, right_handed
 
     rough = find_opencv_grid(grey, board)
@@ -321,7 +328,10 @@ def _detect_opencv(grey: np.ndarray, board: Board, name: str) -> Detection | Det
     centres, contrast, inside = refine_centres(grey, blobs, indices)
     if not np.all(inside):
         return DetectionFailure(name, "board touches the image border")
-    centres = robust_centres(grey, blobs, indices, centres).centres
+    if method == "ellipse":
+        centres = ellipse_centres(blobs, indices)
+    elif method == "centroid":
+        centres = robust_centres(grey, blobs, indices, centres).centres
     return _detection(name, board, centres, blobs.areas[indices], contrast)
 
 
