@@ -82,7 +82,7 @@ def test_centres_near_the_cramer_rao_bound_in_noisy_views(noise, blur):
 
     floor = float(np.sqrt(np.mean(np.concatenate(bound))))
     assert 0.005 < floor < 0.05  # the bound is about the noise over the edge's gradient
-    # measured: ours 1.08 and 1.19 x the bound, the darkness centroid 1.90 and 1.61 x,
+    # measured: ours 1.12 and 1.18 x the bound, the darkness centroid 1.90 and 1.61 x,
     # OpenCV's blob centres 1.52 and 1.47 x (blur 0.8 and 1.5 px)
     assert rms(ours) < 1.35 * floor
     assert rms(ours) < 0.8 * rms(former)
