@@ -1,17 +1,25 @@
 """The camera against its peer, and a robot identified from camera views.
 
-Run: python benchmarks/camera.py [--seed S] [--skip-robot]   (one core: set below)
+Run: python benchmarks/camera.py [--seed S] [--skip-robot] [--renderings 2:0.8,6:0.8,...]
+         [--noise G --blur PX]   (one core: set below)
 
-Part 1, on rendered views (1280 x 960 px, noise 2 grey levels, blur 0.8 px, uneven light,
-the camera 350-800 mm from the board and tilted 20-50 degrees, a 9 x 9 board of 25 mm
-pitch): 20 views calibrate, 20 other views are measured. Side by side on the *same
-detected centres*:
+Part 1, on rendered views (1280 x 960 px, uneven light, the camera 350-800 mm from the
+board and tilted 20-50 degrees, a 9 x 9 board of 25 mm pitch), once per rendering of
+``--renderings`` (noise grey levels : blur px; default noise 2, 6, 2, 6 with blur 0.8, 0.8,
+1.5, 1.5; ``--noise``/``--blur`` give one): 20 views calibrate, 20 other views are
+measured. Side by side:
 
 - ours: the seed's RAC then the full refinement, with the circle-centre correction (the
-  default of ``olp-cal camera calibrate``); the same without that correction; RAC only;
-- OpenCV: ``cv2.calibrateCamera`` (Zhang, 5 distortion coefficients) then ``cv2.solvePnP``;
-  and OpenCV's whole pipeline: the same on its own centres (``cv2.findCirclesGrid``), views
-  it does not find left out.
+  default of ``olp-cal camera calibrate``), on our default centres (edge-weighted,
+  ``detect_dots``); the same on the darkness-weighted centroids (``method="darkness"``,
+  the default before issue 33); without that correction; RAC only;
+- OpenCV: ``cv2.calibrateCamera`` (Zhang, 5 distortion coefficients) then ``cv2.solvePnP``
+  on our centres; and OpenCV's whole pipeline: the same on its own centres
+  (``cv2.findCirclesGrid`` with ``SimpleBlobDetector``), views it does not find left out.
+
+Paired on the new views both find: OpenCV's pipeline's position error over ours, median,
+and on how many views ours is the more accurate; a last table puts the renderings side by
+side.
 
 Errors against the truth: focal lengths and centre (px); the distortion, whose models
 differ (ours distorted -> undistorted, OpenCV's undistorted -> distorted), compared through
@@ -41,7 +49,7 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
-from dataclasses import replace  # noqa: E402
+from dataclasses import dataclass, replace  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -80,10 +88,10 @@ def rendered_views(count: int, rng, seed: int):
     return images, poses
 
 
-def detect_all(images):
+def detect_all(images, method="centroid"):
     """Detected centres of every image (all must be found), and views per second."""
     start = time.perf_counter()
-    found = [detect_dots(image, BOARD, f"view{k}") for k, image in enumerate(images)]
+    found = [detect_dots(image, BOARD, f"view{k}", method) for k, image in enumerate(images)]
     rate = len(images) / (time.perf_counter() - start)
     failed = [f for f in found if not f.ok]
     if failed:
@@ -192,18 +200,39 @@ def pose_errors(estimate, pixels, poses):
     return np.array(out)
 
 
-def camera_part(seed: int) -> None:
+@dataclass(frozen=True)
+class Row:
+    """One estimate on one rendering: per new view position error mm, rotation error deg
+    and 1:N (n, 3), and the indices (n,) of those views among the 20."""
+
+    label: str
+    errors: np.ndarray
+    views: np.ndarray
+
+
+def camera_part(seed: int) -> dict[str, Row]:
+    """Part 1 on the current RENDER; prints its table, returns the rows by label."""
     rng = np.random.default_rng(seed)
     cal_images, _ = rendered_views(20, rng, 1000 * seed)
     new_images, new_poses = rendered_views(20, rng, 1000 * seed + 500)
     cal_pixels, rate = detect_all(cal_images)
     new_pixels, rate2 = detect_all(new_images)
-    estimates = [Ours("ours: RAC + refinement + circle correction", cal_pixels),
-                 Ours("ours: RAC + refinement, centroids as detected", cal_pixels,
-                      correct=False),
-                 Ours("ours: RAC only (the seed) + circle correction", cal_pixels, "rac-only"),
-                 OpenCV(cal_pixels)]
-    print(f"truth: fx {TRUTH.fx:g} fy {TRUTH.fy:g} cx {TRUTH.cx:g} cy {TRUTH.cy:g} px, k1 "
+    cal_dark, _ = detect_all(cal_images, "darkness")
+    new_dark, _ = detect_all(new_images, "darkness")
+    estimates = [(Ours(OURS, cal_pixels), new_pixels),
+                 (Ours(DARK, cal_dark), new_dark),
+                 (Ours("ours: RAC + refinement, centres as detected", cal_pixels,
+                       correct=False), new_pixels),
+                 (Ours("ours: RAC only (the seed) + circle correction", cal_pixels,
+                       "rac-only"), new_pixels),
+                 (OpenCV(cal_pixels), new_pixels)]
+    own_cal = [p for p in opencv_centres(cal_images, cal_pixels) if p is not None]
+    own_new = opencv_centres(new_images, new_pixels)
+    kept = np.array([k for k, p in enumerate(own_new) if p is not None])
+    own = OpenCV(own_cal, f"{OWN}: {len(own_cal)}+{len(kept)} views found")
+    estimates.append((own, own_new))
+    print(f"rendering: noise {RENDER.noise_sigma:g} grey levels, blur {RENDER.blur_sigma_px:g} "
+          f"px; truth: fx {TRUTH.fx:g} fy {TRUTH.fy:g} cx {TRUTH.cx:g} cy {TRUTH.cy:g} px, k1 "
           f"{TRUTH.k1:g} k2 {TRUTH.k2:g}; {TRUTH.width} x {TRUTH.height} px; 20 calibration "
           f"views, 20 new views, seed {seed}")
     print(f"{'estimate':<48} {'dfx':>7} {'dfy':>7} {'dcx':>7} {'dcy':>7} {'dist rms':>8} "
@@ -211,23 +240,54 @@ def camera_part(seed: int) -> None:
           f"{'1:N med':>8} {'worst':>7} | {'cal s':>6}")
     print(f"{'':<48} {'px':>7} {'px':>7} {'px':>7} {'px':>7} {'px':>8} {'px':>6} | "
           f"{'mm':>7} {'mm':>7} {'deg':>7} {'deg':>7} {'':>8} {'':>7} |")
-    own_cal = [p for p in opencv_centres(cal_images, cal_pixels) if p is not None]
-    own_new = opencv_centres(new_images, new_pixels)
-    kept = [k for k, p in enumerate(own_new) if p is not None]
-    own = OpenCV(own_cal, f"OpenCV's own centres: {len(own_cal)}+{len(kept)} views found")
-    for e in estimates + [own]:
+    rows = {}
+    for e, pixels in estimates:
         rms, worst = distortion_field_error(e)
-        if e is own:
-            err = pose_errors(e, [own_new[k] for k in kept], [new_poses[k] for k in kept])
-        else:
-            err = pose_errors(e, new_pixels, new_poses)
+        views = kept if e is own else np.arange(len(new_poses))
+        err = pose_errors(e, [pixels[k] for k in views], [new_poses[k] for k in views])
+        rows[OWN if e is own else e.label] = Row(e.label, err, views)
         print(f"{e.label:<48} {e.fx - TRUTH.fx:7.3f} {e.fy - TRUTH.fy:7.3f} "
               f"{e.cx - TRUTH.cx:7.3f} {e.cy - TRUTH.cy:7.3f} {rms:8.3f} {worst:6.3f} | "
               f"{np.median(err[:, 0]):7.4f} {np.max(err[:, 0]):7.4f} "
               f"{np.median(err[:, 1]):7.4f} {np.max(err[:, 1]):7.4f} "
               f"{np.median(err[:, 2]):8,.0f} {np.min(err[:, 2]):7,.0f} | {e.seconds:6.2f}")
+    for label in (DARK, OWN):
+        ratio, better, count = paired(rows[label], rows[OURS])
+        print(f"paired, {label} against ours: its position error / ours median {ratio:.2f}, "
+              f"ours better on {better} of {count} views")
     print(f"detection: {rate:.1f} and {rate2:.1f} views per second at {TRUTH.width} x "
-          f"{TRUTH.height} px on one core (two batches of 20)")
+          f"{TRUTH.height} px on one core (two batches of 20)\n")
+    return rows
+
+
+OURS = "ours: RAC + refinement + circle correction"
+DARK = "ours, darkness centroids (before issue 33)"
+OWN = "OpenCV's own pipeline"
+
+
+def paired(other: Row, ours: Row) -> tuple[float, int, int]:
+    """On the new views both measured: median of other's position error over ours, the
+    number of views where ours is smaller, and the number of views."""
+    common, i, j = np.intersect1d(other.views, ours.views, return_indices=True)
+    ratio = other.errors[i, 0] / ours.errors[j, 0]
+    return float(np.median(ratio)), int(np.sum(ratio > 1)), len(common)
+
+
+def summary(results: list[tuple[RenderOptions, dict[str, Row]]]) -> None:
+    """The renderings side by side: 1:N median / worst view, and the paired figures."""
+    def cell(row):
+        return f"1:{np.median(row.errors[:, 2]):,.0f} / 1:{np.min(row.errors[:, 2]):,.0f}"
+
+    print("side by side (1:N of the distance, median / worst new view; paired: OpenCV's "
+          "pipeline's error / ours, median, and views where ours is better)")
+    print(f"{'rendering':<22} {'ours':>22} {'ours, darkness centr.':>22} "
+          f"{'OpenCV, our centres':>22} {'OpenCV own pipeline':>22} {'paired':>16}")
+    for render, rows in results:
+        ratio, better, count = paired(rows[OWN], rows[OURS])
+        print(f"{f'noise {render.noise_sigma:g}, blur {render.blur_sigma_px:g} px':<22} "
+              f"{cell(rows[OURS]):>22} {cell(rows[DARK]):>22} "
+              f"{cell(rows[OpenCV.label]):>22} {cell(rows[OWN]):>22} "
+              f"{f'{ratio:.2f}x, {better}/{count}':>16}")
 
 
 # -- the robot -------------------------------------------------------------------------------
@@ -289,16 +349,29 @@ def main() -> None:
     parser.add_argument("--skip-robot", action="store_true")
     parser.add_argument("--skip-camera", action="store_true")
     parser.add_argument("--candidates-per-pose", type=int, default=1)
-    parser.add_argument("--noise", type=float, default=RENDER.noise_sigma,
-                        help="image noise, grey levels (default 2)")
-    parser.add_argument("--blur", type=float, default=RENDER.blur_sigma_px,
-                        help="Gaussian blur, px (default 0.8)")
+    parser.add_argument("--renderings", default="2:0.8,6:0.8,2:1.5,6:1.5",
+                        help="noise grey levels : blur px, comma-separated (default "
+                             "2:0.8,6:0.8,2:1.5,6:1.5; the robot part uses the first)")
+    parser.add_argument("--noise", type=float, help="one rendering: image noise, grey levels")
+    parser.add_argument("--blur", type=float, help="one rendering: Gaussian blur, px")
     args = parser.parse_args()
-    RENDER = replace(RENDER, noise_sigma=args.noise, blur_sigma_px=args.blur)
-    print(f"rendering: noise {RENDER.noise_sigma:g} grey levels, blur {RENDER.blur_sigma_px:g} px")
+    if args.noise is not None or args.blur is not None:
+        renderings = [(RENDER.noise_sigma if args.noise is None else args.noise,
+                       RENDER.blur_sigma_px if args.blur is None else args.blur)]
+    else:
+        renderings = [tuple(float(v) for v in item.split(":"))
+                      for item in args.renderings.split(",")]
+    base = RENDER
+    results = []
     if not args.skip_camera:
-        camera_part(args.seed)
+        for noise, blur in renderings:
+            RENDER = replace(base, noise_sigma=noise, blur_sigma_px=blur)
+            results.append((RENDER, camera_part(args.seed)))
+        summary(results)
     if not args.skip_robot:
+        RENDER = replace(base, noise_sigma=renderings[0][0], blur_sigma_px=renderings[0][1])
+        print(f"rendering: noise {RENDER.noise_sigma:g} grey levels, blur "
+              f"{RENDER.blur_sigma_px:g} px")
         robot_part(args.seed, args.candidates_per_pose)
 
 

@@ -12,11 +12,12 @@ Steps (1 and 2 in :mod:`.blobs`, the others below):
    two nearest neighbours along the columns and the rows (column × row > 0 in the image,
    the camera sees the printed face) and the diagonal one, a board-to-image homography is
    grown ring by ring over the grid, refitted on every match.
-4. :func:`refine_centres` - each dot's centre is the darkness-weighted centroid inside an
-   ellipse slightly larger than the blob, against a background plane fitted on a ring
-   around it; all dots at once, in windows cut from the full-resolution image. That is
-   the centroid of the dot's *image*: under perspective it is not the
-   image of the circle's centre; :func:`circle_centre_bias` gives the difference.
+4. :func:`refine_centres` and :func:`robust_centres` (:mod:`.centres`) - each dot's
+   centre, first the darkness-weighted centroid inside an ellipse slightly larger than the
+   blob against a background plane fitted on a ring around it, then the centroid of a
+   smooth step of the darkness, which only the dot's edge moves (its noise is the edge's
+   alone). Both are centres of the dot's *image*: under perspective that is not the image
+   of the circle's centre; :func:`circle_centre_bias` gives the difference.
 
 Pixel coordinates: integer values at pixel centres, X = column, Y = row.
 """
@@ -34,10 +35,11 @@ from ..errors import DataError
 from ..io.images import image_paths, read_grey
 from .blobs import CONTRAST_THRESHOLDS, Blobs, _as_grey, dark_mask, find_blobs, paper_level
 from .board import Board
-from .model import CameraIntrinsics, project_points
+from .centres import (BORDER_MARGIN_PX, circle_centre_bias, ellipse_centres,  # noqa: F401
+                      refine_centres, robust_centres)
 
-BORDER_MARGIN_PX = 2
-"""A dot whose window comes closer than this to the image border is not measured."""
+METHODS = ("centroid", "darkness", "ellipse")
+"""The centre estimates :func:`detect_dots` offers (the first is the default)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,128 +247,18 @@ def _missing_reason(board: Board, blobs: Blobs, match: _GridMatch, shape) -> str
     return f"{found} (dots hidden or not dark enough)"
 
 
-def refine_centres(grey: np.ndarray, blobs: Blobs, indices: np.ndarray,
-                   iterations: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Darkness-weighted centroids (n, 2) px of the blobs ``indices``, with a background
-    plane fitted on a ring around each; also (n,) peak contrast and (n,) bool "window fits
-    inside the image".
-
-    Per dot, with the blob's covariance axes: the centroid is taken inside an ellipse of
-    semi-axes ``semi + grow`` (semi = 2 sigma of the blob), the plane on the ring out to
-    ``semi + 2 grow``, both around the previous centre; a window of half-size ``half``
-    around it must keep :data:`BORDER_MARGIN_PX` from the image border. All dots are done
-    at once, in groups of equal window size.
-    """
-    height, width = grey.shape
-    n = len(indices)
-    centres = blobs.centres[indices].astype(float)
-    axes_var, axes = np.linalg.eigh(blobs.covariances[indices])  # (n, 2), (n, 2, 2)
-    semi = 2 * np.sqrt(np.maximum(axes_var, 0.25))
-    grow = np.maximum(2.5, 0.35 * semi.min(axis=1))[:, None]
-    window = semi + grow
-    outer = window + grow
-    half = np.ceil(outer.max(axis=1)).astype(int) + 2
-    contrast = np.zeros(n)
-    inside = np.ones(n, bool)
-    active = np.ones(n, bool)
-    m = BORDER_MARGIN_PX
-    for _ in range(iterations):
-        origin = np.rint(centres).astype(int)  # half to even, as round()
-        lo, hi = origin - half[:, None], origin + half[:, None] + 1
-        fits = (lo[:, 0] >= m) & (lo[:, 1] >= m) & (hi[:, 0] <= width - m) \
-            & (hi[:, 1] <= height - m)
-        inside &= fits | ~active
-        active &= fits
-        for size in np.unique(half[active]):
-            k = np.nonzero(active & (half == size))[0]
-            update, new_centres, peak = _centroids(grey, origin[k], centres[k], axes[k],
-                                                   window[k], outer[k], int(size))
-            active[k[~update]] = False
-            centres[k[update]] = new_centres[update]
-            contrast[k[update]] = peak[update]
-    return centres, contrast, inside
-
-
-def _centroids(grey, origin, centre, axes, window, outer, half):
-    """One step of :func:`refine_centres` for k dots, each in the (2 half + 1)^2 window
-    around ``origin`` (k, 2) int, inside the image: (k,) bool "weights positive", (k, 2)
-    centroids, (k,) peak contrasts."""
-    from numpy.lib.stride_tricks import sliding_window_view
-
-    size = 2 * half + 1
-    x0, y0 = origin[:, 0] - half, origin[:, 1] - half
-    patch = sliding_window_view(grey, (size, size))[y0, x0].astype(np.float64)  # (k, s, s)
-    steps = np.arange(size)
-    xs, ys = x0[:, None] + steps, y0[:, None] + steps  # (k, s) pixel columns and rows
-    dx, dy = xs - centre[:, :1], ys - centre[:, 1:]
-    # u = axes^T (dx, dy); inside an ellipse of semi-axes e where (u1/e1)^2 + (u2/e2)^2 <= 1,
-    # a quadratic form q_xx dx^2 + 2 q_xy dx dy + q_yy dy^2
-    a00, a10, a01, a11 = axes[:, 0, 0], axes[:, 1, 0], axes[:, 0, 1], axes[:, 1, 1]
-
-    def quadratic(semi_axes):
-        w1, w2 = semi_axes[:, 0] ** -2, semi_axes[:, 1] ** -2
-        qxx = a00 * a00 * w1 + a01 * a01 * w2
-        qxy = a00 * a10 * w1 + a01 * a11 * w2
-        qyy = a10 * a10 * w1 + a11 * a11 * w2
-        return ((qxx[:, None] * dx * dx)[:, None, :] + (qyy[:, None] * dy * dy)[:, :, None]
-                + (2 * qxy[:, None] * dy)[:, :, None] * dx[:, None, :])
-
-    inner = quadratic(window) <= 1
-    ring = (quadratic(outer) <= 1) & ~inner
-    # background plane p + q dx + r dy fitted on the ring: normal equations
-    ring = ring.astype(np.float64)
-    by_row, by_col = ring.sum(axis=2), ring.sum(axis=1)  # (k, s): over x, over y
-    cross = np.einsum("kij,ki,kj->k", ring, dy, dx)
-    ring *= patch
-    grey_row, grey_col = ring.sum(axis=2), ring.sum(axis=1)
-    sx, sy = (by_col * dx).sum(1), (by_row * dy).sum(1)
-    normal = np.stack([np.stack([by_row.sum(1), sx, sy], -1),
-                       np.stack([sx, (by_col * dx * dx).sum(1), cross], -1),
-                       np.stack([sy, cross, (by_row * dy * dy).sum(1)], -1)], -2)
-    rhs = np.stack([grey_row.sum(1), (grey_col * dx).sum(1), (grey_row * dy).sum(1)], -1)
-    p, q, r = np.linalg.solve(normal, rhs[:, :, None])[:, :, 0].T
-    paper = (p[:, None] + q[:, None] * dx)[:, None, :] + (r[:, None] * dy)[:, :, None]
-    weight = paper - patch
-    weight /= np.maximum(paper, 1.0)
-    weight *= inner
-    w_row, w_col = weight.sum(axis=2), weight.sum(axis=1)
-    total = w_row.sum(1)
-    ok = total > 0
-    safe = np.where(ok, total, 1.0)
-    centroid = np.stack([(w_col * xs).sum(1), (w_row * ys).sum(1)], -1) / safe[:, None]
-    peak = weight.max(axis=(1, 2))  # the inner maximum wherever the total is positive
-    return ok, centroid, peak
-
-
-def ellipse_centres(blobs: Blobs, indices: np.ndarray) -> np.ndarray:
-    """Centres (n, 2) px of ellipses fitted to the blobs' outer contours (cv2.fitEllipse);
-    the alternative to :func:`refine_centres`, kept for comparison."""
-    import cv2
-
-    out = np.empty((len(indices), 2))
-    for k, b in enumerate(indices):
-        x, y, w, h = blobs.boxes[b]
-        mask = (blobs.labels[y:y + h, x:x + w] == blobs.label_ids[b]).astype(np.uint8)
-        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        contour = max(contours, key=len)
-        if len(contour) >= 5:
-            (ex, ey), _, _ = cv2.fitEllipse(contour)
-        else:
-            ex, ey = contour.reshape(-1, 2).mean(axis=0)
-        out[k] = (ex + x, ey + y)
-    return out
-
-
 def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
                 method: str = "centroid") -> Detection | DetectionFailure:
     """Find every dot of ``board`` in an 8-bit grey (h, w) or RGB (h, w, 3) image.
 
-    method : "centroid" (darkness-weighted centroid, the default and the more accurate)
-    or "ellipse" (centre of an ellipse fitted to the blob contour).
+    method : "centroid" (edge-weighted centroid, :func:`robust_centres`, the default and
+    the more accurate), "darkness" (darkness-weighted centroid, :func:`refine_centres`,
+    the default before; it spends the noise of every pixel near the dot) or "ellipse"
+    (centre of an ellipse fitted to the blob contour).
     Returns a :class:`Detection`, or a :class:`DetectionFailure` with the reason.
     """
-    if method not in ("centroid", "ellipse"):
-        raise DataError(f"detect: method must be 'centroid' or 'ellipse', got {method!r}")
+    if method not in METHODS:
+        raise DataError(f"detect: method must be one of {', '.join(METHODS)}, got {method!r}")
     grey = _as_grey(image)
     if board.kind == "charuco":
         from .detect_opencv import find_charuco_corners
@@ -377,7 +269,7 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
         return _detection(name, board, corners, np.full(board.count, np.nan),
                           np.full(board.count, np.nan))
     if board.kind != "olp-dots":
-        return _detect_opencv(grey, board, name)
+        return _detect_opencv(grey, board, name, method)
     paper = paper_level(grey, board)
     first = None
     for threshold in CONTRAST_THRESHOLDS:
@@ -403,6 +295,8 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
         return DetectionFailure(name, f"board touches the image border (dot ({r}, {c}))")
     if method == "ellipse":
         centres = ellipse_centres(blobs, indices)
+    elif method == "centroid":
+        centres = robust_centres(grey, blobs, indices, centres).centres
     H = fit_homography(board.dot_positions()[:, :2], centres)
     rms = float(np.sqrt(np.mean(np.sum(
         (apply_homography(H, board.dot_positions()[:, :2]) - centres) ** 2, axis=1))))
@@ -410,9 +304,10 @@ def detect_dots(image: np.ndarray, board: Board, name: str = "<image>",
                      contrast=contrast, homography=H, homography_rms_px=rms)
 
 
-def _detect_opencv(grey: np.ndarray, board: Board, name: str) -> Detection | DetectionFailure:
+def _detect_opencv(grey: np.ndarray, board: Board, name: str,
+                   method: str = "centroid") -> Detection | DetectionFailure:
     """An OpenCV circle grid as a :class:`Detection`: ``cv2.findCirclesGrid`` orders the
-    dots (:mod:`.detect_opencv`), our blobs and darkness-weighted centroids measure them."""
+    dots (:mod:`.detect_opencv`), our blobs and centre estimates (``method``) measure them."""
     from .detect_opencv import find_opencv_grid, right_handed
 
     rough = find_opencv_grid(grey, board)
@@ -433,6 +328,10 @@ def _detect_opencv(grey: np.ndarray, board: Board, name: str) -> Detection | Det
     centres, contrast, inside = refine_centres(grey, blobs, indices)
     if not np.all(inside):
         return DetectionFailure(name, "board touches the image border")
+    if method == "ellipse":
+        centres = ellipse_centres(blobs, indices)
+    elif method == "centroid":
+        centres = robust_centres(grey, blobs, indices, centres).centres
     return _detection(name, board, centres, blobs.areas[indices], contrast)
 
 
@@ -482,31 +381,3 @@ def detect_many(images: str | Path | Iterable[str | Path], board: Board,
             yield DetectionFailure(path.name, f"cannot read: {exc}")
             continue
         yield detect_dots(grey, board, path.name, method)
-
-
-def circle_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
-                       board: Board, samples: int = 256) -> np.ndarray:
-    """Perspective bias of every dot (n, 2) px, row-major: the centroid of the area of the
-    dot's image minus the image of the dot's centre.
-
-    The printed circle's boundary is projected through the full camera model
-    (``samples`` points, distortion included) and the centroid of the enclosed polygon
-    taken (exact to O(1/samples^2)). Subtract it from detected centroids to get the
-    images of the dot centres; ``camera_T_board`` (4, 4, m) from a first calibration pass.
-    A charuco board's corners have no such bias (zeros).
-    """
-    if board.kind == "charuco":
-        return np.zeros((board.count, 2))
-    angles = np.linspace(0, 2 * np.pi, samples, endpoint=False)
-    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(samples)], -1)
-    centres = board.dot_positions()
-    boundary = centres[:, None, :] + board.dot_radii()[:, None, None] * ring
-    pix = project_points(intrinsics, camera_T_board, boundary.reshape(-1, 3))
-    pix = pix.reshape(len(centres), samples, 2)
-    x, y = pix[..., 0], pix[..., 1]
-    xn, yn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
-    cross = x * yn - xn * y
-    area = cross.sum(axis=1) / 2
-    cx = ((x + xn) * cross).sum(axis=1) / (6 * area)
-    cy = ((y + yn) * cross).sum(axis=1) / (6 * area)
-    return np.stack([cx, cy], -1) - project_points(intrinsics, camera_T_board, centres)
