@@ -29,6 +29,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from ..errors import DataError
 from ..kinematics.conventions import pose_from_rotation_translation
+from . import rac_batch
 from .model import CameraIntrinsics
 
 MU_BOUNDS = (0.8, 1.25)
@@ -214,7 +215,12 @@ def stage2(stage1s: Sequence[Stage1], pixels: Sequence[np.ndarray],
 
 def rac_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float, cy: float,
              mu: float) -> float:
-    """RMS over all views of the eq. 69 residuals (column px) for a trial centre and mu."""
+    """RMS over all views of the eq. 69 residuals (column px) for a trial centre and mu
+    (the views at once by :mod:`.rac_batch` when they have equal point counts)."""
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    first = None if stacked is None else rac_batch.stage1(stacked)
+    if first is not None:
+        return float(np.sqrt(np.mean(first.residuals ** 2)))
     total, count = 0.0, 0
     for pix, pts in zip(pixels, points):
         r = stage1(pix, pts, cx, cy, mu).residuals
@@ -225,7 +231,13 @@ def rac_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: flo
 
 def stage2_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
                 cy: float, mu: float) -> float:
-    """RMS over all views of the eq. 66 residuals (column px) after both stages."""
+    """RMS over all views of the eq. 66 residuals (column px) after both stages (the views
+    at once by :mod:`.rac_batch` when they have equal point counts)."""
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    first = None if stacked is None else rac_batch.stage1(stacked)
+    if first is not None:
+        fx, res = rac_batch.stage2_residuals(stacked, first)
+        return float(np.sqrt(np.mean(res * res))) if fx > 0 else np.inf
     s1 = [stage1(pix, pts, cx, cy, mu) for pix, pts in zip(pixels, points)]
     try:
         res = np.concatenate(stage2(s1, pixels, points, cx, cy, mu).residuals)

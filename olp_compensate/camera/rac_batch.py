@@ -1,0 +1,165 @@
+"""The RAC's two stages for every view at once, for the centre and mu searches.
+
+:func:`.rac.search_centre` and :func:`.rac.search_mu` evaluate the stages some 80 times, each
+time for every view; one view at a time that is thousands of small ``lstsq`` and SVD calls
+(82 % of a 20-view calibration before this module). Here the views, when they all have the
+same number of points (a board detected whole), are stacked on a leading axis and each
+view's least squares solved by a batched QR; the arithmetic is that of :func:`.rac.stage1`
+and :func:`.rac.stage2` (same equations, same sign rules, same two-pass weighting), so the
+costs agree with the one-view code to rounding. Units as there: centred coordinates in
+column pixels, board points in m.
+
+No import of :mod:`.rac` (it imports this module).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Stacked:
+    """Views stacked on axis 0: ``X``, ``Y`` (V, n) centred column and row coordinates in
+    column pixels (``Y' = (row - cy) / mu``); ``xw``, ``yw`` (V, n) board points, m."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    xw: np.ndarray
+    yw: np.ndarray
+
+
+@dataclass(frozen=True)
+class Stage1Batch:
+    """Stage 1 of every view: rotations camera_R_board (V, 3, 3), ``tx``, ``ty`` (V,) m,
+    eq. 69 residuals (V, n) column px."""
+
+    rotation: np.ndarray
+    tx: np.ndarray
+    ty: np.ndarray
+    residuals: np.ndarray
+
+
+def stack(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float, cy: float,
+          mu: float) -> Stacked | None:
+    """The views stacked, or None when their point counts differ (then the one-view code
+    runs). pixels : per view (n, 2) column, row; points : per view (n, 2 or 3), m."""
+    sizes = {len(p) for p in pixels} | {len(q) for q in points}
+    if len(sizes) != 1:
+        return None
+    pix = np.asarray(pixels, dtype=float)
+    pts = np.asarray([np.asarray(q, dtype=float)[:, :2] for q in points])
+    return Stacked(pix[..., 0] - cx, (pix[..., 1] - cy) / mu, pts[..., 0], pts[..., 1])
+
+
+def _least_squares(design: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Per view the least-squares solution (V, k) of ``design (V, m, k) @ x = rhs (V, m)``
+    by QR; NaN for a rank-deficient view."""
+    q, r = np.linalg.qr(design)
+    qtb = np.einsum("vmk,vm->vk", q, rhs)
+    diag = np.abs(np.diagonal(r, axis1=1, axis2=2))
+    singular = np.any(diag <= 1e-12 * np.max(diag, axis=1, keepdims=True), axis=1)
+    r = np.where(singular[:, None, None], np.eye(r.shape[1]), r)
+    x = np.linalg.solve(r, qtb[..., None])[..., 0]
+    x[singular] = np.nan
+    return x
+
+
+def stage1(s: Stacked) -> Stage1Batch | None:
+    """:func:`.rac.stage1` for every view; None when a view is degenerate (the one-view
+    code then raises its error)."""
+    X, Y, xw, yw = s.X, s.Y, s.xw, s.yw
+    design = np.stack([Y * xw, Y * yw, Y, -X * xw, -X * yw], axis=2)
+    sol = _least_squares(design, X)
+    c = sol[:, [0, 1, 3, 4]].reshape(-1, 2, 2)
+    frob = np.sum(c * c, axis=(1, 2))
+    det = c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] * c[:, 1, 0]
+    s1 = np.sqrt(0.5 * (frob + np.sqrt(np.maximum(frob * frob - 4.0 * det * det, 0.0))))
+    if not np.all(np.isfinite(s1)) or np.any(s1 <= 0):
+        return None
+    ty = 1.0 / s1
+    block, tx = c * ty[:, None, None], sol[:, 2] * ty
+    x = block[:, 0, 0, None] * xw + block[:, 0, 1, None] * yw + tx[:, None]
+    y = block[:, 1, 0, None] * xw + block[:, 1, 1, None] * yw + ty[:, None]
+    sign = np.where(np.sum(x * X + y * Y, axis=1) < 0, -1.0, 1.0)
+    ty, tx, block = ty * sign, tx * sign, block * sign[:, None, None]
+    r1, r2, r4, r5 = block[:, 0, 0], block[:, 0, 1], block[:, 1, 0], block[:, 1, 1]
+    r3 = np.sqrt(np.maximum(0.0, 1.0 - r1 * r1 - r2 * r2))
+    r6 = np.sqrt(np.maximum(0.0, 1.0 - r4 * r4 - r5 * r5))
+    r6 = np.where(r1 * r4 + r2 * r5 > 0, -r6, r6)
+    row1, row2 = np.stack([r1, r2, r3], 1), np.stack([r4, r5, r6], 1)
+    rotation = _orthonormal(np.stack([row1, row2, np.cross(row1, row2)], 1))
+    x = rotation[:, 0, 0, None] * xw + rotation[:, 0, 1, None] * yw + tx[:, None]
+    y = rotation[:, 1, 0, None] * xw + rotation[:, 1, 1, None] * yw + ty[:, None]
+    residuals = (X * y - Y * x) / np.maximum(np.hypot(x, y), 1e-300)
+    return Stage1Batch(rotation, tx, ty, residuals)
+
+
+def _orthonormal(m: np.ndarray) -> np.ndarray:
+    """The rotations nearest to ``m`` (V, 3, 3) (polar decomposition)."""
+    u, _, vt = np.linalg.svd(m)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0
+    if np.any(flip):
+        u[flip, :, -1] *= -1
+        r[flip] = u[flip] @ vt[flip]
+    return r
+
+
+def _weighted(design: np.ndarray, rhs: np.ndarray, depth_w: np.ndarray,
+              solve) -> tuple[np.ndarray, np.ndarray]:
+    """The two-pass depth weighting of :func:`.rac._solve_stage2`: (solution, weights at it).
+    ``solve(design * w, rhs * w) -> (solution, Tz of every row)``."""
+    weights = np.ones_like(rhs)
+    for _ in range(2):
+        sol, tz_rows = solve(design * weights[..., None], rhs * weights)
+        depth = depth_w + tz_rows
+        weights = 1.0 / np.where(np.abs(depth) > 1e-9, np.abs(depth), 1e-9)
+    return sol, weights
+
+
+def stage2_residuals(s: Stacked, first: Stage1Batch, with_k: bool = True
+                     ) -> tuple[float, np.ndarray]:
+    """:func:`.rac.stage2` for every view: (fx px, eq. 66 residuals (V, 2n) column px).
+
+    Each view's completion is chosen so that its own fx is positive; flipping the
+    completion negates ``w`` (rotation entries r7, r8), so the rows keep ``A`` and negate
+    ``b`` and ``w``, and the view's fx changes sign exactly.
+    """
+    rot = first.rotation
+    X, Y, xw, yw = s.X, s.Y, s.xw, s.yw
+    x = rot[:, 0, 0, None] * xw + rot[:, 0, 1, None] * yw + first.tx[:, None]
+    y = rot[:, 1, 0, None] * xw + rot[:, 1, 1, None] * yw + first.ty[:, None]
+    w = rot[:, 2, 0, None] * xw + rot[:, 2, 1, None] * yw
+    r2 = X * X + Y * Y
+    k = 3 if with_k else 2
+    design = np.concatenate([np.stack([-X, x, -x * r2], 2), np.stack([-Y, y, -y * r2], 2)],
+                            axis=1)[..., :k]
+    rhs = np.concatenate([X * w, Y * w], axis=1)
+    depth_w = np.concatenate([w, w], axis=1)
+
+    def per_view(a, b):
+        sol = _least_squares(a, b)
+        return sol, sol[:, :1]
+
+    own, _ = _weighted(design, rhs, depth_w, per_view)
+    sign = np.where(own[:, 1] < 0, -1.0, 1.0)[:, None]
+    rhs, depth_w = rhs * sign, depth_w * sign
+    n_views = len(design)
+
+    def joint(a, b):
+        # each view's rows reduced by QR to k rows; then one small least squares
+        q, r = np.linalg.qr(a)
+        qtb = np.einsum("vmk,vm->vk", q, b)
+        big = np.zeros((n_views, k, n_views + k - 1))
+        big[np.arange(n_views), :, np.arange(n_views)] = r[:, :, 0]
+        big[:, :, n_views:] = r[:, :, 1:]
+        sol = np.linalg.lstsq(big.reshape(-1, n_views + k - 1), qtb.ravel(), rcond=None)[0]
+        return sol, sol[:n_views, None]
+
+    sol, weights = _weighted(design, rhs, depth_w, joint)
+    shared = sol[n_views:]
+    fitted = design[..., 0] * sol[:n_views, None] + design[..., 1:] @ shared
+    return float(shared[0]), (fitted - rhs) * weights
