@@ -161,29 +161,27 @@ def _stage2_rows(pixels, points, cx, cy, mu, rotation, tx, ty):
 def _solve_stage2(rows: list, with_k: bool = True):
     """Joint weighted least squares of eq. 66 over views: per-view Tz, shared fx and k fx.
     Rows are divided by the depth ``w + Tz`` of a first unweighted solution, so that the
-    residuals are in column pixels. Returns (tz (V,), fx, kfx, residuals list)."""
+    residuals are in column pixels. Returns (tz (V,), fx, kfx, residuals list).
+
+    Each view's rows are first reduced by a QR to as many rows as unknowns it touches, so
+    the joint least squares is (k V) x (V + k - 1), not (2 n V) x (V + k - 1)."""
     n_views = len(rows)
-    sizes = [len(b) for _, b, _ in rows]
-    m = sum(sizes)
-    n_shared = 2 if with_k else 1
-    design = np.zeros((m, n_views + n_shared))
-    rhs = np.empty(m)
-    depth_w = np.empty(m)
-    start = 0
-    for v, (a, b, w) in enumerate(rows):
-        sl = slice(start, start + len(b))
-        design[sl, v] = a[:, 0]
-        design[sl, n_views:] = a[:, 1:1 + n_shared]
-        rhs[sl], depth_w[sl] = b, w
-        start += len(b)
-    weights = np.ones(m)
+    k = 3 if with_k else 2
+    designs = [a[:, :k] for a, _, _ in rows]
+    weights = [np.ones(len(b)) for _, b, _ in rows]
     for _ in range(2):
-        sol = np.linalg.lstsq(design * weights[:, None], rhs * weights, rcond=None)[0]
-        tz_rows = np.repeat(sol[:n_views], sizes)
-        depth = depth_w + tz_rows
-        weights = 1.0 / np.where(np.abs(depth) > 1e-9, np.abs(depth), 1e-9)
-    residual = (design @ sol - rhs) * weights
-    split = np.split(residual, np.cumsum(sizes)[:-1])
+        big = np.zeros((n_views, k, n_views + k - 1))
+        qtb = np.empty((n_views, k))
+        for v, ((_, b, _), a, w) in enumerate(zip(rows, designs, weights)):
+            q, r = np.linalg.qr(a * w[:, None])
+            qtb[v] = q.T @ (b * w)
+            big[v, :, v] = r[:, 0]
+            big[v, :, n_views:] = r[:, 1:]
+        sol = np.linalg.lstsq(big.reshape(-1, n_views + k - 1), qtb.ravel(), rcond=None)[0]
+        weights = [1.0 / np.where(np.abs(w + tz) > 1e-9, np.abs(w + tz), 1e-9)
+                   for (_, _, w), tz in zip(rows, sol[:n_views])]
+    split = [(a[:, 0] * tz + a[:, 1:] @ sol[n_views:] - b) * w
+             for (_, b, _), a, w, tz in zip(rows, designs, weights, sol[:n_views])]
     kfx = sol[n_views + 1] if with_k else 0.0
     return sol[:n_views], float(sol[n_views]), float(kfx), split
 
