@@ -73,7 +73,7 @@ class BlockNormal:
         return np.concatenate([step_shared, step_blocks.ravel()])
 
     def dense(self) -> np.ndarray:
-        """``J^T J`` as one (n, n) matrix (for a covariance at the end)."""
+        """``J^T J`` as one (n, n) matrix."""
         p = len(self.shared)
         n_views, q = self.g_blocks.shape
         out = np.zeros((self.size, self.size))
@@ -82,6 +82,29 @@ class BlockNormal:
         out[p:, :p] = out[:p, p:].T
         for v in range(n_views):
             out[p + q * v:p + q * (v + 1), p + q * v:p + q * (v + 1)] = self.blocks[v]
+        return out
+
+    def inverse(self) -> np.ndarray:
+        """``(J^T J)^-1`` (n, n) from the blocks: with ``S`` the Schur complement and
+        ``E = [I; -V^-1 W^T]`` (n, p), it is ``E S^-1 E^T`` plus ``V_v^-1`` on the view
+        blocks (O(n^2), not O(n^3)). All inf when the matrix is singular (unidentifiable
+        unknowns)."""
+        p = len(self.shared)
+        n_views, q = self.g_blocks.shape
+        try:
+            np.linalg.cholesky(self.blocks)
+            v_inv = np.linalg.inv(self.blocks)
+        except np.linalg.LinAlgError:
+            return np.full((self.size, self.size), np.inf)
+        v_inv_wt = v_inv @ np.swapaxes(self.cross, 1, 2)                # (V, q, p)
+        schur = self.shared - np.einsum("vpq,vqk->pk", self.cross, v_inv_wt)
+        factor, info = dpotrf(schur)
+        if info != 0:
+            return np.full((self.size, self.size), np.inf)
+        e = np.concatenate([np.eye(p), -v_inv_wt.reshape(n_views * q, p)])
+        out = e @ dpotrs(factor, e.T)[0]
+        for v in range(n_views):
+            out[p + q * v:p + q * (v + 1), p + q * v:p + q * (v + 1)] += v_inv[v]
         return out
 
 

@@ -197,15 +197,19 @@ def project_with_jacobian(x_intrinsics: np.ndarray, rotvecs: np.ndarray,
     d_intr[:, :, 4] = scale * dd_dk1
     d_intr[:, :, 5] = scale * dd_dk1 * rho[:, None]
 
-    # d d / d u = (I - c d d^T / den) / g ; d u / d p = [[1/z, 0, -x/z^2], [0, 1/z, -y/z^2]]
-    dd_du = (np.eye(2)[None] - (c / den)[:, None, None] * d[:, :, None] * d[:, None, :]) \
-        / g[:, None, None]
-    du_dp = np.zeros((n, 2, 3))
-    du_dp[:, 0, 0] = du_dp[:, 1, 1] = 1.0 / z
-    du_dp[:, :, 2] = -u / z[:, None]
-    dpix_dp = scale[None, :, None] * (dd_du @ du_dp)
-    # d p / d w = -[R b]x J_l(w): the rotated point's skew first, per point (N, 2, 3)
-    dpix_dw = -(dpix_dp @ skew(proj.rotated)) @ left_jacobians(rotvecs)[view]
+    # d d / d u = M = (I - a d d^T) / g with a = c / den; d u / d p = [I | -u] / z, so
+    # d pixels / d p = scale [M | -M u] / z; then d p / d w = -[R b]x J_l(w), and a row
+    # vector times [v]x is its cross product with v
+    a = c / den
+    dot = np.sum(d * u, axis=1)
+    m_over = np.empty((n, 2, 3))
+    m_over[:, :, :2] = -(a / (g * z))[:, None, None] * d[:, :, None] * d[:, None, :]
+    m_over[:, 0, 0] += 1.0 / (g * z)
+    m_over[:, 1, 1] += 1.0 / (g * z)
+    m_over[:, :, 2] = -(u - (a * dot)[:, None] * d) / (g * z)[:, None]
+    dpix_dp = m_over * scale[None, :, None]
+    cross = np.cross(dpix_dp, proj.rotated[:, None, :])
+    dpix_dw = -(cross @ left_jacobians(rotvecs)[view])
     d_extr = np.concatenate([dpix_dw, dpix_dp], axis=2)
     return proj.pixels, d_intr, d_extr
 
@@ -213,11 +217,21 @@ def project_with_jacobian(x_intrinsics: np.ndarray, rotvecs: np.ndarray,
 def _normal(d_intr: np.ndarray, d_extr: np.ndarray, r: np.ndarray,
             starts: np.ndarray) -> BlockNormal:
     """Blocks of the normal equations from per-point derivatives d_intr (N, 2, p) and
-    d_extr (N, 2, 6) and residuals r (N, 2), views contiguous from ``starts`` (V,)."""
+    d_extr (N, 2, 6) and residuals r (N, 2), views contiguous from ``starts`` (V,): each
+    view's rows ``J_v`` (2 n_v, p + 6) give ``J_v^T J_v`` and ``J_v^T r_v`` by one product
+    (views of equal size as one stacked product)."""
     p = d_intr.shape[2]
-    jac = np.concatenate([d_intr, d_extr], axis=2)
-    per_view = np.add.reduceat(np.swapaxes(jac, 1, 2) @ jac, starts, axis=0)
-    grad = np.add.reduceat(np.einsum("nik,ni->nk", jac, r), starts, axis=0)
+    jac = np.concatenate([d_intr, d_extr], axis=2).reshape(-1, p + N_POSE)
+    res = r.reshape(-1, 1)
+    sizes = np.diff(np.append(starts, len(r)))
+    if np.all(sizes == sizes[0]):
+        rows = jac.reshape(len(starts), -1, p + N_POSE)
+        both = np.swapaxes(rows, 1, 2) @ np.concatenate(
+            [rows, res.reshape(len(starts), -1, 1)], axis=2)
+    else:
+        both = np.array([jac[2 * a:2 * b].T @ np.hstack([jac[2 * a:2 * b], res[2 * a:2 * b]])
+                         for a, b in zip(starts, np.append(starts[1:], len(r)))])
+    per_view, grad = both[:, :, :-1], both[:, :, -1]
     return BlockNormal(shared=per_view[:, :p, :p].sum(0), cross=per_view[:, :p, p:],
                        blocks=per_view[:, p:, p:], g_shared=grad[:, :p].sum(0),
                        g_blocks=grad[:, p:])
@@ -297,7 +311,7 @@ def refine(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray],
                                        max_iterations=max_iterations)
     full, rotvecs, trans = unpack(result.x)
     sigma2 = 2.0 * result.cost / (m - n)
-    covariance = sigma2 * _inverse(result.normal.dense())
+    covariance = sigma2 * result.normal.inverse()
     std_full = np.zeros(layout.size)
     std_full[free] = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     residual = result.residuals.reshape(-1, 2)
