@@ -55,8 +55,26 @@ def stack(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
 
 
 def _least_squares(design: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Per view the least-squares solution (V, k) of ``design (V, m, k) @ x = rhs (V, m)``
-    by QR; NaN for a rank-deficient view."""
+    """Per view the least-squares solution (V, k) of ``design (V, m, k) @ x = rhs (V, m)``:
+    normal equations on unit-norm columns (the RAC's designs are well conditioned once
+    scaled), by QR when a view's are not positive definite; NaN for a rank-deficient
+    view."""
+    norms = np.sqrt(np.einsum("vmk,vmk->vk", design, design))
+    norms[norms == 0] = 1.0
+    scaled = design / norms[:, None, :]
+    normal = np.swapaxes(scaled, 1, 2) @ np.concatenate([scaled, rhs[..., None]], axis=2)
+    k = design.shape[2]
+    try:
+        factor = np.linalg.cholesky(normal[:, :, :k])
+    except np.linalg.LinAlgError:
+        return _least_squares_qr(design, rhs)
+    if np.any(np.diagonal(factor, axis1=1, axis2=2) < 1e-7):
+        return _least_squares_qr(design, rhs)
+    return np.linalg.solve(normal[:, :, :k], normal[:, :, k:])[..., 0] / norms
+
+
+def _least_squares_qr(design: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """As :func:`_least_squares`, by QR."""
     q, r = np.linalg.qr(design)
     qtb = np.einsum("vmk,vm->vk", q, rhs)
     diag = np.abs(np.diagonal(r, axis1=1, axis2=2))
@@ -150,13 +168,17 @@ def stage2_residuals(s: Stacked, first: Stage1Batch, with_k: bool = True
     n_views = len(design)
 
     def joint(a, b):
-        # each view's rows reduced by QR to k rows; then one small least squares
-        q, r = np.linalg.qr(a)
-        qtb = np.einsum("vmk,vm->vk", q, b)
-        big = np.zeros((n_views, k, n_views + k - 1))
-        big[np.arange(n_views), :, np.arange(n_views)] = r[:, :, 0]
-        big[:, :, n_views:] = r[:, :, 1:]
-        sol = np.linalg.lstsq(big.reshape(-1, n_views + k - 1), qtb.ravel(), rcond=None)[0]
+        # normal equations on unit-norm columns, Tz of each view eliminated (its column
+        # touches only that view's rows): a 2 x 2 (or 1 x 1) system for fx and k fx
+        norms = np.sqrt(np.einsum("vmk,vmk->k", a, a))
+        norms[norms == 0] = 1.0
+        scaled = a / norms
+        normal = np.swapaxes(scaled, 1, 2) @ np.concatenate([scaled, b[..., None]], axis=2)
+        n00, n0s, h0 = normal[:, 0, 0], normal[:, 0, 1:k], normal[:, 0, k]
+        schur = normal[:, 1:k, 1:k].sum(0) - np.einsum("vi,vj->ij", n0s, n0s / n00[:, None])
+        shared = np.linalg.solve(schur, normal[:, 1:k, k].sum(0) - (h0 / n00) @ n0s)
+        tz = (h0 - n0s @ shared) / n00
+        sol = np.concatenate([tz / norms[0], shared / norms[1:]])
         return sol, sol[:n_views, None]
 
     sol, weights = _weighted(design, rhs, depth_w, joint)
