@@ -88,8 +88,11 @@ def _least_squares_qr(design: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 def stage1(s: Stacked) -> Stage1Batch | None:
     """:func:`.rac.stage1` for every view; None when a view is degenerate (the one-view
     code then raises its error)."""
-    X, Y, xw, yw = s.X, s.Y, s.xw, s.yw
-    design = np.stack([Y * xw, Y * yw, Y, -X * xw, -X * yw], axis=2)
+    X, Y = s.X, s.Y
+    board = np.stack([s.xw, s.yw], axis=1)                       # (V, 2, n), m
+    image = np.stack([X, Y], axis=1)                             # (V, 2, n), column px
+    bt = np.swapaxes(board, 1, 2)
+    design = np.concatenate([Y[..., None] * bt, Y[..., None], -X[..., None] * bt], axis=2)
     sol = _least_squares(design, X)
     c = sol[:, [0, 1, 3, 4]].reshape(-1, 2, 2)
     frob = np.sum(c * c, axis=(1, 2))
@@ -98,20 +101,22 @@ def stage1(s: Stacked) -> Stage1Batch | None:
     if not np.all(np.isfinite(s1)) or np.any(s1 <= 0):
         return None
     ty = 1.0 / s1
-    block, tx = c * ty[:, None, None], sol[:, 2] * ty
-    x = block[:, 0, 0, None] * xw + block[:, 0, 1, None] * yw + tx[:, None]
-    y = block[:, 1, 0, None] * xw + block[:, 1, 1, None] * yw + ty[:, None]
-    sign = np.where(np.sum(x * X + y * Y, axis=1) < 0, -1.0, 1.0)
-    ty, tx, block = ty * sign, tx * sign, block * sign[:, None, None]
+    t = np.stack([sol[:, 2] * ty, ty], axis=1)                   # (tx, ty), (V, 2)
+    block = c * ty[:, None, None]
+    xy = block @ board + t[:, :, None]
+    sign = np.where(np.sum(xy * image, axis=(1, 2)) < 0, -1.0, 1.0)
+    t, block = t * sign[:, None], block * sign[:, None, None]
+    rows = np.empty((len(block), 3, 3))
+    rows[:, :2, :2] = block
+    rows[:, :2, 2] = np.sqrt(np.maximum(0.0, 1.0 - np.sum(block * block, axis=2)))
     r1, r2, r4, r5 = block[:, 0, 0], block[:, 0, 1], block[:, 1, 0], block[:, 1, 1]
-    r3 = np.sqrt(np.maximum(0.0, 1.0 - r1 * r1 - r2 * r2))
-    r6 = np.sqrt(np.maximum(0.0, 1.0 - r4 * r4 - r5 * r5))
-    r6 = np.where(r1 * r4 + r2 * r5 > 0, -r6, r6)
-    row1, row2 = np.stack([r1, r2, r3], 1), np.stack([r4, r5, r6], 1)
-    rotation = _orthonormal(np.stack([row1, row2, np.cross(row1, row2)], 1))
-    x = rotation[:, 0, 0, None] * xw + rotation[:, 0, 1, None] * yw + tx[:, None]
-    y = rotation[:, 1, 0, None] * xw + rotation[:, 1, 1, None] * yw + ty[:, None]
+    rows[:, 1, 2] = np.where(r1 * r4 + r2 * r5 > 0, -rows[:, 1, 2], rows[:, 1, 2])
+    rows[:, 2] = np.cross(rows[:, 0], rows[:, 1])
+    rotation = _orthonormal(rows)
+    xy = rotation[:, :2, :2] @ board + t[:, :, None]
+    x, y = xy[:, 0], xy[:, 1]
     residuals = (X * y - Y * x) / np.maximum(np.hypot(x, y), 1e-300)
+    tx, ty = t[:, 0], t[:, 1]
     return Stage1Batch(rotation, tx, ty, residuals)
 
 
