@@ -119,6 +119,19 @@ def stage1(pixels: np.ndarray, points: np.ndarray, cx: float, cy: float,
                                                                rotation, tx, ty))
 
 
+def stage1_all(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
+               cy: float, mu: float) -> list[Stage1]:
+    """:func:`stage1` of every view (at once by :mod:`.rac_batch` when the views have equal
+    point counts and none is degenerate; else one by one, which raises for a degenerate
+    view)."""
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    first = None if stacked is None else rac_batch.stage1(stacked)
+    if first is None:
+        return [stage1(p, q, cx, cy, mu) for p, q in zip(pixels, points)]
+    return [Stage1(r, float(tx), float(ty), res)
+            for r, tx, ty, res in zip(first.rotation, first.tx, first.ty, first.residuals)]
+
+
 def _orthonormal(m: np.ndarray) -> np.ndarray:
     """The rotation nearest to ``m`` (polar decomposition)."""
     u, _, vt = np.linalg.svd(m)
@@ -193,18 +206,29 @@ def stage2(stage1s: Sequence[Stage1], pixels: Sequence[np.ndarray],
 
     Each view's completion is first chosen so that its own fx is positive (Tsai: if f < 0,
     negate r3, r6, r7, r8), then fx and k fx are solved jointly with one Tz per view.
-    ``with_k=False`` fixes k = 0 (pinhole).
+    ``with_k=False`` fixes k = 0 (pinhole). Views of equal point counts are solved at once
+    by :func:`.rac_batch.stage2`.
     """
-    rotations, rows = [], []
-    for s, pix, pts in zip(stage1s, pixels, points):
-        rot = s.rotation
-        one = _stage2_rows(pix, pts, cx, cy, mu, rot, s.tx, s.ty)
-        if _solve_stage2([one], with_k)[1] < 0:
-            rot = flip_completion(rot)
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    if stacked is not None:
+        first = rac_batch.Stage1Batch(np.array([s.rotation for s in stage1s]),
+                                      np.array([s.tx for s in stage1s]),
+                                      np.array([s.ty for s in stage1s]), None)
+        second = rac_batch.stage2(stacked, first, with_k)
+        fx, kfx, tz, residuals = second.fx, second.kfx, second.tz, list(second.residuals)
+        rotations = [flip_completion(r) if flip else r
+                     for r, flip in zip(first.rotation, second.flipped)]
+    else:
+        rotations, rows = [], []
+        for s, pix, pts in zip(stage1s, pixels, points):
+            rot = s.rotation
             one = _stage2_rows(pix, pts, cx, cy, mu, rot, s.tx, s.ty)
-        rotations.append(rot)
-        rows.append(one)
-    tz, fx, kfx, residuals = _solve_stage2(rows, with_k)
+            if _solve_stage2([one], with_k)[1] < 0:
+                rot = flip_completion(rot)
+                one = _stage2_rows(pix, pts, cx, cy, mu, rot, s.tx, s.ty)
+            rotations.append(rot)
+            rows.append(one)
+        tz, fx, kfx, residuals = _solve_stage2(rows, with_k)
     if not fx > 0:
         raise DataError(f"RAC stage 2: focal length {fx:.1f} px is not positive (views too "
                         f"close to parallel to the board, or the centre is far off)")
@@ -234,8 +258,8 @@ def stage2_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: 
     stacked = rac_batch.stack(pixels, points, cx, cy, mu)
     first = None if stacked is None else rac_batch.stage1(stacked)
     if first is not None:
-        fx, res = rac_batch.stage2_residuals(stacked, first)
-        return float(np.sqrt(np.mean(res * res))) if fx > 0 else np.inf
+        second = rac_batch.stage2(stacked, first)
+        return float(np.sqrt(np.mean(second.residuals ** 2))) if second.fx > 0 else np.inf
     s1 = [stage1(pix, pts, cx, cy, mu) for pix, pts in zip(pixels, points)]
     try:
         res = np.concatenate(stage2(s1, pixels, points, cx, cy, mu).residuals)
@@ -269,8 +293,7 @@ def rac_poses(pixels, points, intrinsics: CameraIntrinsics, stages: Stage2 | Non
               stage1s: Sequence[Stage1] | None = None) -> np.ndarray:
     """camera_T_board (V, 4, 4) from the two stages at ``intrinsics``' centre and mu."""
     if stage1s is None:
-        stage1s = [stage1(p, q, intrinsics.cx, intrinsics.cy, intrinsics.mu)
-                   for p, q in zip(pixels, points)]
+        stage1s = stage1_all(pixels, points, intrinsics.cx, intrinsics.cy, intrinsics.mu)
     if stages is None:
         stages = stage2(stage1s, pixels, points, intrinsics.cx, intrinsics.cy, intrinsics.mu)
     t = np.array([[s.tx, s.ty, tz] for s, tz in zip(stage1s, stages.tz)])
@@ -302,7 +325,7 @@ def rac_calibrate(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], wi
         cx, cy, mu = cx_new, cy_new, mu_new
         if moved < 1e-3:
             break
-    s1 = [stage1(p, q, cx, cy, mu) for p, q in zip(pixels, points)]
+    s1 = stage1_all(pixels, points, cx, cy, mu)
     s2 = stage2(s1, pixels, points, cx, cy, mu)
     intrinsics = CameraIntrinsics(fx=s2.fx, mu=mu, cx=cx, cy=cy, k1=s2.k * s2.fx ** 2,
                                   width=int(width), height=int(height))

@@ -143,9 +143,21 @@ def _weighted(design: np.ndarray, rhs: np.ndarray, depth_w: np.ndarray,
     return sol, weights
 
 
-def stage2_residuals(s: Stacked, first: Stage1Batch, with_k: bool = True
-                     ) -> tuple[float, np.ndarray]:
-    """:func:`.rac.stage2` for every view: (fx px, eq. 66 residuals (V, 2n) column px).
+@dataclass(frozen=True)
+class Stage2Batch:
+    """Stage 2 over all views: ``fx`` column px, ``kfx`` (k fx, k per squared column-pixel
+    radius), ``tz`` (V,) m, ``flipped`` (V,) whether the view's other completion was taken
+    (:func:`.rac.flip_completion`), eq. 66 residuals (V, 2n) column px (X rows, then Y')."""
+
+    fx: float
+    kfx: float
+    tz: np.ndarray
+    flipped: np.ndarray
+    residuals: np.ndarray
+
+
+def stage2(s: Stacked, first: Stage1Batch, with_k: bool = True) -> Stage2Batch:
+    """:func:`.rac.stage2` for every view.
 
     Each view's completion is chosen so that its own fx is positive; flipping the
     completion negates ``w`` (rotation entries r7, r8), so the rows keep ``A`` and negate
@@ -189,4 +201,5 @@ def stage2_residuals(s: Stacked, first: Stage1Batch, with_k: bool = True
     sol, weights = _weighted(design, rhs, depth_w, joint)
     shared = sol[n_views:]
     fitted = design[..., 0] * sol[:n_views, None] + design[..., 1:] @ shared
-    return float(shared[0]), (fitted - rhs) * weights
+    return Stage2Batch(float(shared[0]), float(shared[1]) if with_k else 0.0, sol[:n_views],
+                       sign[:, 0] < 0, (fitted - rhs) * weights)
