@@ -317,6 +317,9 @@ def rac_calibrate(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], wi
             raise DataError(f"RAC: a view needs at least {MIN_POINTS} points with pixels, "
                             f"got {len(pix)} pixels for {len(pts)} points")
     cx, cy = centre if centre is not None else ((width - 1) / 2.0, (height - 1) / 2.0)
+    arrays = rac_batch.stack_arrays(pixels, points)
+    if arrays is not None:                  # stacked once for the ~120 evaluations
+        pixels, points = arrays
     for k in range(rounds):   # later rounds start at the last centre: a small simplex
         step = 20.0 if k == 0 and centre is None else 1.0
         cx_new, cy_new = search_centre(pixels, points, mu, (cx, cy), step)

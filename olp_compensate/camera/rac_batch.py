@@ -45,13 +45,26 @@ class Stage1Batch:
 def stack(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float, cy: float,
           mu: float) -> Stacked | None:
     """The views stacked, or None when their point counts differ (then the one-view code
-    runs). pixels : per view (n, 2) column, row; points : per view (n, 2 or 3), m."""
+    runs). pixels : per view (n, 2) column, row; points : per view (n, 2 or 3), m; either
+    may already be one (V, n, 2) array (see :func:`stack_arrays`)."""
+    if not (isinstance(pixels, np.ndarray) and isinstance(points, np.ndarray)):
+        arrays = stack_arrays(pixels, points)
+        if arrays is None:
+            return None
+        pixels, points = arrays
+    pix, pts = pixels, points
+    return Stacked(pix[..., 0] - cx, (pix[..., 1] - cy) / mu, pts[..., 0], pts[..., 1])
+
+
+def stack_arrays(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray]
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+    """pixels (V, n, 2) and board points (V, n, 2) m as arrays, or None when the views'
+    point counts differ; the searches stack once and pass the arrays."""
     sizes = {len(p) for p in pixels} | {len(q) for q in points}
     if len(sizes) != 1:
         return None
-    pix = np.asarray(pixels, dtype=float)
-    pts = np.asarray([np.asarray(q, dtype=float)[:, :2] for q in points])
-    return Stacked(pix[..., 0] - cx, (pix[..., 1] - cy) / mu, pts[..., 0], pts[..., 1])
+    return (np.asarray(pixels, dtype=float),
+            np.asarray([np.asarray(q, dtype=float)[:, :2] for q in points]))
 
 
 def _least_squares(design: np.ndarray, rhs: np.ndarray) -> np.ndarray:
