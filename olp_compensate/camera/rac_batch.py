@@ -124,7 +124,10 @@ def stage1(s: Stacked) -> Stage1Batch | None:
     rows[:, :2, 2] = np.sqrt(np.maximum(0.0, 1.0 - np.sum(block * block, axis=2)))
     r1, r2, r4, r5 = block[:, 0, 0], block[:, 0, 1], block[:, 1, 0], block[:, 1, 1]
     rows[:, 1, 2] = np.where(r1 * r4 + r2 * r5 > 0, -rows[:, 1, 2], rows[:, 1, 2])
-    rows[:, 2] = np.cross(rows[:, 0], rows[:, 1])
+    a, b = rows[:, 0], rows[:, 1]                               # third row: a x b
+    rows[:, 2, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    rows[:, 2, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    rows[:, 2, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     rotation = _orthonormal(rows)
     xy = rotation[:, :2, :2] @ board + t[:, :, None]
     x, y = xy[:, 0], xy[:, 1]
