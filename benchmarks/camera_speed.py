@@ -1,6 +1,7 @@
 """Camera calibration speed against cv2.calibrateCamera on the same detected centres.
 
 Run: python benchmarks/camera_speed.py [--views 20] [--seed 1] [--rounds 7] [--centres F.npz]
+         [--baseline DIR]
 
 The views are those of benchmarks/camera.py (1280 x 960 px, noise 2 grey levels, blur 0.8 px,
 a 9 x 9 dot board 350-800 mm away, tilted 20-50 degrees), rendered and detected by the
@@ -25,6 +26,11 @@ Accuracy: errors of fx, fy, cx, cy against the truth (px), the reprojection RMS 
 refinement's two solvers must reach the same cost (printed). Ratios: CPU against OpenCV at
 its defaults, in the same run.
 
+``--baseline DIR`` (an older package exported with ``git archive REV olp_compensate | tar -x
+-C DIR``) instead times the whole calibrate of that tree and of this one in alternating
+processes (each process: OpenCV, then ours without and with the correction), for the A/B
+of the whole pipeline.
+
 Target (issue 32): camera calibration from 20 views within 5x of cv2.calibrateCamera on the
 same centres, accuracy kept.
 """
@@ -35,6 +41,9 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402
+import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -137,16 +146,70 @@ def dense_refine(pixels, points, start, poses):
     return Estimate(k.fx, k.fy, k.cx, k.cy, np.sqrt(2 * result.cost / len(obs))), result.cost
 
 
+def child(pixels) -> None:
+    """One process's medians (3 interleaved runs after a warm-up), ms, as JSON on stdout:
+    OpenCV at its defaults and our calibrate without and with the correction."""
+    views = [View(f"v{k}", p, BOARD.dot_positions()) for k, p in enumerate(pixels)]
+    runs = {"opencv": lambda: opencv(pixels, (cv2.TERM_CRITERIA_COUNT
+                                              + cv2.TERM_CRITERIA_EPS, 30, np.finfo(float).eps)),
+            "detected": lambda: ours(views, False), "corrected": lambda: ours(views, True)}
+    times = {label: [] for label in runs}
+    fx = {label: run().fx for label, run in runs.items()}
+    for _ in range(3):
+        for label, run in runs.items():
+            begin = time.process_time()
+            run()
+            times[label].append(time.process_time() - begin)
+    print(json.dumps({label: [float(np.median(t)) * 1e3, fx[label] - TRUTH.fx]
+                      for label, t in times.items()}))
+
+
+def against_baseline(path: Path, baseline: Path, rounds: int) -> None:
+    """Whole calibrations of an older tree and of this one, in alternating processes."""
+    here = Path(__file__).resolve().parent.parent
+    rows = {"baseline": [], "current": []}
+    for _ in range(rounds):
+        for name, tree in (("baseline", baseline), ("current", here)):
+            env = dict(os.environ, PYTHONPATH=str(tree))
+            out = subprocess.run([sys.executable, __file__, "--child", "--centres", str(path)],
+                                 env=env, capture_output=True, text=True, check=True)
+            rows[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    print(f"whole calibrate, {rounds} alternating processes of each tree (baseline "
+          f"{baseline}); ms median of the processes' medians, ratio to OpenCV in the same "
+          f"process, fx error px")
+    for name, runs in rows.items():
+        cells = []
+        for label in ("opencv", "detected", "corrected"):
+            ms = np.median([r[label][0] for r in runs])
+            ratio = np.median([r[label][0] / r["opencv"][0] for r in runs])
+            cells.append(f"{label} {ms:7.1f} ms {ratio:5.2f}x fx {runs[-1][label][1]:+.4f}")
+        print(f"{name:<9} " + " | ".join(cells))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--views", type=int, default=20)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--centres", type=Path, default=None)
+    parser.add_argument("--baseline", type=Path, default=None,
+                        help="a folder holding an older olp_compensate package (git archive "
+                             "REV olp_compensate | tar -x -C DIR): whole calibrations of it "
+                             "and of this tree in alternating processes")
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     path = args.centres or (Path(tempfile.gettempdir())
                             / f"olp_camera_speed_{args.views}_{args.seed}.npz")
     pixels = centres(args.views, args.seed, path)
+    if args.child:
+        return child(pixels)
+    if args.baseline:
+        return against_baseline(path, args.baseline, args.rounds)
+    side_by_side(pixels, args.rounds)
+
+
+def side_by_side(pixels, rounds: int) -> None:
+    """The table of the module docstring."""
     points = [BOARD.dot_positions()] * len(pixels)
     views = [View(f"v{k}", p, points[0]) for k, p in enumerate(pixels)]
     start = rac.rac_calibrate(pixels, points, TRUTH.width, TRUTH.height)
@@ -180,14 +243,14 @@ def main() -> None:
     results = {}
     for label, run in contenders:           # warm-up (imports, caches)
         results[label] = run()
-    for _ in range(args.rounds):
+    for _ in range(rounds):
         for label, run in contenders:
             begin = time.process_time()
             run()
             times[label].append(time.process_time() - begin)
     peer = np.median(times[contenders[0][0]])
-    print(f"{len(pixels)} views of {len(points[0])} dots, seed {args.seed}, {args.rounds} "
-          f"interleaved rounds, one core, CPU time of the process")
+    print(f"{len(pixels)} views of {len(points[0])} dots, {rounds} interleaved rounds, one "
+          f"core, CPU time of the process")
     print(f"truth: fx {TRUTH.fx:g} fy {TRUTH.fy:g} cx {TRUTH.cx:g} cy {TRUTH.cy:g} px")
     print(f"{'contender':<52} {'median ms':>9} {'min ms':>7} {'x OpenCV':>8} | {'dfx':>7} "
           f"{'dfy':>7} {'dcx':>7} {'dcy':>7} {'rms px':>7}")
@@ -200,7 +263,7 @@ def main() -> None:
           f"dense {dense_cost[-1]:.12g} (relative difference "
           f"{abs(block_cost[-1] - dense_cost[-1]) / dense_cost[-1]:.1e})")
     print(f"of the circle correction's calibrate, in circle_centre_bias (camera/detect.py, "
-          f"3 passes x {len(pixels)} views): {np.median(BIAS_SECONDS[-args.rounds:]) * 1e3:.1f}"
+          f"3 passes x {len(pixels)} views): {np.median(BIAS_SECONDS[-rounds:]) * 1e3:.1f}"
           f" ms median")
     print("rms px: RMS over all dots of the distance between projected and detected centre "
           "(OpenCV's own figure; ours for calibrate on the corrected centres when corrected)")
