@@ -17,8 +17,8 @@ each view. It is never formed: each point's 2 x 12 derivative gives its share of
 equations' blocks (:class:`.block_lm.BlockNormal`: intrinsics x intrinsics, intrinsics x
 view, view x view), summed per view, and each Levenberg-Marquardt step is solved by the
 Schur complement on the views' 6 x 6 blocks (:mod:`.block_lm`). At 20 views of 81 dots
-(3,240 x 126) that replaced a dense ``J^T J`` of 51 million multiply-adds per Jacobian, most
-of the refinement's time, by 0.5 million; the work grows linearly with the views.
+(3,240 x 126) that replaced a dense ``J^T J`` of 51 million multiply-adds per Jacobian by
+0.5 million; the work grows linearly with the views (benchmarks/camera_speed.py).
 """
 
 from __future__ import annotations
