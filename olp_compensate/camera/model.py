@@ -75,7 +75,7 @@ class CameraIntrinsics:
         1e-10: the error left is then below 1e-19.
         """
         u = np.asarray(undistorted, dtype=float)
-        ru = np.sqrt(np.sum(u * u, axis=-1))
+        ru = np.sqrt(u[..., 0] * u[..., 0] + u[..., 1] * u[..., 1])   # not a sum over axis
         rd = ru.copy()
         k1, k2 = self.k1, self.k2
         for _ in range(iterations):
