@@ -156,9 +156,10 @@ def block_levenberg_marquardt(evaluate: Evaluate,
         while True:
             step = normal.solve(mu * scale * scale)
             if step is not None:
-                full = failed == 0
-                r_new = evaluate(x + step) if full else residuals(x + step)
-                r_new, normal_new = r_new if full else (r_new, None)
+                if failed == 0:              # usually accepted: its Jacobian will be needed
+                    r_new, normal_new = evaluate(x + step)
+                else:
+                    r_new, normal_new = residuals(x + step), None
                 evaluations += 1
                 cost_new = 0.5 * float(r_new @ r_new)
                 if np.isfinite(cost_new) and cost_new < cost:
