@@ -5,7 +5,9 @@ robot's flange looking at a printed board of dots.
 - :mod:`.board` the board (dots in the board frame, board.json);
 - :mod:`.detect` subpixel dot centres ordered by the marker dot;
 - :mod:`.rac`, :mod:`.refine`, :mod:`.calibrate` Tsai's RAC with the seed's changes, then a
-  full Levenberg-Marquardt refinement;
+  full Levenberg-Marquardt refinement; :mod:`.rac_batch` the RAC's stages for all views at
+  once (its searches), :mod:`.block_lm` the refinement's solver on per-view blocks (Schur
+  complement on the poses);
 - :mod:`.measure` the camera's pose in the board frame per view;
 - :mod:`.render` what a camera sees of the board (virtual campaigns, tests, benchmarks);
 - :mod:`.drawing` the board for printing and detection pictures.

@@ -208,13 +208,11 @@ def calibrate(views: Sequence[View], width: int, height: int, *, method: str = "
     points = [v.points for v in usable]
     # tilt of each view from a first stage 1 at the middle of the image, mu = 1
     guess = ((width - 1) / 2.0, (height - 1) / 2.0)
-    tilts = []
-    for v in usable:
-        s = rac.stage1(v.pixels, v.points, guess[0], guess[1], 1.0)
-        tilts.append(float(np.degrees(np.arccos(np.clip(abs(s.rotation[2, 2]), 0, 1)))))
+    first = rac.stage1_all(pixels, points, guess[0], guess[1], 1.0)
+    tilts = [float(np.degrees(np.arccos(np.clip(abs(s.rotation[2, 2]), 0, 1)))) for s in first]
     tilted = [k for k, t in enumerate(tilts) if t >= MIN_TILT_DEG]
     found, start, poses, stages, reason = _start(pixels, points, width, height, tilted,
-                                                 method, guess, advice)
+                                                 method, first, advice)
     if found is None:
         tilted = []
     excluded = tuple(Skipped(usable[k].name, f"tilt {tilts[k]:.0f} deg < {MIN_TILT_DEG:.0f}: "
@@ -252,13 +250,15 @@ def calibrate(views: Sequence[View], width: int, height: int, *, method: str = "
         sigma_px=sigma, rac_excluded=excluded, bias_iterations=passes, start=kind)
 
 
-def _start(pixels, points, width, height, tilted, method, guess, advice):
+def _start(pixels, points, width, height, tilted, method, first, advice):
     """Where the refinement starts: (RAC result or None, intrinsics, poses (V, 4, 4), each
     view's stage, why views were left out of the RAC). The RAC on the tilted views when
-    there are :data:`MIN_VIEWS`, else (method "rac") every view from its homography."""
+    there are :data:`MIN_VIEWS`, else (method "rac") every view from its homography.
+    ``first``: every view's RAC stage 1 at the image's middle, mu = 1 (its board normal)."""
     n = len(pixels)
     if len(tilted) >= MIN_VIEWS:
-        _check_spread(_stage1_normals(pixels, points, tilted, guess), advice)
+        _check_spread(np.array([first[k].rotation[:, 2] * np.sign(first[k].rotation[2, 2])
+                                for k in tilted]), advice)
         found, poses = _rac_stage(pixels, points, width, height, tilted)
         stages = ["rac" if k in tilted else "rac-pose" for k in range(n)]
         return (found, found.intrinsics, poses, stages, "too close to parallel to the board "
@@ -274,15 +274,6 @@ def _start(pixels, points, width, height, tilted, method, guess, advice):
     return (None, start, poses, ["homography"] * n,
             f"fewer than {MIN_VIEWS} views tilted {MIN_TILT_DEG:.0f} deg or more: every "
             f"view started from its homography (Zhang)")
-
-
-def _stage1_normals(pixels, points, views, guess) -> np.ndarray:
-    """(k, 3) board normals of ``views`` from the RAC's stage 1 at ``guess``, mu = 1."""
-    normals = []
-    for k in views:
-        s = rac.stage1(pixels[k], points[k], guess[0], guess[1], 1.0)
-        normals.append(s.rotation[:, 2] * np.sign(s.rotation[2, 2]))
-    return np.array(normals)
 
 
 def _check_spread(normals: np.ndarray, advice: str) -> None:

@@ -29,6 +29,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from ..errors import DataError
 from ..kinematics.conventions import pose_from_rotation_translation
+from . import rac_batch
 from .model import CameraIntrinsics
 
 MU_BOUNDS = (0.8, 1.25)
@@ -118,6 +119,19 @@ def stage1(pixels: np.ndarray, points: np.ndarray, cx: float, cy: float,
                                                                rotation, tx, ty))
 
 
+def stage1_all(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
+               cy: float, mu: float) -> list[Stage1]:
+    """:func:`stage1` of every view (at once by :mod:`.rac_batch` when the views have equal
+    point counts and none is degenerate; else one by one, which raises for a degenerate
+    view)."""
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    first = None if stacked is None else rac_batch.stage1(stacked)
+    if first is None:
+        return [stage1(p, q, cx, cy, mu) for p, q in zip(pixels, points)]
+    return [Stage1(r, float(tx), float(ty), res)
+            for r, tx, ty, res in zip(first.rotation, first.tx, first.ty, first.residuals)]
+
+
 def _orthonormal(m: np.ndarray) -> np.ndarray:
     """The rotation nearest to ``m`` (polar decomposition)."""
     u, _, vt = np.linalg.svd(m)
@@ -160,29 +174,27 @@ def _stage2_rows(pixels, points, cx, cy, mu, rotation, tx, ty):
 def _solve_stage2(rows: list, with_k: bool = True):
     """Joint weighted least squares of eq. 66 over views: per-view Tz, shared fx and k fx.
     Rows are divided by the depth ``w + Tz`` of a first unweighted solution, so that the
-    residuals are in column pixels. Returns (tz (V,), fx, kfx, residuals list)."""
+    residuals are in column pixels. Returns (tz (V,), fx, kfx, residuals list).
+
+    Each view's rows are first reduced by a QR to as many rows as unknowns it touches, so
+    the joint least squares is (k V) x (V + k - 1), not (2 n V) x (V + k - 1)."""
     n_views = len(rows)
-    sizes = [len(b) for _, b, _ in rows]
-    m = sum(sizes)
-    n_shared = 2 if with_k else 1
-    design = np.zeros((m, n_views + n_shared))
-    rhs = np.empty(m)
-    depth_w = np.empty(m)
-    start = 0
-    for v, (a, b, w) in enumerate(rows):
-        sl = slice(start, start + len(b))
-        design[sl, v] = a[:, 0]
-        design[sl, n_views:] = a[:, 1:1 + n_shared]
-        rhs[sl], depth_w[sl] = b, w
-        start += len(b)
-    weights = np.ones(m)
+    k = 3 if with_k else 2
+    designs = [a[:, :k] for a, _, _ in rows]
+    weights = [np.ones(len(b)) for _, b, _ in rows]
     for _ in range(2):
-        sol = np.linalg.lstsq(design * weights[:, None], rhs * weights, rcond=None)[0]
-        tz_rows = np.repeat(sol[:n_views], sizes)
-        depth = depth_w + tz_rows
-        weights = 1.0 / np.where(np.abs(depth) > 1e-9, np.abs(depth), 1e-9)
-    residual = (design @ sol - rhs) * weights
-    split = np.split(residual, np.cumsum(sizes)[:-1])
+        big = np.zeros((n_views, k, n_views + k - 1))
+        qtb = np.empty((n_views, k))
+        for v, ((_, b, _), a, w) in enumerate(zip(rows, designs, weights)):
+            q, r = np.linalg.qr(a * w[:, None])
+            qtb[v] = q.T @ (b * w)
+            big[v, :, v] = r[:, 0]
+            big[v, :, n_views:] = r[:, 1:]
+        sol = np.linalg.lstsq(big.reshape(-1, n_views + k - 1), qtb.ravel(), rcond=None)[0]
+        weights = [1.0 / np.where(np.abs(w + tz) > 1e-9, np.abs(w + tz), 1e-9)
+                   for (_, _, w), tz in zip(rows, sol[:n_views])]
+    split = [(a[:, 0] * tz + a[:, 1:] @ sol[n_views:] - b) * w
+             for (_, b, _), a, w, tz in zip(rows, designs, weights, sol[:n_views])]
     kfx = sol[n_views + 1] if with_k else 0.0
     return sol[:n_views], float(sol[n_views]), float(kfx), split
 
@@ -194,18 +206,29 @@ def stage2(stage1s: Sequence[Stage1], pixels: Sequence[np.ndarray],
 
     Each view's completion is first chosen so that its own fx is positive (Tsai: if f < 0,
     negate r3, r6, r7, r8), then fx and k fx are solved jointly with one Tz per view.
-    ``with_k=False`` fixes k = 0 (pinhole).
+    ``with_k=False`` fixes k = 0 (pinhole). Views of equal point counts are solved at once
+    by :func:`.rac_batch.stage2`.
     """
-    rotations, rows = [], []
-    for s, pix, pts in zip(stage1s, pixels, points):
-        rot = s.rotation
-        one = _stage2_rows(pix, pts, cx, cy, mu, rot, s.tx, s.ty)
-        if _solve_stage2([one], with_k)[1] < 0:
-            rot = flip_completion(rot)
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    if stacked is not None:
+        first = rac_batch.Stage1Batch(np.array([s.rotation for s in stage1s]),
+                                      np.array([s.tx for s in stage1s]),
+                                      np.array([s.ty for s in stage1s]), None)
+        second = rac_batch.stage2(stacked, first, with_k)
+        fx, kfx, tz, residuals = second.fx, second.kfx, second.tz, list(second.residuals)
+        rotations = [flip_completion(r) if flip else r
+                     for r, flip in zip(first.rotation, second.flipped)]
+    else:
+        rotations, rows = [], []
+        for s, pix, pts in zip(stage1s, pixels, points):
+            rot = s.rotation
             one = _stage2_rows(pix, pts, cx, cy, mu, rot, s.tx, s.ty)
-        rotations.append(rot)
-        rows.append(one)
-    tz, fx, kfx, residuals = _solve_stage2(rows, with_k)
+            if _solve_stage2([one], with_k)[1] < 0:
+                rot = flip_completion(rot)
+                one = _stage2_rows(pix, pts, cx, cy, mu, rot, s.tx, s.ty)
+            rotations.append(rot)
+            rows.append(one)
+        tz, fx, kfx, residuals = _solve_stage2(rows, with_k)
     if not fx > 0:
         raise DataError(f"RAC stage 2: focal length {fx:.1f} px is not positive (views too "
                         f"close to parallel to the board, or the centre is far off)")
@@ -214,7 +237,12 @@ def stage2(stage1s: Sequence[Stage1], pixels: Sequence[np.ndarray],
 
 def rac_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float, cy: float,
              mu: float) -> float:
-    """RMS over all views of the eq. 69 residuals (column px) for a trial centre and mu."""
+    """RMS over all views of the eq. 69 residuals (column px) for a trial centre and mu
+    (the views at once by :mod:`.rac_batch` when they have equal point counts)."""
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    first = None if stacked is None else rac_batch.stage1(stacked)
+    if first is not None:
+        return float(np.sqrt(np.mean(first.residuals ** 2)))
     total, count = 0.0, 0
     for pix, pts in zip(pixels, points):
         r = stage1(pix, pts, cx, cy, mu).residuals
@@ -225,7 +253,13 @@ def rac_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: flo
 
 def stage2_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
                 cy: float, mu: float) -> float:
-    """RMS over all views of the eq. 66 residuals (column px) after both stages."""
+    """RMS over all views of the eq. 66 residuals (column px) after both stages (the views
+    at once by :mod:`.rac_batch` when they have equal point counts)."""
+    stacked = rac_batch.stack(pixels, points, cx, cy, mu)
+    first = None if stacked is None else rac_batch.stage1(stacked)
+    if first is not None:
+        second = rac_batch.stage2(stacked, first)
+        return float(np.sqrt(np.mean(second.residuals ** 2))) if second.fx > 0 else np.inf
     s1 = [stage1(pix, pts, cx, cy, mu) for pix, pts in zip(pixels, points)]
     try:
         res = np.concatenate(stage2(s1, pixels, points, cx, cy, mu).residuals)
@@ -259,8 +293,7 @@ def rac_poses(pixels, points, intrinsics: CameraIntrinsics, stages: Stage2 | Non
               stage1s: Sequence[Stage1] | None = None) -> np.ndarray:
     """camera_T_board (V, 4, 4) from the two stages at ``intrinsics``' centre and mu."""
     if stage1s is None:
-        stage1s = [stage1(p, q, intrinsics.cx, intrinsics.cy, intrinsics.mu)
-                   for p, q in zip(pixels, points)]
+        stage1s = stage1_all(pixels, points, intrinsics.cx, intrinsics.cy, intrinsics.mu)
     if stages is None:
         stages = stage2(stage1s, pixels, points, intrinsics.cx, intrinsics.cy, intrinsics.mu)
     t = np.array([[s.tx, s.ty, tz] for s, tz in zip(stage1s, stages.tz)])
@@ -284,6 +317,9 @@ def rac_calibrate(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], wi
             raise DataError(f"RAC: a view needs at least {MIN_POINTS} points with pixels, "
                             f"got {len(pix)} pixels for {len(pts)} points")
     cx, cy = centre if centre is not None else ((width - 1) / 2.0, (height - 1) / 2.0)
+    arrays = rac_batch.stack_arrays(pixels, points)
+    if arrays is not None:                  # stacked once for the ~120 evaluations
+        pixels, points = arrays
     for k in range(rounds):   # later rounds start at the last centre: a small simplex
         step = 20.0 if k == 0 and centre is None else 1.0
         cx_new, cy_new = search_centre(pixels, points, mu, (cx, cy), step)
@@ -292,7 +328,7 @@ def rac_calibrate(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], wi
         cx, cy, mu = cx_new, cy_new, mu_new
         if moved < 1e-3:
             break
-    s1 = [stage1(p, q, cx, cy, mu) for p, q in zip(pixels, points)]
+    s1 = stage1_all(pixels, points, cx, cy, mu)
     s2 = stage2(s1, pixels, points, cx, cy, mu)
     intrinsics = CameraIntrinsics(fx=s2.fx, mu=mu, cx=cx, cy=cy, k1=s2.k * s2.fx ** 2,
                                   width=int(width), height=int(height))

@@ -13,10 +13,12 @@ to undistorted: with ``d`` the distorted normalized point, ``rho = |d|^2`` and
 and ``dd/dk1 = -d rho / (g + 2 g' rho)``, ``dd/dk2 = -d rho^2 / (g + 2 g' rho)``.
 
 The Jacobian is dense in the 6 intrinsic columns and block-diagonal in the 6 columns of
-each view. At the sizes of a calibration (20 views of 81 dots: 3,240 x 126) the project's
-dense LM (:mod:`olp_compensate.calibration.lm`, one ``J^T J`` per step) takes a few milliseconds per
-iteration, so a Schur complement would save nothing measurable; the blocks are filled by
-fancy indexing, not by loops over points.
+each view. It is never formed: each point's 2 x 12 derivative gives its share of the normal
+equations' blocks (:class:`.block_lm.BlockNormal`: intrinsics x intrinsics, intrinsics x
+view, view x view), summed per view, and each Levenberg-Marquardt step is solved by the
+Schur complement on the views' 6 x 6 blocks (:mod:`.block_lm`). At 20 views of 81 dots
+(3,240 x 126) that replaced a dense ``J^T J`` of 51 million multiply-adds per Jacobian by
+0.5 million; the work grows linearly with the views (benchmarks/camera_speed.py).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from ..calibration.lm import levenberg_marquardt
 from ..errors import DataError
 from ..kinematics.conventions import (pose_from_rotation_translation, rotation_from_rotvec,
                                       rotvec_from_rotation, skew)
+from .block_lm import BlockNormal, block_levenberg_marquardt
 from .model import CameraIntrinsics
 
 INTRINSIC_NAMES = ("fx", "mu", "cx", "cy", "k1", "k2")
@@ -115,21 +118,41 @@ def left_jacobian(rotvec: np.ndarray) -> np.ndarray:
             + (theta - np.sin(theta)) / theta ** 3 * (k @ k))
 
 
-def project_with_jacobian(x_intrinsics: np.ndarray, rotvecs: np.ndarray,
-                          translations: np.ndarray, points: np.ndarray, view: np.ndarray,
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixels of board points and their derivatives.
+def left_jacobians(rotvecs: np.ndarray) -> np.ndarray:
+    """:func:`left_jacobian` of every rotation vector (V, 3) at once: (V, 3, 3)."""
+    rotvecs = np.asarray(rotvecs, dtype=float)
+    theta = np.linalg.norm(rotvecs, axis=1)[:, None, None]
+    k = skew(rotvecs)
+    small = theta < 1e-6
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5, (1.0 - np.cos(safe)) / safe ** 2)
+    b = np.where(small, 1.0 / 6.0, (safe - np.sin(safe)) / safe ** 3)
+    return np.eye(3) + a * k + b * (k @ k)
 
-    x_intrinsics : (6,) as :data:`INTRINSIC_NAMES`. rotvecs, translations : (V, 3) of
-    camera_T_board (rad, m). points : (N, 3) board frame, m. view : (N,) index of each
-    point's view. Returns pixels (N, 2), d pixels / d intrinsics (N, 2, 6) and
-    d pixels / d (rotation vector, translation) of the point's view (N, 2, 6).
-    """
+
+@dataclass(frozen=True)
+class _Projected:
+    """Pixels (N, 2) of board points and what their derivatives need: the rotated points
+    (N, 3) and camera-frame points (N, 3), m; undistorted ``u`` and distorted ``d``
+    normalized coordinates (N, 2); ``rho = |d|^2`` (N,)."""
+
+    pixels: np.ndarray
+    rotated: np.ndarray
+    camera: np.ndarray
+    u: np.ndarray
+    d: np.ndarray
+    rho: np.ndarray
+
+
+def _project(x_intrinsics: np.ndarray, rotvecs: np.ndarray, translations: np.ndarray,
+             points: np.ndarray, view: np.ndarray) -> _Projected:
+    """Pixels of board points (see :func:`project_with_jacobian` for the arguments); a point
+    behind the camera gives NaN pixels (the LM rejects the step)."""
     fx, mu, cx, cy, k1, k2 = x_intrinsics
     rotations = rotation_from_rotvec(rotvecs)
     rotated = np.einsum("nij,nj->ni", rotations[view], points)
     p = rotated + translations[view]
-    z = np.where(p[:, 2] > 0, p[:, 2], np.nan)   # behind the camera: NaN, the LM rejects it
+    z = np.where(p[:, 2] > 0, p[:, 2], np.nan)
     u = p[:, :2] / z[:, None]
     # distorted point d from u = g(|d|^2) d: Newton on the radius, as the model does
     ru = np.hypot(u[:, 0], u[:, 1])
@@ -142,12 +165,26 @@ def project_with_jacobian(x_intrinsics: np.ndarray, rotvecs: np.ndarray,
         if np.all(np.abs(step) < 1e-15):
             break
     d = u * np.divide(rd, ru, out=np.ones_like(ru), where=ru > 0)[:, None]
-    rho = rd * rd
+    pixels = np.stack([cx + fx * d[:, 0], cy + mu * fx * d[:, 1]], 1)
+    return _Projected(pixels, rotated, p, u, d, rd * rd)
+
+
+def project_with_jacobian(x_intrinsics: np.ndarray, rotvecs: np.ndarray,
+                          translations: np.ndarray, points: np.ndarray, view: np.ndarray,
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixels of board points and their derivatives.
+
+    x_intrinsics : (6,) as :data:`INTRINSIC_NAMES`. rotvecs, translations : (V, 3) of
+    camera_T_board (rad, m). points : (N, 3) board frame, m. view : (N,) index of each
+    point's view. Returns pixels (N, 2), d pixels / d intrinsics (N, 2, 6) and
+    d pixels / d (rotation vector, translation) of the point's view (N, 2, 6).
+    """
+    fx, mu, _, _, k1, k2 = x_intrinsics
+    proj = _project(x_intrinsics, rotvecs, translations, points, view)
+    d, rho, u, z = proj.d, proj.rho, proj.u, proj.camera[:, 2]
     g = 1.0 + k1 * rho + k2 * rho * rho
     c = 2.0 * (k1 + 2.0 * k2 * rho)
     den = g + c * rho
-    pixels = np.stack([cx + fx * d[:, 0], cy + mu * fx * d[:, 1]], 1)
-
     n = len(points)
     d_intr = np.zeros((n, 2, N_INTRINSIC))
     d_intr[:, 0, 0] = d[:, 0]
@@ -160,17 +197,44 @@ def project_with_jacobian(x_intrinsics: np.ndarray, rotvecs: np.ndarray,
     d_intr[:, :, 4] = scale * dd_dk1
     d_intr[:, :, 5] = scale * dd_dk1 * rho[:, None]
 
-    # d d / d u = (I - c d d^T / den) / g ; d u / d p = [[1/z, 0, -x/z^2], [0, 1/z, -y/z^2]]
-    dd_du = (np.eye(2)[None] - (c / den)[:, None, None] * d[:, :, None] * d[:, None, :]) \
-        / g[:, None, None]
-    du_dp = np.zeros((n, 2, 3))
-    du_dp[:, 0, 0] = du_dp[:, 1, 1] = 1.0 / z
-    du_dp[:, :, 2] = -u / z[:, None]
-    dpix_dp = scale[None, :, None] * np.einsum("nij,njk->nik", dd_du, du_dp)
-    jl = np.array([left_jacobian(w) for w in rotvecs])
-    dp_dw = -np.einsum("nij,njk->nik", skew(rotated), jl[view])
-    d_extr = np.concatenate([np.einsum("nij,njk->nik", dpix_dp, dp_dw), dpix_dp], axis=2)
-    return pixels, d_intr, d_extr
+    # d d / d u = M = (I - a d d^T) / g with a = c / den; d u / d p = [I | -u] / z, so
+    # d pixels / d p = scale [M | -M u] / z; then d p / d w = -[R b]x J_l(w), and a row
+    # vector times [v]x is its cross product with v
+    a = c / den
+    dot = np.sum(d * u, axis=1)
+    m_over = np.empty((n, 2, 3))
+    m_over[:, :, :2] = -(a / (g * z))[:, None, None] * d[:, :, None] * d[:, None, :]
+    m_over[:, 0, 0] += 1.0 / (g * z)
+    m_over[:, 1, 1] += 1.0 / (g * z)
+    m_over[:, :, 2] = -(u - (a * dot)[:, None] * d) / (g * z)[:, None]
+    dpix_dp = m_over * scale[None, :, None]
+    cross = np.cross(dpix_dp, proj.rotated[:, None, :])
+    dpix_dw = -(cross @ left_jacobians(rotvecs)[view])
+    d_extr = np.concatenate([dpix_dw, dpix_dp], axis=2)
+    return proj.pixels, d_intr, d_extr
+
+
+def _normal(d_intr: np.ndarray, d_extr: np.ndarray, r: np.ndarray,
+            starts: np.ndarray) -> BlockNormal:
+    """Blocks of the normal equations from per-point derivatives d_intr (N, 2, p) and
+    d_extr (N, 2, 6) and residuals r (N, 2), views contiguous from ``starts`` (V,): each
+    view's rows ``J_v`` (2 n_v, p + 6) give ``J_v^T J_v`` and ``J_v^T r_v`` by one product
+    (views of equal size as one stacked product)."""
+    p = d_intr.shape[2]
+    jac = np.concatenate([d_intr, d_extr], axis=2).reshape(-1, p + N_POSE)
+    res = r.reshape(-1, 1)
+    sizes = np.diff(np.append(starts, len(r)))
+    if np.all(sizes == sizes[0]):
+        rows = jac.reshape(len(starts), -1, p + N_POSE)
+        both = np.swapaxes(rows, 1, 2) @ np.concatenate(
+            [rows, res.reshape(len(starts), -1, 1)], axis=2)
+    else:
+        both = np.array([jac[2 * a:2 * b].T @ np.hstack([jac[2 * a:2 * b], res[2 * a:2 * b]])
+                         for a, b in zip(starts, np.append(starts[1:], len(r)))])
+    per_view, grad = both[:, :, :-1], both[:, :, -1]
+    return BlockNormal(shared=per_view[:, :p, :p].sum(0), cross=per_view[:, :p, p:],
+                       blocks=per_view[:, p:, p:], g_shared=grad[:, :p].sum(0),
+                       g_blocks=grad[:, p:])
 
 
 def _stack(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray]):
@@ -184,6 +248,8 @@ def _stack(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray]):
             pts = np.column_stack([pts, np.zeros(len(pts))])
         if len(pix) != len(pts):
             raise DataError(f"refine: view {k} has {len(pix)} pixels for {len(pts)} points")
+        if len(pts) == 0:
+            raise DataError(f"refine: view {k} has no points")
         pts3.append(pts)
     view = np.concatenate([np.full(len(p), k) for k, p in enumerate(pixels)])
     return (np.concatenate([np.asarray(p, float) for p in pixels]), np.concatenate(pts3),
@@ -198,7 +264,9 @@ def refine(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray],
     pixels : per view (n_v, 2) observed column, row. points : per view (n_v, 3) board frame,
     m. intrinsics, camera_T_board (V, 4, 4) : the start (the RAC estimate). ``fixed``: names
     from :data:`INTRINSIC_NAMES` kept at their start value (e.g. ``("k2",)``).
-    Standard deviations from ``sigma^2 (J^T J)^-1`` with ``sigma^2 = RSS / (m - n)``.
+    Levenberg-Marquardt on the block normal equations (:mod:`.block_lm`, Schur complement on
+    the views' poses). Standard deviations from ``sigma^2 (J^T J)^-1`` with
+    ``sigma^2 = RSS / (m - n)``.
     """
     bad = [name for name in fixed if name not in INTRINSIC_NAMES]
     if bad:
@@ -206,20 +274,17 @@ def refine(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray],
                         f"{', '.join(INTRINSIC_NAMES)}")
     obs, pts, view = _stack(pixels, points)
     layout = Layout(len(pixels))
-    free = np.ones(layout.size, dtype=bool)
-    for name in fixed:
-        free[INTRINSIC_NAMES.index(name)] = False
+    free_intr = np.array([name not in fixed for name in INTRINSIC_NAMES])
+    free = np.concatenate([free_intr, np.ones(layout.size - N_INTRINSIC, dtype=bool)])
     x_full = np.empty(layout.size)
     x_full[layout.intrinsics] = intrinsics_vector(intrinsics)
     poses = np.asarray(camera_T_board, dtype=float)
-    for v in range(layout.n_views):
-        x_full[layout.view(v)] = np.concatenate([rotvec_from_rotation(poses[v, :3, :3]),
-                                                 poses[v, :3, 3]])
-    rows = np.arange(2 * len(obs))
-    extr_cols = N_INTRINSIC + N_POSE * np.repeat(view, 2)[:, None] + np.arange(N_POSE)
+    x_full[N_INTRINSIC:] = np.column_stack([rotvec_from_rotation(poses[:, :3, :3]),
+                                            poses[:, :3, 3]]).ravel()
     m, n = 2 * len(obs), int(free.sum())
     if m <= n:
         raise DataError(f"refine: {m} residuals for {n} unknowns; give more views or dots")
+    starts = np.searchsorted(view, np.arange(layout.n_views))
 
     def unpack(x):
         full = x_full.copy()
@@ -227,31 +292,35 @@ def refine(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray],
         ext = full[N_INTRINSIC:].reshape(-1, N_POSE)
         return full, ext[:, :3], ext[:, 3:]
 
-    def fun(x):
+    def residuals(x):
         full, rotvecs, trans = unpack(x)
         if full[0] <= 0 or full[1] <= 0:
-            return np.full(m, np.inf), np.zeros((m, n))
+            return np.full(m, np.inf)
+        return (_project(full[:N_INTRINSIC], rotvecs, trans, pts, view).pixels - obs).ravel()
+
+    def evaluate(x):
+        full, rotvecs, trans = unpack(x)
+        if full[0] <= 0 or full[1] <= 0:
+            return np.full(m, np.inf), None
         pix, d_intr, d_extr = project_with_jacobian(full[:N_INTRINSIC], rotvecs, trans, pts,
                                                     view)
-        jac = np.zeros((m, layout.size))
-        jac[:, :N_INTRINSIC] = d_intr.reshape(m, N_INTRINSIC)
-        jac[rows[:, None], extr_cols] = d_extr.reshape(m, N_POSE)
-        return (pix - obs).ravel(), jac[:, free]
+        r = pix - obs
+        return r.ravel(), _normal(d_intr[:, :, free_intr], d_extr, r, starts)
 
-    result = levenberg_marquardt(fun, x_full[free], max_iterations=max_iterations)
+    result = block_levenberg_marquardt(evaluate, residuals, x_full[free],
+                                       max_iterations=max_iterations)
     full, rotvecs, trans = unpack(result.x)
     sigma2 = 2.0 * result.cost / (m - n)
-    covariance = sigma2 * _inverse(result.normal)
+    covariance = sigma2 * result.normal.inverse()
     std_full = np.zeros(layout.size)
     std_full[free] = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     residual = result.residuals.reshape(-1, 2)
-    split = np.cumsum([len(p) for p in pixels])[:-1]
     return Refinement(
         intrinsics=intrinsics_from_vector(full[:N_INTRINSIC], intrinsics),
         intrinsics_std={name: float(std_full[k]) for k, name in enumerate(INTRINSIC_NAMES)},
         camera_T_board=pose_from_rotation_translation(rotation_from_rotvec(rotvecs), trans),
         pose_std=std_full[N_INTRINSIC:].reshape(-1, N_POSE),
-        residuals=np.split(residual, split), sigma_px=float(np.sqrt(sigma2)),
+        residuals=np.split(residual, starts[1:]), sigma_px=float(np.sqrt(sigma2)),
         covariance=covariance, iterations=result.iterations, message=result.message)
 
 
