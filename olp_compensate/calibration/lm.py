@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf, dpotrs
+
+from .factorizations import cholesky, cholesky_solve
 
 
 @dataclass(frozen=True)
@@ -82,8 +83,9 @@ def levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray
             break
         scaled = normal / np.outer(scale, scale)
         # Decrease predicted by the Gauss-Newton model, g^T (J^T J)^-1 g / 2 (when regular).
-        factor, info = dpotrf(scaled)
-        if info == 0 and 0.5 * float(gradient @ dpotrs(factor, gradient)[0]) <= ftol * cost:
+        factor = cholesky(scaled)
+        if (factor is not None
+                and 0.5 * float(gradient @ cholesky_solve(factor, gradient)) <= ftol * cost):
             message, success = "predicted decrease of the cost below tolerance", True
             break
         trial = _damped_step(fun, residuals, x, cost, scaled, gradient, scale, mu, growth)
@@ -134,9 +136,9 @@ def _damped_step(fun, residuals, x: np.ndarray, cost: float, scaled: np.ndarray,
     failed = 0  # trials rejected at this Jacobian
     evaluations = 0
     while True:
-        factor, info = dpotrf(scaled + mu * identity)
-        if info == 0:  # else not positive definite to working precision: damp more
-            step_scaled = -dpotrs(factor, gradient)[0]
+        factor = cholesky(scaled + mu * identity)
+        if factor is not None:  # else not positive definite to working precision: damp more
+            step_scaled = -cholesky_solve(factor, gradient)
             x_new = x + step_scaled / scale
             if failed < 2 or residuals is None:
                 r_new, jac_new = fun(x_new)

@@ -23,6 +23,7 @@ import time
 from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,7 +31,9 @@ from ..calibration.measurements import Measurements
 from ..errors import DataError, OlpError
 from . import atomic
 from .measurements import open_table, parse_cell_number, read_measurements, write_measurements
-from .rtde_source import Ask, JointSource, Say
+
+if TYPE_CHECKING:  # annotations only: multiprocessing and sockets stay out of identify's start
+    from .rtde_source import Ask, JointSource, Say
 
 FORMAT = "olp-compensate session v1"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
