@@ -110,9 +110,8 @@ def command_against_floor(poses: int = 100, rounds: int = 7) -> None:
         csv = str(Path(folder, "meas.csv"))
         write_measurements(csv, meas, [j.unit for j in ROBOT.joints])
         env = installed_env(folder)
-        command = [sys.executable, "-c", "from olp_compensate.cli.cal import main; "
-                   "raise SystemExit(main())", "identify", csv, "--robot", ROBOT.name,
-                   "-o", str(Path(folder, "calib.json"))]
+        command = [str(Path(sys.executable).parent / "olp-cal"), "identify", csv, "--robot",
+                   ROBOT.name, "-o", str(Path(folder, "calib.json"))]  # the installed script
         numpy_only = [sys.executable, "-c", "import numpy"]
         for argv in (command, numpy_only):  # writes the bytecode, as pip install does
             subprocess.run(argv, check=True, capture_output=True, env=env)
