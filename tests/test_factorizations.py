@@ -5,8 +5,8 @@ import pytest
 from scipy.linalg import cho_solve, qr
 from scipy.linalg.lapack import dpotrf, dpstrf
 
-from olp_compensate.calibration.factorizations import (cholesky, cholesky_solve,
-                                                       pivoted_cholesky_diagonal, qr_r)
+from olp_compensate.calibration.factorizations import (cholesky, pivoted_cholesky_diagonal,
+                                                       qr_r, solve_positive_definite)
 
 
 def _graded(rng, m, n, spread):
@@ -25,14 +25,15 @@ def test_cholesky_and_solve_agree_with_lapack(seed):
     assert info == 0
     np.testing.assert_allclose(lower.T, np.triu(upper), rtol=1e-10, atol=1e-14)
     expected = cho_solve((upper, False), b)
-    np.testing.assert_allclose(cholesky_solve(lower, b), expected, rtol=1e-8)
-    np.testing.assert_allclose(a @ cholesky_solve(lower, b), b, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(solve_positive_definite(a, b), expected, rtol=1e-8)
+    np.testing.assert_allclose(a @ solve_positive_definite(a, b), b, rtol=1e-6, atol=1e-9)
 
 
 def test_cholesky_refuses_what_lapack_refuses():
     a = np.diag([1.0, -1e-3, 2.0])
     assert dpotrf(a)[1] > 0
     assert cholesky(a) is None
+    assert solve_positive_definite(a, np.ones(3)) is None
 
 
 @pytest.mark.parametrize("seed", range(5))

@@ -22,9 +22,14 @@ def cholesky(a: np.ndarray) -> np.ndarray | None:
         return None
 
 
-def cholesky_solve(lower: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x with ``L L^T x = b``, ``lower`` from :func:`cholesky`."""
-    return np.linalg.solve(lower.T, np.linalg.solve(lower, b))
+def solve_positive_definite(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """x with ``a x = b`` for symmetric ``a`` (n, n), or None when ``a`` is not positive
+    definite to working precision (its Cholesky factorization fails, as LAPACK ``dpotrf``).
+    The solve is numpy's LU of ``a``: without a triangular solve in numpy, two general
+    solves on the Cholesky factor would cost twice as much."""
+    if cholesky(a) is None:
+        return None
+    return np.linalg.solve(a, b)
 
 
 def pivoted_cholesky_diagonal(a: np.ndarray) -> np.ndarray | None:
