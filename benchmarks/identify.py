@@ -128,11 +128,12 @@ def command_against_floor(poses: int = 100, rounds: int = 7) -> None:
             cpu["fit"].append(time.process_time() - start)
     best = {name: min(t) for name, t in cpu.items()}
     floor = best["numpy"] + best["fit"]
+    whole_wall, numpy_wall = min(wall["whole"]) * 1e3, min(wall["numpy"]) * 1e3
     print(f"{poses:>6} poses, whole command (CPU, best of {rounds} in turns): python -c "
           f"\"import numpy\" {best['numpy'] * 1e3:6.1f} ms | fit alone {best['fit'] * 1e3:6.1f} "
-          f"ms | olp-cal identify {best['whole'] * 1e3:6.1f} ms (wall {min(wall['whole']) * 1e3:.1f}"
-          f" ms, numpy wall {min(wall['numpy']) * 1e3:.1f} ms) | ratio whole / (import numpy + "
-          f"fit) {best['whole'] / floor:4.2f} (target <= 1.5)")
+          f"ms | olp-cal identify {best['whole'] * 1e3:6.1f} ms (wall {whole_wall:.1f} ms, numpy "
+          f"wall {numpy_wall:.1f} ms) | ratio whole / (import numpy + fit) "
+          f"{best['whole'] / floor:4.2f} (target <= 1.5)")
 
 
 def speed(poses: int) -> None:
