@@ -1,6 +1,7 @@
 """Identification accuracy and speed on virtual robots, side by side with peers.
 
 Run: python benchmarks/identify.py   (one core: OMP_NUM_THREADS=1 is set below)
+     python benchmarks/identify.py --command   (only the whole-command row of section 2)
 
 Prints, for noise 0.05 mm per axis on an ABB IRB 2400:
 1. RMS error of the identified model against the truth at 1,000 new poses, for 15, 30, 50
@@ -8,7 +9,11 @@ Prints, for noise 0.05 mm per axis on an ABB IRB 2400:
    also with planned poses (olp_compensate.calibration.pose_planning: I-optimal, the default, and
    D-optimal, chosen among 5,000 random candidates at the nominal model, never the truth;
    the same robots, noise and test poses), with the planner's own prediction and its time;
-2. the time to identify from 100 and 1,000 poses next to scipy.optimize.least_squares with a
+2. the whole ``olp-cal identify`` on 100 poses (a new process, bytecode cached as after pip
+   install, CPU time) against ``python -c "import numpy"`` plus the fit alone (identify() in
+   this process with the command's defaults, 5-fold cross-validation included), measured in
+   turns in one run; ratio whole / (import numpy + fit) (target: <= 1.5, issue 32); then
+   the time to identify from 100 and 1,000 poses next to scipy.optimize.least_squares with a
    finite-difference Jacobian on the same residuals (targets: < 50 ms at 1,000; >= 10x);
    also our LM against scipy's trust region with our analytic Jacobian; then the fits alone
    from the same start (our LM as identify runs it against the peer), with the evaluations
@@ -24,7 +29,12 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+import resource  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
@@ -34,6 +44,10 @@ from olp_compensate.calibration.problem import IdentificationProblem  # noqa: E4
 from olp_compensate.calibration.pose_planning import plan_poses, planning_space  # noqa: E402
 from olp_compensate.kinematics.robot import load_robot  # noqa: E402
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints  # noqa: E402
+from olp_compensate.io.measurements import write_measurements  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from installed import installed_env  # noqa: E402
 
 NOISE = 0.05e-3
 ROBOT = load_robot("abb_irb2400")
@@ -74,6 +88,52 @@ def best_times(fns: dict, rounds=5) -> dict:
             fn()
             times[name].append(time.perf_counter() - start)
     return {name: min(t) for name, t in times.items()}
+
+
+def child_cpu(argv: list[str], env: dict) -> tuple[float, float]:
+    """(CPU time user + system, wall time) of one new process running ``argv``, s."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True, env=env)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall
+
+
+def command_against_floor(poses: int = 100, rounds: int = 7) -> None:
+    """The whole ``olp-cal identify`` against importing numpy plus the fit alone, in turns;
+    best of ``rounds`` each."""
+    virtual = make_virtual_robot(ROBOT, 1)
+    rng = np.random.default_rng(2)
+    meas = virtual.measure(random_joints(ROBOT, poses, rng), NOISE, rng)
+    with tempfile.TemporaryDirectory() as folder:
+        csv = str(Path(folder, "meas.csv"))
+        write_measurements(csv, meas, [j.unit for j in ROBOT.joints])
+        env = installed_env(folder)
+        command = [str(Path(sys.executable).parent / "olp-cal"), "identify", csv, "--robot",
+                   ROBOT.name, "-o", str(Path(folder, "calib.json"))]  # the installed script
+        numpy_only = [sys.executable, "-c", "import numpy"]
+        for argv in (command, numpy_only):  # writes the bytecode, as pip install does
+            subprocess.run(argv, check=True, capture_output=True, env=env)
+        options = IdentificationOptions()  # the command's defaults (5 folds)
+        cpu = {"numpy": [], "fit": [], "whole": []}
+        wall = {"numpy": [], "whole": []}
+        for _ in range(rounds):
+            for name, argv in (("numpy", numpy_only), ("whole", command)):
+                c, w = child_cpu(argv, env)
+                cpu[name].append(c)
+                wall[name].append(w)
+            start = time.process_time()
+            identify(ROBOT, meas, options)
+            cpu["fit"].append(time.process_time() - start)
+    best = {name: min(t) for name, t in cpu.items()}
+    floor = best["numpy"] + best["fit"]
+    whole_wall, numpy_wall = min(wall["whole"]) * 1e3, min(wall["numpy"]) * 1e3
+    print(f"{poses:>6} poses, whole command (CPU, best of {rounds} in turns): python -c "
+          f"\"import numpy\" {best['numpy'] * 1e3:6.1f} ms | fit alone {best['fit'] * 1e3:6.1f} "
+          f"ms | olp-cal identify {best['whole'] * 1e3:6.1f} ms (wall {whole_wall:.1f} ms, numpy "
+          f"wall {numpy_wall:.1f} ms) | ratio whole / (import numpy + fit) "
+          f"{best['whole'] / floor:4.2f} (target <= 1.5)")
 
 
 def speed(poses: int) -> None:
@@ -162,6 +222,9 @@ def point_on_axis_6() -> None:
 
 
 def main() -> None:
+    if "--command" in sys.argv[1:]:  # the whole command's row alone
+        command_against_floor()
+        return
     print(f"IRB 2400, noise {NOISE * 1e3} mm per axis (3-D noise RMS {NOISE * 1e3 * np.sqrt(3):.4f} mm)")
     print("1. error of the identified model against the truth at 1,000 new poses (5 robots):")
     space = planning_space(ROBOT)  # nominal model, default tool guess, seed 0
@@ -179,6 +242,7 @@ def main() -> None:
         print(f"  {poses:>4} poses: RMS {rms * 1e3:.4f} mm = {rms / NOISE:.2f}x the per-axis noise "
               f"({rms / (NOISE * np.sqrt(3)):.2f}x the 3-D noise){planned}")
     print("2. speed (one core):")
+    command_against_floor()
     for poses in (100, 1000):
         speed(poses)
     print("3. frame assignment (seed section 3):")

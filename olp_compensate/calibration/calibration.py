@@ -5,17 +5,20 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..kinematics.conventions import matrix_from_quat_wxyz
-from .remainder import ResidualMap
 from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
                       geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
                       length_scale, needs_torque)
 from ..errors import DataError
 from ..kinematics.model import KinematicModel, build_model, forward
 from ..kinematics.robot import Robot
+
+if TYPE_CHECKING:  # a field's type only: identify never makes one (2-4 ms of its start)
+    from .remainder import ResidualMap
 
 
 @dataclass(frozen=True)

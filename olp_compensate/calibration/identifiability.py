@@ -16,11 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import qr
-from scipy.linalg.lapack import dpstrf
 
 from ..errors import DataError
 from ..kinematics.model import KinematicModel
+from .factorizations import pivoted_cholesky_diagonal, pivoted_qr_r
 from .measurements import Measurements
 from .problem import IdentificationProblem
 
@@ -163,13 +162,11 @@ def _geometric_rank(jac: np.ndarray, normal: np.ndarray | None, norms: np.ndarra
     the scaled ``normal`` when it is clearly regular, else from the pivoted QR."""
     if normal is not None:
         scaled = normal[np.ix_(geo, geo)] / np.outer(norms[geo], norms[geo])
-        factor, _, _, info = dpstrf(scaled)
-        diag = np.abs(np.diag(factor))
-        if info == 0 and diag.min() > CERTAIN_RANK * diag.max():
+        diag = pivoted_cholesky_diagonal(scaled)
+        if diag is not None and diag.min() > CERTAIN_RANK * diag.max():
             return _Rank(rank=len(geo), scaled=scaled)
         norms = np.sqrt(np.einsum("ij,ij->j", jac, jac))  # the QR's own (J^T J's agree)
-    _, r, pivots = qr(unit_columns(jac, geo, norms), mode="raw", pivoting=True,
-                      overwrite_a=True, check_finite=False)
+    r, pivots = pivoted_qr_r(unit_columns(jac, geo, norms))
     diag = np.abs(np.diag(r))
     return _Rank(rank=int(np.sum(diag > RANK_TOLERANCE * diag[0])), r=r, pivots=pivots,
                  norms=norms)

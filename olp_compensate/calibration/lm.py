@@ -6,9 +6,9 @@ not lower the residual and divided by it after one that does (the seed's 2.5 < l
 
 Each Jacobian (M x N, M >> N) is reduced once to the small normal matrix ``J^T J`` and
 gradient ``J^T r`` (one BLAS product each); every damping trial is then a Cholesky
-factorization of the N x N matrix, O(N^3 / 3), independent of M. The undamped factorization
-gives the decrease the Gauss-Newton model predicts, so the iteration stops without a
-confirming evaluation once that is negligible.
+factorization of the N x N matrix (the test that it is positive definite) and a solve,
+O(N^3), independent of M. The undamped solve gives the decrease the Gauss-Newton model
+predicts, so the iteration stops without a confirming evaluation once that is negligible.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf, dpotrs
+
+from .factorizations import solve_positive_definite
 
 
 @dataclass(frozen=True)
@@ -82,8 +83,8 @@ def levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray
             break
         scaled = normal / np.outer(scale, scale)
         # Decrease predicted by the Gauss-Newton model, g^T (J^T J)^-1 g / 2 (when regular).
-        factor, info = dpotrf(scaled)
-        if info == 0 and 0.5 * float(gradient @ dpotrs(factor, gradient)[0]) <= ftol * cost:
+        newton = solve_positive_definite(scaled, gradient)
+        if newton is not None and 0.5 * float(gradient @ newton) <= ftol * cost:
             message, success = "predicted decrease of the cost below tolerance", True
             break
         trial = _damped_step(fun, residuals, x, cost, scaled, gradient, scale, mu, growth)
@@ -134,9 +135,9 @@ def _damped_step(fun, residuals, x: np.ndarray, cost: float, scaled: np.ndarray,
     failed = 0  # trials rejected at this Jacobian
     evaluations = 0
     while True:
-        factor, info = dpotrf(scaled + mu * identity)
-        if info == 0:  # else not positive definite to working precision: damp more
-            step_scaled = -dpotrs(factor, gradient)[0]
+        solution = solve_positive_definite(scaled + mu * identity, gradient)
+        if solution is not None:  # else not positive definite to working precision: damp more
+            step_scaled = -solution
             x_new = x + step_scaled / scale
             if failed < 2 or residuals is None:
                 r_new, jac_new = fun(x_new)

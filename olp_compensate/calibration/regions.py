@@ -96,7 +96,7 @@ def region_box(points_base_m: np.ndarray, margin_m: float = DEFAULT_MARGIN_M) ->
 def least_unknowns(robot: Robot, meas: Measurements) -> int:
     """A floor on a fit's unknowns: the device registration (6), one geometric parameter
     per joint, the tool points (3 each). identify() knows the exact count."""
-    return 6 + robot.n_joints + 3 * len(np.unique(meas.point_names))
+    return 6 + robot.n_joints + 3 * len(set(meas.point_names))
 
 
 def _heldout(result: IdentificationResult, mask: np.ndarray) -> tuple[float | None, float | None]:

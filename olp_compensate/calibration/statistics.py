@@ -12,8 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import qr
 
+from .factorizations import qr_r
 from .identifiability import (RANK_TOLERANCE, WEAK_TOLERANCE, describe_combination,
                               unit_columns)
 from .problem import IdentificationProblem
@@ -69,8 +69,7 @@ def unit_scaled_svd(jac: np.ndarray, normal: np.ndarray | None = None):
             return norms, np.sqrt(lam[::-1]), vec[:, ::-1].T
     norms = np.sqrt(np.einsum("ij,ij->j", jac, jac))
     norms[norms == 0] = 1.0
-    _, r_factor = qr(unit_columns(jac, np.arange(jac.shape[1]), norms), mode="raw",
-                     overwrite_a=True, check_finite=False)
+    r_factor = qr_r(unit_columns(jac, np.arange(jac.shape[1]), norms))
     _, s, vt = np.linalg.svd(r_factor)
     return norms, s, vt
 

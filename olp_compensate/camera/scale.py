@@ -23,13 +23,16 @@ import io
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import DataError
 from ..io.measurements import parse_cell_number, read_csv_text
 from ..kinematics.conventions import MM
-from .board import Board
+
+if TYPE_CHECKING:  # annotations only (olp-cal identify imports this module for one check)
+    from .board import Board
 
 PRINT_ERROR = (0.001, 0.003)
 """A typical office printer's scale error, fraction (0.1-0.3 %)."""

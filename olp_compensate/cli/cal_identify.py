@@ -59,6 +59,8 @@ def read_measurement_source(args, joint_units: list[str]):
 
 def check_freeze_names(robot, convention: str, names) -> None:
     """``--freeze`` names that are no parameter of the model, in the command's words."""
+    if not names:  # nothing to check: no model to build
+        return
     from ..kinematics.model import build_model
 
     known = build_model(robot, convention).names

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -117,11 +117,21 @@ def parse_effect(spec: str, n_joints: int) -> tuple[str, int | None, float | Non
     return kind, joint, value, order
 
 
-def run(args) -> int:
-    if args.camera:
-        return run_camera(args)
-    refuse_clashes([("--joints", args.joints), ("--robot", args.robot)],
-                   [("-o", args.output), ("--truth", args.truth)])
+@dataclass
+class _Poses:
+    """The measured poses in order (repeats appended): joints (m, n) in the robot's units
+    as random_joints gives them, their ids (None: numbered by the writer), and per pose the
+    payload (kg), temperature (deg C) and time (s), None when not simulated."""
+
+    joints: np.ndarray
+    pose_ids: list[str] | None
+    payload: np.ndarray | None
+    temperature: np.ndarray | None
+    time_s: np.ndarray | None
+
+
+def _check_arguments(args) -> None:
+    """:class:`DataError` for counts and noises out of range."""
     if (args.poses is None) == (args.joints is None):
         raise DataError("give either --poses N (random joints) or --joints poses.csv")
     if ((args.poses is not None and args.poses < 1) or args.noise_mm < 0 or args.points < 1
@@ -131,20 +141,10 @@ def run(args) -> int:
     if args.orientation_noise_deg is not None and not args.orientation_noise_deg >= 0:
         raise DataError(f"--orientation-noise-deg must not be negative, got "
                         f"{args.orientation_noise_deg}")
-    robot = load_robot(args.robot)
-    planned = None
-    if args.joints is not None:
-        planned = read_poses(args.joints, [j.unit for j in robot.joints])
-        check_within_limits(planned, robot)
-        args.poses = len(planned.joints)
-    specs = [parse_effect(s, robot.n_joints) for s in args.effect]
-    virtual = make_virtual_robot(robot, args.seed, args.length_error_mm * 1e-3,
-                                 np.radians(args.angle_error_deg), args.points,
-                                 args.device_distance_m)
-    rng = np.random.default_rng(args.seed + 1_000_003)
-    joints = random_joints(robot, args.poses, rng) if planned is None else planned.joints
-    ids = [str(k + 1) for k in range(args.poses)] if planned is None else planned.pose_ids
-    effect_rng = np.random.default_rng(args.seed + 2_000_003)
+
+
+def _conditions(args, effect_rng) -> tuple:
+    """(payload kg, temperature deg C, time s) per pose, each None when not asked for."""
     payload = temperature = time_s = None
     if args.payloads:
         payload = effect_rng.choice(_numbers(args.payloads, "--payloads"), args.poses)
@@ -153,6 +153,13 @@ def run(args) -> int:
     if args.temperatures:
         temperature = per_pose_temperatures(args.temperatures, args.poses, effect_rng)
         time_s = 60.0 * np.arange(args.poses)
+    return payload, temperature, time_s
+
+
+def _hidden_effects(args, robot, virtual, specs, joints, effect_rng, payload,
+                    temperature) -> list:
+    """The hidden effects asked for with --effect, drawn from ``effect_rng`` and sized to
+    the noise unless given a value."""
     conditions = {"payload_kg": payload, "temperature_c": temperature}
     hidden = []
     for (kind, joint, value, order), spec in zip(specs, args.effect):
@@ -173,24 +180,25 @@ def run(args) -> int:
             size = DEFAULT_EFFECT_SIZE * max(args.noise_mm, 0.05) * 1e-3
             effect = scaled_effect(virtual, effect, joints, size, **conditions)
         hidden.append(effect)
-    virtual = replace(virtual, effects=tuple(hidden))
-    pose_ids = None if planned is None else ids
-    if args.repeats:
-        k = min(args.repeats, args.poses)
-        order_ = np.concatenate([np.arange(args.poses), np.arange(k)])
-        joints = joints[order_]
-        pose_ids = [ids[i] for i in order_]
+    return hidden
 
-        def again(a):
-            return None if a is None else a[order_]
-        payload, temperature = again(payload), again(temperature)
-        time_s = None if time_s is None else 60.0 * np.arange(len(order_))
-    orientation_noise = (None if args.orientation_noise_deg is None
-                         else np.radians(args.orientation_noise_deg))
-    meas = virtual.measure(joints, args.noise_mm * 1e-3, rng, payload_kg=payload,
-                           temperature_c=temperature, time_s=time_s, pose_ids=pose_ids,
-                           orientation_noise_rad=orientation_noise)
-    units = [j.unit for j in robot.joints]
+
+def _repeated(poses: _Poses, repeats: int) -> _Poses:
+    """``poses`` with the first ``repeats`` measured again at the end (times continue)."""
+    n = len(poses.joints)
+    k = min(repeats, n)
+    order_ = np.concatenate([np.arange(n), np.arange(k)])
+    ids = poses.pose_ids if poses.pose_ids is not None else [str(i + 1) for i in range(n)]
+
+    def again(a):
+        return None if a is None else a[order_]
+    return _Poses(poses.joints[order_], [ids[i] for i in order_], again(poses.payload),
+                  again(poses.temperature),
+                  None if poses.time_s is None else 60.0 * np.arange(len(order_)))
+
+
+def _notes(args, robot, orientation_noise, hidden) -> list[str]:
+    """The measurement CSV's ``#`` lines."""
     notes = [f"# robot: {robot.name}", f"# virtual robot seed {args.seed}, "
              f"noise {args.noise_mm} mm per axis"]
     if orientation_noise is not None:
@@ -199,7 +207,43 @@ def run(args) -> int:
     if hidden:
         notes.append("# hidden effects: " + ", ".join(e.label for e in hidden)
                      + " (see the truth file)")
-    write_measurements(args.output, meas, units, notes)
+    return notes
+
+
+def run(args) -> int:
+    if args.camera:
+        return run_camera(args)
+    refuse_clashes([("--joints", args.joints), ("--robot", args.robot)],
+                   [("-o", args.output), ("--truth", args.truth)])
+    _check_arguments(args)
+    robot = load_robot(args.robot)
+    planned = None
+    if args.joints is not None:
+        planned = read_poses(args.joints, [j.unit for j in robot.joints])
+        check_within_limits(planned, robot)
+        args.poses = len(planned.joints)
+    specs = [parse_effect(s, robot.n_joints) for s in args.effect]
+    virtual = make_virtual_robot(robot, args.seed, args.length_error_mm * 1e-3,
+                                 np.radians(args.angle_error_deg), args.points,
+                                 args.device_distance_m)
+    rng = np.random.default_rng(args.seed + 1_000_003)
+    joints = random_joints(robot, args.poses, rng) if planned is None else planned.joints
+    effect_rng = np.random.default_rng(args.seed + 2_000_003)
+    payload, temperature, time_s = _conditions(args, effect_rng)
+    hidden = _hidden_effects(args, robot, virtual, specs, joints, effect_rng, payload,
+                             temperature)
+    virtual = replace(virtual, effects=tuple(hidden))
+    poses = _Poses(joints, None if planned is None else planned.pose_ids, payload,
+                   temperature, time_s)
+    if args.repeats:
+        poses = _repeated(poses, args.repeats)
+    orientation_noise = (None if args.orientation_noise_deg is None
+                         else np.radians(args.orientation_noise_deg))
+    meas = virtual.measure(poses.joints, args.noise_mm * 1e-3, rng, payload_kg=poses.payload,
+                           temperature_c=poses.temperature, time_s=poses.time_s,
+                           pose_ids=poses.pose_ids, orientation_noise_rad=orientation_noise)
+    write_measurements(args.output, meas, [j.unit for j in robot.joints],
+                       _notes(args, robot, orientation_noise, hidden))
     if args.truth:
         write_text_atomic(args.truth, virtual.to_json())
     effects = "".join(f"; hidden {e.label} = {e.value:.4g}" for e in hidden)

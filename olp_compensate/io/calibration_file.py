@@ -36,6 +36,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,7 +44,6 @@ from ..calibration.calibration import (Calibration, RegionBox, RegionCalibration
                                        Validation)
 from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from ..calibration.effects import effect_from_dict
-from ..calibration.remainder import ResidualMap
 from ..errors import DataError, ModelError
 from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
@@ -51,6 +51,9 @@ from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_f
 from .atomic import check_finite_json, write_text_atomic
 from .schemas import schema, schema_bytes, schema_error, validator
 from .user_cache import cache_folder
+
+if TYPE_CHECKING:
+    from ..calibration.remainder import ResidualMap
 
 LENGTH_OR_ANGLE_LIMIT = 1e6
 """Largest plausible size of a length (mm) or angle (deg) in calib.json (1 km)."""
@@ -214,6 +217,8 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
 
 def _residual_map(doc: dict, robot: Robot, source: str) -> ResidualMap:
     """The stored residual map; :class:`ModelError` when its shapes do not fit the robot."""
+    from ..calibration.remainder import ResidualMap  # only files that hold one need it
+
     try:
         rmap = ResidualMap.from_dict(doc)
         n_in = sum(2 if k == "revolute" else 1 for k in rmap.kinds)

@@ -23,6 +23,7 @@ import time
 from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,7 +31,9 @@ from ..calibration.measurements import Measurements
 from ..errors import DataError, OlpError
 from . import atomic
 from .measurements import open_table, parse_cell_number, read_measurements, write_measurements
-from .rtde_source import Ask, JointSource, Say
+
+if TYPE_CHECKING:  # annotations only: multiprocessing and sockets stay out of identify's start
+    from .rtde_source import Ask, JointSource, Say
 
 FORMAT = "olp-compensate session v1"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -82,6 +85,24 @@ def record_session(path, joint_source: JointSource, ask: Ask, say: Say, *, robot
     _check_new(path, overwrite)
     from mcap.writer import Writer
 
+    fd, tmp = _open_temp(path)
+    with os.fdopen(fd, "wb") as stream:
+        writer = Writer(stream)
+        joints_channel = _start_session(writer, joint_source, robot_name, note)
+        say(f"Recording poses of {robot_name} into {path} (joints {joint_source.description}). "
+            f"Type q to finish.")
+        try:
+            count, failure = _record_poses(writer, joints_channel, joint_source, ask, say,
+                                           max_poses)
+        finally:
+            writer.finish()
+            stream.flush()
+            os.fsync(stream.fileno())
+    return _keep_recorded(path, tmp, count, failure, say)
+
+
+def _open_temp(path: Path) -> tuple[int, str]:
+    """(file descriptor, name) of a new tracked temporary file beside ``path``."""
     atomic.remove_stale_temps(path)
     tmp = atomic.temp_name(path)
     atomic.track_temp(tmp)
@@ -90,53 +111,63 @@ def record_session(path, joint_source: JointSource, ask: Ask, say: Say, *, robot
     except OSError as exc:
         atomic.untrack_temp(tmp)
         raise OlpError(f"{path}: cannot write ({exc.strerror})") from None
+    return fd, tmp
+
+
+def _start_session(writer, joint_source: JointSource, robot_name: str, note: str) -> int:
+    """Start the MCAP file: both channels and the session's info message; returns the
+    joints channel's id."""
+    writer.start(profile="", library="olp-compensate")
+    joints_channel = writer.register_channel(
+        JOINTS_TOPIC, "json", writer.register_schema(
+            JOINTS_SCHEMA["title"], "jsonschema", json.dumps(JOINTS_SCHEMA).encode()))
+    info_channel = writer.register_channel(
+        INFO_TOPIC, "json", writer.register_schema(
+            INFO_SCHEMA["title"], "jsonschema", json.dumps(INFO_SCHEMA).encode()))
+    now = time.time_ns()
     n = joint_source.n_joints
+    info = {"format": FORMAT, "robot": robot_name, "n_joints": n,
+            "joint_units": ["deg"] * n,
+            "units": {"q_deg": "deg", "q_rad": "rad", "time_s": "s (Unix time, UTC)",
+                      "controller_time_s": "s"},
+            "source": joint_source.description,
+            "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "note": note}
+    writer.add_message(info_channel, now, json.dumps(info).encode(), now)
+    return joints_channel
+
+
+def _record_poses(writer, joints_channel: int, joint_source: JointSource, ask: Ask, say: Say,
+                  max_poses: int) -> tuple[int, OlpError | KeyboardInterrupt | None]:
+    """Capture and write poses until ``q`` or ``max_poses``: (poses recorded, the failure
+    that ended the session or None); a failure keeps the poses recorded so far."""
     count = 0
-    failure: OlpError | KeyboardInterrupt | None = None
-    with os.fdopen(fd, "wb") as stream:
-        writer = Writer(stream)
-        writer.start(profile="", library="olp-compensate")
-        joints_channel = writer.register_channel(
-            JOINTS_TOPIC, "json", writer.register_schema(
-                JOINTS_SCHEMA["title"], "jsonschema", json.dumps(JOINTS_SCHEMA).encode()))
-        info_channel = writer.register_channel(
-            INFO_TOPIC, "json", writer.register_schema(
-                INFO_SCHEMA["title"], "jsonschema", json.dumps(INFO_SCHEMA).encode()))
-        now = time.time_ns()
-        info = {"format": FORMAT, "robot": robot_name, "n_joints": n,
-                "joint_units": ["deg"] * n,
-                "units": {"q_deg": "deg", "q_rad": "rad", "time_s": "s (Unix time, UTC)",
-                          "controller_time_s": "s"},
-                "source": joint_source.description,
-                "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-                "note": note}
-        writer.add_message(info_channel, now, json.dumps(info).encode(), now)
-        say(f"Recording poses of {robot_name} into {path} (joints {joint_source.description}). "
-            f"Type q to finish.")
-        try:
-            for pose in range(1, max_poses + 1):
-                reading = joint_source.capture(
-                    ask, say, f"Pose {pose}: move to the pose and let the device measure",
-                    ("q",))
-                if isinstance(reading, str):
-                    break
-                q_rad = np.asarray(reading.q_rad, dtype=float)
-                message = {"pose": pose, "time_s": reading.time_s,
-                           "controller_time_s": reading.controller_time_s,
-                           "q_deg": [float(v) for v in np.degrees(q_rad)],
-                           "q_rad": [float(v) for v in q_rad]}
-                stamp = int(reading.time_s * 1e9)
-                writer.add_message(joints_channel, stamp, json.dumps(message).encode(), stamp,
-                                   sequence=pose)
-                count = pose
-                say(f"  pose {pose} recorded: q = ("
-                    + ", ".join(f"{v:.3f}" for v in message["q_deg"]) + ") deg")
-        except (OlpError, KeyboardInterrupt) as exc:   # keep the poses recorded so far
-            failure = exc
-        finally:
-            writer.finish()
-            stream.flush()
-            os.fsync(stream.fileno())
+    try:
+        for pose in range(1, max_poses + 1):
+            reading = joint_source.capture(
+                ask, say, f"Pose {pose}: move to the pose and let the device measure", ("q",))
+            if isinstance(reading, str):
+                break
+            q_rad = np.asarray(reading.q_rad, dtype=float)
+            message = {"pose": pose, "time_s": reading.time_s,
+                       "controller_time_s": reading.controller_time_s,
+                       "q_deg": [float(v) for v in np.degrees(q_rad)],
+                       "q_rad": [float(v) for v in q_rad]}
+            stamp = int(reading.time_s * 1e9)
+            writer.add_message(joints_channel, stamp, json.dumps(message).encode(), stamp,
+                               sequence=pose)
+            count = pose
+            say(f"  pose {pose} recorded: q = ("
+                + ", ".join(f"{v:.3f}" for v in message["q_deg"]) + ") deg")
+    except (OlpError, KeyboardInterrupt) as exc:
+        return count, exc
+    return count, None
+
+
+def _keep_recorded(path: Path, tmp: str, count: int,
+                   failure: OlpError | KeyboardInterrupt | None, say: Say) -> int:
+    """Move the finished temporary file to ``path`` when it holds a pose (else remove it),
+    then raise ``failure`` again, naming the file that keeps the poses; returns ``count``."""
     if count == 0:
         atomic.untrack_temp(tmp, remove=True)
         if failure is not None:

@@ -14,7 +14,8 @@ between them gets the parameterization that has no singularity there:
 The first joint frame is fixed to the base: z along axis 1, origin where axis 1 is closest to
 the base origin, x from the base x. The last joint carries only its zero offset; a constant
 transform then reaches the flange. Parameters are named ``j<joint>.<name>`` (``j3.beta``),
-joints counted from 1; values are SI (m, rad).
+joints counted from 1; values are SI (m, rad). The link values themselves come from
+:mod:`olp_compensate.kinematics.frame_assignment`.
 
 :func:`forward` evaluates the chain for a batch of joint vectors and returns positions, the
 flange frames and, on request, the analytic derivatives with respect to every parameter and
@@ -33,6 +34,7 @@ import numpy as np
 from .buffers import reusable_array
 from .conventions import invert_pose
 from .fixed_chain import FixedChain  # re-exported: made by fixed_chain() below
+from .frame_assignment import dh_link, first_frame, hayati_link
 from .robot import Robot
 
 PARALLEL_BELOW_DEG = 45.0
@@ -132,21 +134,6 @@ class ChainResult:
     drot_dq: np.ndarray | None = None
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two 3-vectors (np.cross costs ten times more on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
-
-
-def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
-    """Angle (rad) rotating direction ``a`` onto ``b`` about ``axis`` (all perpendicular)."""
-    return math.atan2(float(np.dot(_cross(a, b), axis)), float(np.dot(a, b)))
-
-
 class _ChainBuilder:
     """Collects steps and parameters while walking the nominal axes."""
 
@@ -162,60 +149,6 @@ class _ChainBuilder:
         self.steps.append(Step(rotation, axis, len(self.parameters) - 1, moves_with))
 
 
-def _dh_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
-    """D-H values (theta, d, a, alpha) from ``frame`` (z on axis i) to the axis
-    (point, direction), and the new frame on that axis."""
-    origin, x0, z0 = frame[:3, 3], frame[:3, 0], frame[:3, 2]
-    b = float(np.dot(z0, direction))
-    w = origin - point
-    denom = 1.0 - b * b
-    if denom < 1e-12:  # parallel: D-H is singular here; take the foot at the current origin
-        s = 0.0
-    else:
-        s = (b * np.dot(direction, w) - np.dot(z0, w)) / denom
-    foot0 = origin + s * z0
-    foot1 = point + np.dot(foot0 - point, direction) * direction
-    normal = foot1 - foot0
-    a = float(np.linalg.norm(normal))
-    if a < 1e-9:
-        cross = _cross(z0, direction)
-        x_new = _unit(cross) if np.linalg.norm(cross) > 1e-9 else x0
-        a = 0.0
-    else:
-        x_new = normal / a
-    theta = _signed_angle(x0, x_new, z0)
-    alpha = _signed_angle(z0, direction, x_new)
-    new = np.eye(4)
-    new[:3, 0], new[:3, 2] = x_new, direction
-    new[:3, 1] = _cross(direction, x_new)
-    new[:3, 3] = foot1
-    return (theta, float(s), a, alpha), new
-
-
-def _hayati_link(frame: np.ndarray, point: np.ndarray, direction: np.ndarray):
-    """Hayati values (theta, a, alpha, beta) from ``frame`` to a nearly parallel axis, and the
-    new frame where the plane z = 0 of ``frame`` meets that axis."""
-    origin, x0, z0 = frame[:3, 3], frame[:3, 0], frame[:3, 2]
-    t = np.dot(origin - point, z0) / np.dot(direction, z0)
-    foot = point + t * direction
-    v = foot - origin
-    a = float(np.linalg.norm(v))
-    x_new = v / a if a > 1e-9 else x0  # collinear axes: Hayati is singular, the SVD will say
-    theta = _signed_angle(x0, x_new, z0)
-    y_new = _cross(z0, x_new)
-    u, w_, h = np.dot(direction, x_new), np.dot(direction, y_new), np.dot(direction, z0)
-    beta = float(np.arcsin(np.clip(u, -1.0, 1.0)))
-    alpha = float(np.arctan2(-w_, h))
-    rot = np.column_stack([x_new, y_new, z0])
-    ca, sa, cb, sb = np.cos(alpha), np.sin(alpha), np.cos(beta), np.sin(beta)
-    rot = rot @ np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]]) @ np.array(
-        [[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
-    new = np.eye(4)
-    new[:3, :3] = rot
-    new[:3, 3] = foot
-    return (theta, a, alpha, beta), new
-
-
 def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
     """Assign frames to ``robot`` and return its calibration model.
 
@@ -228,14 +161,7 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
     kinds = tuple(j.kind for j in robot.joints)
     n = len(kinds)
 
-    first = np.eye(4)
-    z = directions[0]
-    first[:3, 3] = points[0] - np.dot(points[0], z) * z
-    x = np.array([1.0, 0.0, 0.0]) - z[0] * z
-    if np.linalg.norm(x) < 1e-6:
-        x = np.array([0.0, 1.0, 0.0]) - z[1] * z
-    x = _unit(x)
-    first[:3, 0], first[:3, 1], first[:3, 2] = x, _cross(z, x), z
+    first = first_frame(points[0], directions[0])
 
     chain = _ChainBuilder()
     frame = first
@@ -245,7 +171,7 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
         revolute = kinds[i] == "revolute"
         parallel = abs(np.dot(frame[:3, 2], directions[i + 1])) > cos_limit
         if parallel and convention == "auto":
-            (theta, a, alpha, beta), frame = _hayati_link(frame, points[i + 1], directions[i + 1])
+            (theta, a, alpha, beta), frame = hayati_link(frame, points[i + 1], directions[i + 1])
             if revolute:
                 chain.add(True, 2, "theta", i, theta, moves_with=i)
             else:
@@ -256,7 +182,7 @@ def build_model(robot: Robot, convention: str = "auto") -> KinematicModel:
             chain.add(True, 1, "beta", i, beta)
             conventions.append("hayati")
         else:
-            (theta, d, a, alpha), frame = _dh_link(frame, points[i + 1], directions[i + 1])
+            (theta, d, a, alpha), frame = dh_link(frame, points[i + 1], directions[i + 1])
             chain.add(True, 2, "theta", i, theta,
                       moves_with=i if revolute else None)
             chain.add(False, 2, "d", i, d, moves_with=None if revolute else i)

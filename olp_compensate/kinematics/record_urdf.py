@@ -11,8 +11,6 @@ hand-written URDF gives the same numbers, and so the same kinematic fingerprint.
 from __future__ import annotations
 
 import math
-from xml.sax.saxutils import escape
-
 import numpy as np
 
 from .records import MASS_SHARES, LinkInertial, RobotRecord
@@ -151,6 +149,12 @@ def _num(v: float) -> str:
     return repr(float(v)) if v != int(v) or abs(v) >= 1e15 else str(int(v))
 
 
+def _xml_text(text: str) -> str:
+    """``text`` with ``&``, ``<`` and ``>`` escaped (as ``xml.sax.saxutils.escape``, whose
+    import pulls in urllib and http.client: 25-60 ms of every command's start)."""
+    return text.replace("&", "&amp;").replace(">", "&gt;").replace("<", "&lt;")
+
+
 def _xyz(values) -> str:
     return " ".join(_num(v) for v in values)
 
@@ -163,7 +167,8 @@ def urdf_from_record(record: RobotRecord) -> str:
     inertials = record.links or estimated_inertials(record, origins)
     lines = ['<?xml version="1.0"?>',
              f"<!-- generated from {record.name}.robot.json ("
-             + escape(f"{record.maker} {record.model}").replace("--", "- -") + "); do not edit -->",
+             + _xml_text(f"{record.maker} {record.model}").replace("--", "- -")
+             + "); do not edit -->",
              f'<robot name="{record.name}">']
     for name, link in zip(LINKS, inertials):
         lines += [f'  <link name="{name}">', "    <inertial>",

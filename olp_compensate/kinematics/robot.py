@@ -8,7 +8,6 @@ radians); the calibration model (:mod:`olp_compensate.kinematics.model`) is buil
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -364,6 +363,8 @@ def load_robot(name_or_path: str) -> Robot:
         return robot_from_record(record)
     resource = data_folder("robots") / f"{name_or_path}.urdf"
     if not resource.is_file():
+        import difflib  # only for this message
+
         names = bundled_robot_names()
         close = ([n for n in names if name_or_path.lower() in n][:3]
                  or difflib.get_close_matches(name_or_path, names, n=3, cutoff=0.6))
