@@ -5,7 +5,13 @@ band with the held-out criterion of :mod:`.effect_scan`.
 K per joint is what the joint's angles resolve (:func:`resolvable_order`): at least
 ``SAMPLES_PER_PERIOD`` distinct angles per period of the highest order over the span the
 data cover, the highest order completing a period within that span, at most ``MAX_ORDER``,
-and the band's 2K parameters at most ``PARAMETER_SHARE`` of the equations.
+and the band's 2K parameters at most ``PARAMETER_SHARE`` of the equations. The band
+starts at the lowest order completing a period over the span (:func:`lowest_order`; lower
+orders are smooth there: the geometry takes them, and fitted with it they reach any
+amplitude, as on a real arm's 25-degree wrist span). A joint whose axis passes within
+``MIN_LEVER_M`` (RMS) of the measured points gets no band: its angle barely moves them, and
+a band there only proxies other joints (seen on real data with the reflector at the wrist
+centre).
 
 The fit is linear at the current model's full-data solution (as the effect scan's): the
 residual r (3m,) and the unit-scaled Jacobian of the current unknowns u (unpenalized)
@@ -39,8 +45,25 @@ SAMPLES_PER_PERIOD = 6
 """Distinct angles needed per period of the highest order, over the joint's span."""
 PARAMETER_SHARE = 0.1
 """A band's parameters (2K) may be at most this share of the equations."""
+MIN_LEVER_M = 0.05
+"""A joint's band is tested only when its axis lies at least this far (RMS over the rows)
+from the measured points, m."""
 RIDGE_GRID = np.logspace(-6, 3, 19)
 """Penalties tried, relative to the mean diagonal of the band's Gram matrix."""
+
+
+def lowest_order(q: np.ndarray) -> int:
+    """The lowest order completing a period over the span of the angles ``q`` (rad)."""
+    span = float(np.ptp(q)) if len(q) else 0.0
+    return max(1, int(np.ceil(2 * np.pi / span - 1e-9))) if span > 1e-6 else 1
+
+
+def _lever(block: np.ndarray, weight: np.ndarray) -> float:
+    """RMS lever arm (m per rad) of a band's joint over the measured points: its first pair
+    of columns (sin^2 + cos^2 = 1) on the position rows, without the rows' weights."""
+    m = len(weight)
+    pair = block[:3 * m, :2].reshape(m, 3, 2) / np.where(weight > 0, weight, 1.0)[:, None, None]
+    return float(np.sqrt(np.sum(pair**2) / m))
 
 
 def resolvable_order(q: np.ndarray, n_equations: int) -> int:
@@ -78,6 +101,8 @@ class BandOutcome:
     p_values: list[float] = field(default_factory=list)
     du: np.ndarray | None = None
     heldout: Heldout | None = None
+    short_lever: list[int] = field(default_factory=list)
+    """Joints (0-based) whose axis passes too near the measured points for a band."""
     rounds: list[list[BandResult]] = field(default_factory=list)
     thresholds: list[float] = field(default_factory=list)
 
@@ -122,6 +147,7 @@ class BandScan:
         self.scan = scan
         n_eq = len(scan.residual)
         blocks, self.templates, self.columns = [], {}, {}
+        self.short_lever: list[int] = []
         start = scan.scaled.shape[1]
         for j, joint in enumerate(robot.joints):
             if joint.kind != "revolute":
@@ -129,10 +155,11 @@ class BandScan:
             order = resolvable_order(q_ctrl[:, j], n_eq)
             if order == 0:
                 continue
-            template = CyclicError(joint=j, max_order=order,
+            template = CyclicError(joint=j, max_order=order, min_order=lowest_order(q_ctrl[:, j]),
                                    q_range=(float(q_ctrl[:, j].min()), float(q_ctrl[:, j].max())))
             block = scan.columns(template)
-            if not np.any(block):
+            if not np.any(block) or _lever(block, scan.problem.position_weight) < MIN_LEVER_M:
+                self.short_lever.append(j)
                 continue
             self.templates[j] = template
             self.columns[j] = np.arange(start, start + block.shape[1])
@@ -269,7 +296,7 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float)
     until no other band lowers the held-out error significantly (alpha / K, K the bands
     tested in the round); see the module docstring."""
     bands = BandScan(scan, robot, q_ctrl)
-    outcome = BandOutcome()
+    outcome = BandOutcome(short_lever=list(bands.short_lever))
     kept: list[tuple[int, float]] = []
     base, _ = bands.current(kept)
     held_of: dict[int, Heldout] = {}
@@ -307,7 +334,7 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float)
         n = len(bands.columns[j])
         outcome.bands.append(CyclicError(
             joint=j, values=tuple(x[at:at + n]), max_order=bands.templates[j].max_order,
-            q_range=bands.templates[j].q_range, ridge=lam))
+            min_order=bands.templates[j].min_order, q_range=bands.templates[j].q_range, ridge=lam))
         at += n
     return outcome
 
@@ -345,7 +372,7 @@ SOURCES = {1: "eccentricity of the output bearing or of the encoder disc",
 
 def dominant_orders(effect: CyclicError, count: int = 2) -> list[int]:
     """The ``count`` orders of largest fitted amplitude, strongest first."""
-    return [int(k) + 1 for k in np.argsort(-effect.amplitudes())[:count]]
+    return [int(effect.orders[k]) for k in np.argsort(-effect.amplitudes())[:count]]
 
 
 def band_text(effect: CyclicError) -> str:
@@ -359,7 +386,8 @@ def band_text(effect: CyclicError) -> str:
                                        f"error") for k in orders)
     lo, hi = np.degrees(effect.q_range)
     return (f"joint {effect.joint + 1}: cyclic angle error, dominant orders {periods}, "
-            f"amplitude {np.degrees(amplitude[orders[0] - 1]) * 1e3:.3g} mdeg "
-            f"(all {effect.max_order} orders: {np.degrees(effect.headline()[0]) * 1e3:.3g} "
+            f"amplitude {np.degrees(amplitude[orders[0] - effect.min_order]) * 1e3:.3g} mdeg "
+            f"(orders {effect.min_order}-{effect.max_order}: "
+            f"{np.degrees(effect.headline()[0]) * 1e3:.3g} "
             f"mdeg); valid for q{effect.joint + 1} in [{lo:.1f}, {hi:.1f}] deg; "
             f"likely sources (hypotheses): {sources}")

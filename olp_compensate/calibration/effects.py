@@ -336,9 +336,11 @@ class ThermalExpansion(Effect):
 
 @dataclass(frozen=True)
 class CyclicError(Effect):
-    """``dq_j = sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = 1..``max_order`` (rad): cyclic
-    angle error (gear stages, encoder), fitted with the ridge penalty ``ridge`` (m^2/rad^2,
-    :mod:`.cyclic_scan`); zero outside ``q_range`` (rad, the span it was fitted on)."""
+    """``dq_j = sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = ``min_order``..``max_order``
+    (rad): cyclic angle error (gear stages, encoder), fitted with the ridge penalty ``ridge``
+    (m^2/rad^2, :mod:`.cyclic_scan`); zero outside ``q_range`` (rad, the span it was fitted
+    on). Orders below ``min_order`` complete no period over that span: they are smooth
+    there and the geometry takes them."""
 
     kind: ClassVar[str] = "cyclic_error"
     description: ClassVar[str] = "the joint's angle error repeats with the orders named"
@@ -346,10 +348,12 @@ class CyclicError(Effect):
     max_order: int = 1
     q_range: tuple[float, float] = (-np.inf, np.inf)
     ridge: float = 0.0
+    min_order: int = 1
 
+    orders = property(lambda self: np.arange(self.min_order, self.max_order + 1))
     parameter_names = property(lambda self: tuple(
-        f"{ab}{k}" for k in range(1, self.max_order + 1) for ab in "ab"))
-    units = property(lambda self: ("rad",) * (2 * self.max_order))
+        f"{ab}{k}" for k in range(self.min_order, self.max_order + 1) for ab in "ab"))
+    units = property(lambda self: ("rad",) * (2 * len(self.orders)))
     label = property(lambda self: f"cyclic_error j{self.joint + 1}")
 
     def inside(self, q: np.ndarray) -> np.ndarray:
@@ -357,21 +361,21 @@ class CyclicError(Effect):
         return (q[:, self.joint] >= self.q_range[0]) & (q[:, self.joint] <= self.q_range[1])
 
     def basis(self, inputs):
-        angle = np.outer(inputs.q[:, self.joint], np.arange(1, self.max_order + 1))
+        angle = np.outer(inputs.q[:, self.joint], self.orders)
         return (np.stack([np.sin(angle), np.cos(angle)], axis=2).reshape(len(angle), -1)
                 * self.inside(inputs.q)[:, None])
 
     def basis_dq(self, inputs):
         m, n = inputs.q.shape
-        k = np.arange(1, self.max_order + 1)
+        k = self.orders
         angle = np.outer(inputs.q[:, self.joint], k)
         d = np.stack([k * np.cos(angle), -k * np.sin(angle)], axis=2).reshape(m, -1)
-        out = np.zeros((m, 2 * self.max_order, n))
+        out = np.zeros((m, 2 * len(k), n))
         out[:, :, self.joint] = d * self.inside(inputs.q)[:, None]
         return out
 
     def amplitudes(self) -> np.ndarray:
-        """(K,) amplitude sqrt(a_k^2 + b_k^2) of each order, rad."""
+        """Amplitude sqrt(a_k^2 + b_k^2) of each order of :attr:`orders`, rad."""
         return np.hypot(*np.array(self.values).reshape(-1, 2).T)
 
     def headline(self):
@@ -379,7 +383,7 @@ class CyclicError(Effect):
         return float(np.sqrt(np.sum(self.amplitudes() ** 2))), float("nan"), "rad"
 
     def to_dict(self):
-        return {**super().to_dict(), "max_order": self.max_order,
+        return {**super().to_dict(), "max_order": self.max_order, "min_order": self.min_order,
                 "q_range": [float(v) for v in self.q_range], "ridge": self.ridge}
 
 
@@ -390,12 +394,17 @@ EFFECT_KINDS: dict[str, type[Effect]] = {
 
 
 def _cyclic(joint: int, values, std, extra: dict) -> "CyclicError":
-    """A cyclic_error from its calib.json fields (``max_order``, ``q_range``, ``ridge``)."""
-    max_order = int(extra.get("max_order", len(values) // 2 or 1))
-    if max_order < 1 or (values and len(values) != 2 * max_order):
-        raise DataError(f"cyclic_error: max_order {max_order} for {len(values)} parameters")
+    """A cyclic_error from its calib.json fields (``max_order``, ``min_order`` (default 1),
+    ``q_range``, ``ridge``)."""
+    min_order = int(extra.get("min_order", 1))
+    max_order = int(extra.get("max_order", min_order - 1 + (len(values) // 2 or 1)))
+    count = max_order - min_order + 1
+    if min_order < 1 or count < 1 or (values and len(values) != 2 * count):
+        raise DataError(f"cyclic_error: orders {min_order}..{max_order} for {len(values)} "
+                        f"parameters")
     lo, hi = extra.get("q_range") or (-np.inf, np.inf)
     return CyclicError(joint=joint, values=values, std=std, max_order=max_order,
+                       min_order=min_order,
                        q_range=(float(lo), float(hi)), ridge=float(extra.get("ridge", 0.0)))
 
 
@@ -438,7 +447,8 @@ def effect_from_dict(entry: dict, n_joints: int, source: str = "<calibration>") 
         params = entry["parameters"]
         names = cls.parameter_names
         if cls is CyclicError:
-            names = CyclicError(max_order=int(entry["max_order"])).parameter_names
+            names = CyclicError(max_order=int(entry["max_order"]),
+                                min_order=int(entry.get("min_order", 1))).parameter_names
         values = [float(params[name]) for name in names]
         std_doc = entry.get("std") or {}
         std = [float("nan") if std_doc.get(name) is None else float(std_doc[name])
