@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cyclic_scan import MIN_LEVER_M, BandOutcome, dominant_orders
+from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders
 from .effects import CyclicError
 from .remainder import Predictability
 
@@ -69,7 +69,8 @@ def band_rounds(bands: BandOutcome | None) -> list[dict]:
              "bands": [{"joint": r.effect.joint + 1, "max_order": r.effect.max_order,
                         "min_order": r.effect.min_order,
                         "heldout_gain": r.gain, "z": r.z, "p_value": r.p_value,
-                        "ridge": r.ridge, "significant": r.significant} for r in results]}
+                        "ridge": r.ridge, "moves_over_heldout_rms": r.moves,
+                        "significant": r.significant} for r in results]}
             for threshold, results in zip(bands.thresholds, bands.rounds)]
 
 
@@ -84,7 +85,9 @@ def band_round_lines(bands: BandOutcome | None) -> list[str]:
         return lines + ["cyclic error bands: no joint's angles resolve a band"]
     for number, (threshold, results) in enumerate(zip(bands.thresholds, bands.rounds), 1):
         tested = ", ".join(f"j{r.effect.joint + 1} (orders {r.effect.min_order}-"
-                           f"{r.effect.max_order}: {100 * r.gain:.1f} %, p = {r.p_value:.1e})"
+                           f"{r.effect.max_order}: {100 * r.gain:.1f} %, p = {r.p_value:.1e}"
+                           + (f", moves the points {r.moves:.1f}x the held-out RMS: cancels "
+                              f"against other terms" if r.moves > MAX_MOVES else "") + ")"
                            for r in results)
         kept = [r for r in results if r.significant]
         verdict = (f"kept the band of joint {min(kept, key=lambda r: -r.gain).effect.joint + 1}"
