@@ -32,10 +32,11 @@ def account(geometric_m: float, extended_m: float, remainder: Predictability | N
             else [j + 1 for j in remainder.joints],
             "remaining_mm": predictable * 1e3,
             "noise_per_axis_mm": noise_sigma_m * 1e3, "noise_source": noise_source,
-            "method": "RMS figures in quadrature; the predictable part by a random-Fourier-"
-                      "feature ridge model of the extended model's held-out residual against "
-                      "the joints (and temperature and time where given), nested "
-                      "cross-validation"}
+            "predictable_by": None if remainder is None else remainder.model,
+            "method": "RMS figures in quadrature; the predictable part by the better of a "
+                      "random-Fourier-feature ridge model and a k-nearest-neighbour model of "
+                      "the extended model's held-out residual against the joints (and "
+                      "temperature and time where given), nested cross-validation"}
 
 
 def account_lines(doc: dict) -> list[str]:

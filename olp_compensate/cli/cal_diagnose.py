@@ -58,12 +58,15 @@ def _kinds(text: str | None) -> tuple[str, ...] | None:
 def _with_map(result, calibration):
     """The calibration with the residual map, when the map predicts anything."""
     remainder = result.remainder
-    if remainder is None or remainder.map is None or remainder.rms_after >= remainder.rms_before:
+    figures = {} if remainder is None or remainder.map is None else remainder.map.validation
+    without, with_map = (figures.get("heldout_rms_mm_without"),
+                         figures.get("heldout_rms_mm_with"))
+    if without is None or with_map is None or with_map >= without:
         print("residual map not stored: no model of the joints predicts the remainder")
         return calibration
     print(f"residual map stored ({remainder.map.to_dict()['kind']} of the joints; held-out "
-          f"{remainder.rms_before * 1e3:.4f} -> {remainder.rms_after * 1e3:.4f} mm; applied "
-          f"only inside the joint ranges it was fitted in)")
+          f"{without:.4f} -> {with_map:.4f} mm; applied only inside the joint ranges it was "
+          f"fitted in)")
     return dataclasses.replace(calibration, residual_map=remainder.map)
 
 
