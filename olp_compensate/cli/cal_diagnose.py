@@ -11,6 +11,7 @@ from ..calibration.effects import EFFECT_KINDS
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import write_calibration
+from ..io.measurement_import import SESSION_GAP_S, sessions
 from ..io.measurements import read_measurements
 from ..kinematics.robot import load_robot
 from ..calibration.measurements import check_spread
@@ -86,6 +87,12 @@ def run(args) -> int:
     robot = load_robot(args.robot)
     meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
     check_spread(meas, least_unknowns(robot, meas))
+    runs = sessions(meas.time_s) if meas.time_s is not None else []
+    if len(runs) > 1:
+        print(f"WARNING: the rows form {len(runs)} sessions (time_s gaps over "
+              f"{SESSION_GAP_S / 3600:g} h, from rows {', '.join(str(a + 1) for a, _ in runs[:6])}"
+              f"): one device frame is fitted to all; if the device moved between them, "
+              f"diagnose each alone")
     result = diagnose(robot, meas, options)
     print(summary(result))
     if args.output:
