@@ -40,7 +40,7 @@ def add_arguments(p) -> None:
                         "the calib.json of -o (predict and olp-fix apply it inside its "
                         "joint region)")
     p.add_argument("--no-cyclic", action="store_true",
-                   help="skip the cyclic angle error bands (orders 1..K per joint)")
+                   help="skip the cyclic angle error bands (orders K0..K per joint)")
     p.add_argument("--kinds", help="comma-separated effect kinds to try (default all: "
                                    + ", ".join(EFFECT_KINDS) + ")")
 
