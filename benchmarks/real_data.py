@@ -1,6 +1,7 @@
 """What a real robot gets wrong (issue 28): the diagnosis on measured data of real arms.
 
 Run: python benchmarks/real_data.py PATH[@ROBOT] ... [--robot NAME_OR_URDF] [--folds 5]
+     [--range-joint 2]
 
 Each PATH is a measurement CSV (version 1; ``olp-cal import`` turns instrument tables
 into one); ROBOT (after ``@``, else ``--robot``) the bundled robot or URDF it was measured
@@ -10,6 +11,10 @@ pose of: the nominal model (registered to the device), the geometric model, the 
 effects, the predictable remainder (the flexible model of :mod:`.remainder`), an
 independent peer of it (k-nearest neighbours in the joints' sin/cos, k by the same
 folds; it shares no code with the flexible model) and the noise floor, with its source.
+With ``--range-joint J`` it also holds out the top fifth of joint J's range, fits the
+geometric model and the diagnosis on the rest, and prints both models' RMS on the rows
+held out (outside the fitted range the cyclic bands fall back to the rest of the model:
+it must not be worse than the geometric model there).
 """
 
 import os
@@ -24,7 +29,9 @@ import numpy as np  # noqa: E402
 
 from olp_compensate.calibration.cross_validation import pose_folds  # noqa: E402
 from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose  # noqa: E402
-from olp_compensate.calibration.identify import IdentificationOptions, identify  # noqa: E402
+from olp_compensate.calibration.identify import (IdentificationOptions, identify,  # noqa: E402
+                                                 measurement_inputs)
+from olp_compensate.calibration.problem import problem_at  # noqa: E402
 from olp_compensate.io.measurements import read_measurements  # noqa: E402
 from olp_compensate.kinematics.model import build_model  # noqa: E402
 from olp_compensate.kinematics.robot import load_robot  # noqa: E402
@@ -52,6 +59,29 @@ def knn_peer(q: np.ndarray, target: np.ndarray, folds, ks=(1, 2, 4, 8, 16, 32)) 
     return best
 
 
+def rms_on(robot, calibration, meas) -> float:
+    """3-D RMS of measured minus predicted by ``calibration`` on ``meas``, m."""
+    tools = {name: tool.xyz_m for name, tool in calibration.tools.items()}
+    inputs = measurement_inputs(robot, meas, tools, calibration.effects)
+    problem, x = problem_at(calibration, meas, inputs)
+    return float(np.sqrt(np.mean(np.sum(problem.residuals(x).reshape(-1, 3) ** 2, axis=1))))
+
+
+def range_check(robot, meas, joint: int, folds: int) -> None:
+    """Hold out the top fifth of ``joint``'s (0-based) range; print both models' RMS there."""
+    q = meas.joints[:, joint]
+    cut = np.quantile(q, 0.8)
+    test = q > cut
+    train = meas.subset(~test)
+    geometric = identify(robot, train, IdentificationOptions(folds=0)).calibration
+    d = diagnose(robot, train, DiagnoseOptions(folds=folds))
+    print(f"  joint {joint + 1} above {np.degrees(cut):.1f} deg held out ({int(test.sum())} "
+          f"rows, outside the fitted range): geometric "
+          f"{rms_on(robot, geometric, meas.subset(test)) * 1e3:.4f} mm, named effects "
+          f"{rms_on(robot, d.extended.calibration, meas.subset(test)) * 1e3:.4f} mm ("
+          + (", ".join(k.effect.label for k in d.effects) or "none") + ")")
+
+
 def report(path: str, robot, folds: int) -> None:
     meas = read_measurements(path, robot)
     start = time.perf_counter()
@@ -66,7 +96,7 @@ def report(path: str, robot, folds: int) -> None:
     print(f"  named effects             {d.extended.heldout_rms * 1e3:8.4f} mm: "
           + (", ".join(k.effect.label for k in d.effects) or "none"))
     print(f"  predictable remainder     {rem.rms_after * 1e3:8.4f} mm (from joints "
-          f"{', '.join(str(j + 1) for j in rem.joints) or 'none'}); independent peer "
+          f"{', '.join(str(j + 1) for j in rem.joints) or 'none'}; {rem.model}); independent peer "
           f"(k-nearest neighbours) {min(peer, rem.rms_before) * 1e3:.4f} mm")
     print(f"  noise floor               {d.noise.sigma_m * 1e3:8.4f} mm per axis "
           f"({d.noise.sigma_m * np.sqrt(3) * 1e3:.4f} mm 3-D), from {d.noise.source}")
@@ -79,12 +109,16 @@ def main() -> None:
     parser.add_argument("paths", nargs="+", help="measurement CSV[@robot]")
     parser.add_argument("--robot", help="bundled robot name or URDF (default for every path)")
     parser.add_argument("--folds", type=int, default=5)
+    parser.add_argument("--range-joint", type=int, help="1-based joint for the range check")
     args = parser.parse_args()
     for item in args.paths:
         path, _, name = item.partition("@")
         if not (name or args.robot):
             parser.error(f"{item}: give the robot as PATH@ROBOT or --robot")
-        report(path, load_robot(name or args.robot), args.folds)
+        robot = load_robot(name or args.robot)
+        report(path, robot, args.folds)
+        if args.range_joint:
+            range_check(robot, read_measurements(path, robot), args.range_joint - 1, args.folds)
 
 
 if __name__ == "__main__":

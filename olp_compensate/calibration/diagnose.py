@@ -378,6 +378,7 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
                                               else d.remainder.rms_after)},
         "account": _account(d),
         "cyclic_bands": band_rounds(d.bands),
+        "cyclic_short_lever_joints": [j + 1 for j in (d.bands.short_lever if d.bands else [])],
         "heldout_max_mm": {"geometric": _mm(d.geometric.heldout_max),
                            "extended": _mm(d.extended.heldout_max)},
         "heldout_method": d.extended.calibration.validation.method,

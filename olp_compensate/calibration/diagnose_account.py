@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cyclic_scan import BandOutcome, dominant_orders
+from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders
 from .effects import CyclicError
 from .remainder import Predictability
 
@@ -32,10 +32,11 @@ def account(geometric_m: float, extended_m: float, remainder: Predictability | N
             else [j + 1 for j in remainder.joints],
             "remaining_mm": predictable * 1e3,
             "noise_per_axis_mm": noise_sigma_m * 1e3, "noise_source": noise_source,
-            "method": "RMS figures in quadrature; the predictable part by a random-Fourier-"
-                      "feature ridge model of the extended model's held-out residual against "
-                      "the joints (and temperature and time where given), nested "
-                      "cross-validation"}
+            "predictable_by": None if remainder is None else remainder.model,
+            "method": "RMS figures in quadrature; the predictable part by the better of a "
+                      "random-Fourier-feature ridge model and a k-nearest-neighbour model of "
+                      "the extended model's held-out residual against the joints (and "
+                      "temperature and time where given), nested cross-validation"}
 
 
 def account_lines(doc: dict) -> list[str]:
@@ -54,7 +55,8 @@ def cyclic_entry(effect: CyclicError) -> dict:
     """The JSON fields a cyclic error adds to its effect entry."""
     amplitudes = effect.amplitudes()
     orders = dominant_orders(effect)
-    return {"max_order": effect.max_order, "dominant_orders": orders,
+    return {"max_order": effect.max_order, "min_order": effect.min_order,
+            "dominant_orders": orders,
             "periods_deg": [360.0 / k for k in orders],
             "amplitudes_rad": amplitudes.tolist(),
             "q_range_deg": np.degrees(effect.q_range).tolist(), "ridge": effect.ridge}
@@ -66,19 +68,28 @@ def band_rounds(bands: BandOutcome | None) -> list[dict]:
         return []
     return [{"threshold": threshold,
              "bands": [{"joint": r.effect.joint + 1, "max_order": r.effect.max_order,
+                        "min_order": r.effect.min_order,
                         "heldout_gain": r.gain, "z": r.z, "p_value": r.p_value,
-                        "ridge": r.ridge, "significant": r.significant} for r in results]}
+                        "ridge": r.ridge, "moves_over_heldout_rms": r.moves,
+                        "significant": r.significant} for r in results]}
             for threshold, results in zip(bands.thresholds, bands.rounds)]
 
 
 def band_round_lines(bands: BandOutcome | None) -> list[str]:
     """One line per round of the band scan."""
-    if bands is None or not bands.rounds:
-        return ["cyclic error bands: no joint's angles resolve a band"] if bands else []
-    lines = []
+    if bands is None:
+        return []
+    lines = [f"cyclic error bands: no band for joint {j + 1} (its axis passes within "
+             f"{MIN_LEVER_M * 1e3:.0f} mm RMS of the measured points: its angle barely moves "
+             f"them)" for j in bands.short_lever]
+    if not bands.rounds:
+        return lines + ["cyclic error bands: no joint's angles resolve a band"]
     for number, (threshold, results) in enumerate(zip(bands.thresholds, bands.rounds), 1):
-        tested = ", ".join(f"j{r.effect.joint + 1} (orders 1-{r.effect.max_order}: "
-                           f"{100 * r.gain:.1f} %, p = {r.p_value:.1e})" for r in results)
+        tested = ", ".join(f"j{r.effect.joint + 1} (orders {r.effect.min_order}-"
+                           f"{r.effect.max_order}: {100 * r.gain:.1f} %, p = {r.p_value:.1e}"
+                           + (f", moves the points {r.moves:.1f}x the held-out RMS: cancels "
+                              f"against other terms" if r.moves > MAX_MOVES else "") + ")"
+                           for r in results)
         kept = [r for r in results if r.significant]
         verdict = (f"kept the band of joint {min(kept, key=lambda r: -r.gain).effect.joint + 1}"
                    if kept else "no band is significant")

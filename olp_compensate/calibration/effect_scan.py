@@ -183,5 +183,9 @@ def drift_warning(scan: EffectScan, alpha: float) -> str | None:
     _, _, p = scan.gain_test(scan.base, held)
     if p >= alpha:
         return None
+    temperature = scan.meas.temperature_c
+    advice = ("add a temperature_c column" if temperature is None else
+              "the temperature_c column does not explain it" if np.ptp(temperature) > 0 else
+              "the temperature_c column is constant")
     return (f"the remaining residuals drift with time_s (p = {p:.1e}): the device or the "
-            f"robot base moved, or the arm warmed up; add a temperature_c column")
+            f"robot base moved, or the arm warmed up; {advice}")

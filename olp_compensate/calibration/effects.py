@@ -17,7 +17,7 @@ gear_harmonic       ``a sin(k q_j) + b cos(k q_j)``, order k = 1, 2, 3     a, b,
 backlash            ``(w / 2) * sign(tau_j)``, or ``-(w / 2) * d_j`` where  w, rad
                     the approach direction ``d_j`` (+1/-1) is given
 joint_scale         ``s * q_j``                                            s, rad/rad
-cyclic_error        ``sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = 1..K,   a1, b1, ..., rad
+cyclic_error        ``sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = K0..K,  a<k>, b<k>, rad
                     inside the fitted range of q_j only (zero outside)
 ==================  =====================================================  =============
 
@@ -132,15 +132,13 @@ class Effect:
             object.__setattr__(self, "values", (0.0,) * p)
         if not self.std:
             object.__setattr__(self, "std", (float("nan"),) * p)
-        object.__setattr__(self, "values", tuple(float(v) for v in self.values))
-        object.__setattr__(self, "std", tuple(float(v) for v in self.std))
+        for name in ("values", "std"):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         if len(self.values) != p or len(self.std) != p:
             raise ValueError(f"{self.kind}: expected {p} values and std, got "
                              f"{len(self.values)} and {len(self.std)}")
 
-    @property
-    def n_parameters(self) -> int:
-        return len(self.parameter_names)
+    n_parameters = property(lambda self: len(self.parameter_names))
 
     @property
     def label(self) -> str:
@@ -336,9 +334,10 @@ class ThermalExpansion(Effect):
 
 @dataclass(frozen=True)
 class CyclicError(Effect):
-    """``dq_j = sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = 1..``max_order`` (rad): cyclic
-    angle error (gear stages, encoder), fitted with the ridge penalty ``ridge`` (m^2/rad^2,
-    :mod:`.cyclic_scan`); zero outside ``q_range`` (rad, the span it was fitted on)."""
+    """``dq_j = sum_k a_k sin(k q_j) + b_k cos(k q_j)``, k = ``min_order``..``max_order``
+    (rad): cyclic angle error (gear stages, encoder), fitted with the ridge penalty ``ridge``
+    (m^2/rad^2, :mod:`.cyclic_scan`); zero outside ``q_range`` (rad, the span it was fitted
+    on). Lower orders complete no period over the span: the geometry takes them."""
 
     kind: ClassVar[str] = "cyclic_error"
     description: ClassVar[str] = "the joint's angle error repeats with the orders named"
@@ -346,10 +345,12 @@ class CyclicError(Effect):
     max_order: int = 1
     q_range: tuple[float, float] = (-np.inf, np.inf)
     ridge: float = 0.0
+    min_order: int = 1
 
+    orders = property(lambda self: np.arange(self.min_order, self.max_order + 1))
     parameter_names = property(lambda self: tuple(
-        f"{ab}{k}" for k in range(1, self.max_order + 1) for ab in "ab"))
-    units = property(lambda self: ("rad",) * (2 * self.max_order))
+        f"{ab}{k}" for k in range(self.min_order, self.max_order + 1) for ab in "ab"))
+    units = property(lambda self: ("rad",) * (2 * len(self.orders)))
     label = property(lambda self: f"cyclic_error j{self.joint + 1}")
 
     def inside(self, q: np.ndarray) -> np.ndarray:
@@ -357,21 +358,21 @@ class CyclicError(Effect):
         return (q[:, self.joint] >= self.q_range[0]) & (q[:, self.joint] <= self.q_range[1])
 
     def basis(self, inputs):
-        angle = np.outer(inputs.q[:, self.joint], np.arange(1, self.max_order + 1))
+        angle = np.outer(inputs.q[:, self.joint], self.orders)
         return (np.stack([np.sin(angle), np.cos(angle)], axis=2).reshape(len(angle), -1)
                 * self.inside(inputs.q)[:, None])
 
     def basis_dq(self, inputs):
         m, n = inputs.q.shape
-        k = np.arange(1, self.max_order + 1)
+        k = self.orders
         angle = np.outer(inputs.q[:, self.joint], k)
         d = np.stack([k * np.cos(angle), -k * np.sin(angle)], axis=2).reshape(m, -1)
-        out = np.zeros((m, 2 * self.max_order, n))
+        out = np.zeros((m, 2 * len(k), n))
         out[:, :, self.joint] = d * self.inside(inputs.q)[:, None]
         return out
 
     def amplitudes(self) -> np.ndarray:
-        """(K,) amplitude sqrt(a_k^2 + b_k^2) of each order, rad."""
+        """Amplitude sqrt(a_k^2 + b_k^2) of each order of :attr:`orders`, rad."""
         return np.hypot(*np.array(self.values).reshape(-1, 2).T)
 
     def headline(self):
@@ -379,7 +380,7 @@ class CyclicError(Effect):
         return float(np.sqrt(np.sum(self.amplitudes() ** 2))), float("nan"), "rad"
 
     def to_dict(self):
-        return {**super().to_dict(), "max_order": self.max_order,
+        return {**super().to_dict(), "max_order": self.max_order, "min_order": self.min_order,
                 "q_range": [float(v) for v in self.q_range], "ridge": self.ridge}
 
 
@@ -390,12 +391,14 @@ EFFECT_KINDS: dict[str, type[Effect]] = {
 
 
 def _cyclic(joint: int, values, std, extra: dict) -> "CyclicError":
-    """A cyclic_error from its calib.json fields (``max_order``, ``q_range``, ``ridge``)."""
-    max_order = int(extra.get("max_order", len(values) // 2 or 1))
-    if max_order < 1 or (values and len(values) != 2 * max_order):
-        raise DataError(f"cyclic_error: max_order {max_order} for {len(values)} parameters")
+    """A cyclic_error from its calib.json fields (``max_order``, ``min_order`` (1 if absent),
+    ``q_range``, ``ridge``)."""
+    low = int(extra.get("min_order", 1))
+    high = int(extra.get("max_order", low - 1 + (len(values) // 2 or 1)))
+    if low < 1 or high < low or (values and len(values) != 2 * (high - low + 1)):
+        raise DataError(f"cyclic_error: orders {low}..{high} for {len(values)} parameters")
     lo, hi = extra.get("q_range") or (-np.inf, np.inf)
-    return CyclicError(joint=joint, values=values, std=std, max_order=max_order,
+    return CyclicError(joint=joint, values=values, std=std, max_order=high, min_order=low,
                        q_range=(float(lo), float(hi)), ridge=float(extra.get("ridge", 0.0)))
 
 
@@ -436,9 +439,9 @@ def effect_from_dict(entry: dict, n_joints: int, source: str = "<calibration>") 
         if cls is None:
             raise ModelError(f"{source}: unknown effect kind '{kind}'")
         params = entry["parameters"]
-        names = cls.parameter_names
-        if cls is CyclicError:
-            names = CyclicError(max_order=int(entry["max_order"])).parameter_names
+        low = int(entry.get("min_order", 1))
+        names = (CyclicError(max_order=int(entry["max_order"]), min_order=low)
+                 if cls is CyclicError else cls).parameter_names
         values = [float(params[name]) for name in names]
         std_doc = entry.get("std") or {}
         std = [float("nan") if std_doc.get(name) is None else float(std_doc[name])
@@ -494,7 +497,6 @@ def length_scale(effects, inputs: EffectInputs) -> np.ndarray:
     return scale
 
 
-__all__ = ["Conditions", "EffectInputs", "Effect", "JointCompliance", "GearHarmonic",
-           "Backlash", "JointScale", "ThermalExpansion", "EFFECT_KINDS", "make_effect",
-           "effect_from_dict", "effect_inputs", "joint_deflection", "joint_deflection_dq",
-           "length_scale", "CyclicError"]
+__all__ = ["Conditions", "EffectInputs", "Effect", "JointCompliance", "GearHarmonic", "Backlash",
+           "JointScale", "ThermalExpansion", "EFFECT_KINDS", "make_effect", "effect_from_dict",
+           "effect_inputs", "joint_deflection", "joint_deflection_dq", "length_scale", "CyclicError"]

@@ -27,7 +27,7 @@ RANK_TOLERANCE = 1e-8
 """Singular values below this fraction of the largest mark an inseparable combination."""
 WEAK_TOLERANCE = 1e-4
 """Singular values below this fraction of the largest mark a barely observable combination."""
-EFFECT_SEPARATION = 1e-3
+EFFECT_SEPARATION = 0.05
 """An effect whose unit-scaled columns keep less than this fraction (smallest singular value)
 outside the span of the geometry is reported as inseparable, not fitted."""
 CERTAIN_RANK = 1e-5

@@ -11,6 +11,7 @@ from ..calibration.effects import EFFECT_KINDS
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
 from ..io.calibration_file import write_calibration
+from ..io.measurement_import import SESSION_GAP_S, sessions
 from ..io.measurements import read_measurements
 from ..kinematics.robot import load_robot
 from ..calibration.measurements import check_spread
@@ -39,7 +40,7 @@ def add_arguments(p) -> None:
                         "the calib.json of -o (predict and olp-fix apply it inside its "
                         "joint region)")
     p.add_argument("--no-cyclic", action="store_true",
-                   help="skip the cyclic angle error bands (orders 1..K per joint)")
+                   help="skip the cyclic angle error bands (orders K0..K per joint)")
     p.add_argument("--kinds", help="comma-separated effect kinds to try (default all: "
                                    + ", ".join(EFFECT_KINDS) + ")")
 
@@ -58,12 +59,15 @@ def _kinds(text: str | None) -> tuple[str, ...] | None:
 def _with_map(result, calibration):
     """The calibration with the residual map, when the map predicts anything."""
     remainder = result.remainder
-    if remainder is None or remainder.map is None or remainder.rms_after >= remainder.rms_before:
+    figures = {} if remainder is None or remainder.map is None else remainder.map.validation
+    without, with_map = (figures.get("heldout_rms_mm_without"),
+                         figures.get("heldout_rms_mm_with"))
+    if without is None or with_map is None or with_map >= without:
         print("residual map not stored: no model of the joints predicts the remainder")
         return calibration
     print(f"residual map stored ({remainder.map.to_dict()['kind']} of the joints; held-out "
-          f"{remainder.rms_before * 1e3:.4f} -> {remainder.rms_after * 1e3:.4f} mm; applied "
-          f"only inside the joint ranges it was fitted in)")
+          f"{without:.4f} -> {with_map:.4f} mm; applied only inside the joint ranges it was "
+          f"fitted in)")
     return dataclasses.replace(calibration, residual_map=remainder.map)
 
 
@@ -83,6 +87,12 @@ def run(args) -> int:
     robot = load_robot(args.robot)
     meas = read_measurements(args.measurements, [j.unit for j in robot.joints])
     check_spread(meas, least_unknowns(robot, meas))
+    runs = sessions(meas.time_s) if meas.time_s is not None else []
+    if len(runs) > 1:
+        print(f"WARNING: the rows form {len(runs)} sessions (time_s gaps over "
+              f"{SESSION_GAP_S / 3600:g} h, from rows {', '.join(str(a + 1) for a, _ in runs[:6])}"
+              f"): one device frame is fitted to all; if the device moved between them, "
+              f"diagnose each alone")
     result = diagnose(robot, meas, options)
     print(summary(result))
     if args.output:

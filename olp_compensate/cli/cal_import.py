@@ -9,7 +9,8 @@ import dataclasses
 
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
-from ..io.measurement_import import FORMATS, ImportSpec, convert, parse_column_map
+from ..io.measurement_import import (FORMATS, SESSION_GAP_S, ImportSpec, convert,
+                                     parse_column_map, sessions)
 from ..io.measurements import parse_measurements, read_csv_text
 from ..kinematics.robot import load_robot
 from .common import refuse_clashes
@@ -23,13 +24,17 @@ def add_arguments(p) -> None:
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument("--format", choices=sorted(FORMATS),
                      help="a named format (robodk: columns 0-5 joints in deg, 6-11 measured "
-                          "x, y, z in mm and w, p, r in deg about the fixed x, y, z axes)")
+                          "x, y, z in mm and w, p, r in deg about the fixed x, y, z axes; "
+                          "astl: header names pose, j1..j6, X, Y, Z, sx, sy, sz, T, time)")
     how.add_argument("--columns", metavar="MAP",
                      help="KEY=COLUMN,... with COLUMN a 0-based number or a header name; "
                           "keys q1..qN, x, y, z, rx, ry, rz (or qw, qx, qy, qz), cmd_x.. "
                           "cmd_rz (commanded pose), sx, sy, sz (per-axis standard "
                           "deviations), temperature, time, pose, point")
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
+    p.add_argument("--pose-prefix", metavar="TEXT",
+                   help="keep only the rows whose pose id starts with TEXT (one session of a "
+                        "table that joins several: each session has its own device frame)")
     p.add_argument("--robot", help="bundled robot name or URDF (joint count and units; "
                                    "default 6 revolute joints)")
     p.add_argument("--joints-unit", choices=("deg", "rad"), help="default deg")
@@ -57,11 +62,19 @@ def run(args) -> int:
         elif n_joints != len(units):
             raise DataError(f"--columns maps {n_joints} joints, the robot has {len(units)}")
     text = convert(read_csv_text(args.source, "a measurement table"), spec, units,
-                   args.source)
+                   args.source, pose_prefix=args.pose_prefix)
     meas = parse_measurements(text, units, args.output)  # what we write must read back
     write_text_atomic(args.output, text)
-    conventions = [line[2:] for line in text.splitlines()[2:] if line.startswith("# ")]
+    conventions = [line[2:] for line in text.splitlines()[1:]
+                   if line.startswith("# ") and not line.startswith("# imported from")]
     print(f"wrote {meas.n_rows} rows to {args.output}")
     for line in conventions:
         print(f"  {line}")
+    runs = sessions(meas.time_s) if meas.time_s is not None else []
+    if len(runs) > 1:
+        print(f"WARNING: the rows form {len(runs)} sessions (time gaps over "
+              f"{SESSION_GAP_S / 3600:g} h; first poses "
+              f"{', '.join(str(meas.pose_ids[a]) for a, _ in runs[:6])}): a device moved "
+              f"between sessions has a frame of its own, which one fit cannot take; "
+              f"diagnose each session alone (--pose-prefix) unless the device stayed put")
     return 0

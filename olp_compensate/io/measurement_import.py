@@ -61,8 +61,22 @@ FORMATS = {
         conventions=["RoboDK calibration table: columns 0-5 joints (deg), 6-11 measured x, y, "
                      "z (mm) and w, p, r (deg, rotations about the fixed x, y, z axes in that "
                      "order: R = Rz(r) Ry(p) Rx(w)); a table of 9 columns has positions only"]),
+    "astl": ImportSpec(
+        map={"pose": "pose", **{f"q{k}": f"j{k}" for k in range(1, 7)}, "x": "X", "y": "Y",
+             "z": "Z", "sx": "sx", "sy": "sy", "sz": "sz", "temperature": "T",
+             "time": "time"},
+        name="astl",
+        conventions=["laser-tracker table by header names: pose; j1..j6 (deg); X; Y; Z (mm, "
+                     "tracker frame); sx; sy; sz (the tracker's per-axis uncertainty, mm); T "
+                     "(deg C); time (s); ';' separated with decimal commas (the layout of "
+                     "the HUST_NC_Robot / ASTL tracker data, doi:10.17632/srxktn4752.1, "
+                     "with theta.xlsx's joints beside Leica.csv's columns)"]),
 }
 """Named formats."""
+
+SESSION_GAP_S = 3600.0
+"""Rows more than this apart in time (s) belong to different sessions: the device may
+have moved between them (each session has its own device frame)."""
 
 KEYS = ({f"q{k}" for k in range(1, 13)} | {"x", "y", "z", "rx", "ry", "rz", "qw", "qx", "qy",
         "qz", "sx", "sy", "sz", "temperature", "time", "pose", "point"}
@@ -156,10 +170,19 @@ def check_spec(spec: ImportSpec, n_joints: int) -> None:
                         f"rotvec; got '{spec.euler}'")
 
 
-def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str) -> str:
-    """The measurement CSV text of a source table (see the module docstring)."""
+def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str,
+            pose_prefix: str | None = None) -> str:
+    """The measurement CSV text of a source table (see the module docstring); with
+    ``pose_prefix`` only the rows whose pose id starts with it."""
     spec_map = dict(spec.map)
     header, records, comma = _rows(text, source)
+    if pose_prefix is not None:
+        if "pose" not in spec_map:
+            raise DataError("--pose-prefix needs a pose column (map pose=COLUMN)")
+        at = _column(spec_map["pose"], header, max(len(r) for _, r in records), source)
+        records = [(n, r) for n, r in records if len(r) > at and r[at].startswith(pose_prefix)]
+        if not records:
+            raise DataError(f"{source}: no row's pose starts with '{pose_prefix}'")
     n_fields = max(len(r) for _, r in records) if records else 0
     if spec.name == "robodk" and n_fields < 12:  # positions only
         spec_map = {k: v for k, v in spec_map.items() if k not in ("rx", "ry", "rz")}
@@ -185,6 +208,7 @@ def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str) ->
     length = 1.0 if spec.length_unit == "mm" else 1e3
     joint = [1.0 if u == "mm" or spec.joints_unit == "deg" else 180.0 / math.pi
              for u in joint_units]
+    zero_sigma = 0
     for number, (line, fields) in enumerate(records):
         if any(i >= len(fields) for i in index.values()):
             raise DataError(f"{source}:{line}: {len(fields)} fields, expected {n_fields}")
@@ -197,9 +221,10 @@ def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str) ->
         row += [f"{values[k]:.15g}" for k in ("temperature", "time") if k in index]
         if has_sigma:
             sigma = math.sqrt(sum(values[k] ** 2 for k in ("sx", "sy", "sz")) / 3) * length
-            if not sigma > 0:
-                raise DataError(f"{source}:{line}: standard deviations must be positive")
-            row.append(f"{sigma:.6g}")
+            if sigma < 0 or not math.isfinite(sigma):
+                raise DataError(f"{source}:{line}: standard deviations must not be negative")
+            zero_sigma += sigma == 0
+            row.append(f"{sigma:.6g}" if sigma > 0 else "")  # below resolution: the default
         row += [f"{values['cmd_' + a] * (length if a in 'xyz' else 1.0):.9g}" for a in has_cmd]
         if has_rot:
             quat = _rotation(values, spec)
@@ -210,7 +235,23 @@ def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str) ->
         writer.writerow(row)
     if not records:
         raise DataError(f"{source}: no data rows")
-    return out.getvalue()
+    text = out.getvalue()
+    if zero_sigma:
+        text = text.replace("\n", f"\n# {zero_sigma} rows give zero standard deviations "
+                            f"(below the device's resolution): their sigma_mm is left empty "
+                            f"(the fit's default)\n", 1)
+    return text
+
+
+def sessions(time_s, gap_s: float = SESSION_GAP_S) -> list[tuple[int, int]]:
+    """(first, last) row indexes of the runs of rows whose times lie within ``gap_s`` of
+    the previous row's (time order as written)."""
+    t = np.asarray(time_s, dtype=float)
+    if len(t) == 0:
+        return []
+    cuts = np.flatnonzero(np.abs(np.diff(t)) > gap_s) + 1
+    starts, ends = np.r_[0, cuts], np.r_[cuts, len(t)] - 1
+    return [(int(a), int(b)) for a, b in zip(starts, ends)]
 
 
 def _conventions(spec: ImportSpec, has_rot: bool) -> list[str]:
