@@ -20,6 +20,11 @@ import numpy as np
 from ..errors import DataError
 from .board import Board
 
+CHESSBOARD_SEARCH_PX = 1600
+"""``cv2.findChessboardCornersSB`` searches images shrunk to this longest side (px); it took
+18 s on an 8-megapixel photograph, 0.7 s on a 960 x 540 one. The corners are then refined
+on the full image (``cv2.cornerSubPix``)."""
+
 MIN_CORNERS = 8
 """Fewest charuco corners a partly visible board must show (over at least two rows and two
 columns) to be used: as many as calibration and pose measurement need of any view
@@ -120,14 +125,35 @@ def find_chessboard_corners(grey: np.ndarray, board: Board) -> np.ndarray | str:
 
     rows, cols = board.grid_shape
     flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
-    found, corners = cv2.findChessboardCornersSB(grey, (cols, rows), flags=flags)
+    shrink = min(1.0, CHESSBOARD_SEARCH_PX / max(grey.shape))
+    small = grey if shrink == 1.0 else cv2.resize(grey, None, fx=shrink, fy=shrink,
+                                                  interpolation=cv2.INTER_AREA)
+    found, corners = cv2.findChessboardCornersSB(small, (cols, rows), flags=flags)
     if not found or corners is None or len(corners) != board.count:
         return (f"no {board.rows} x {board.cols}-square chessboard ({rows} x {cols} inner "
                 f"corners) found whole (cv2.findChessboardCornersSB)")
-    ordered = right_handed(board, corners.reshape(-1, 2).astype(float))
+    corners = corners.reshape(-1, 2).astype(float)
+    if shrink < 1.0:
+        corners = _full_resolution(grey, (corners + 0.5) / shrink - 0.5, (rows, cols))
+    ordered = right_handed(board, corners)
     if ordered is None:
         return "the chessboard's corners could not be ordered"
     return ordered
+
+
+def _full_resolution(grey: np.ndarray, corners: np.ndarray, shape) -> np.ndarray:
+    """Corners found on a shrunk image (n, 2), scaled back (px), refined on the full image
+    by ``cv2.cornerSubPix`` in a window of a quarter of the corner spacing."""
+    import cv2
+
+    grid = corners.reshape(*shape, 2)
+    spacing = min(np.median(np.linalg.norm(np.diff(grid, axis=0), axis=2)),
+                  np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
+    half = int(np.clip(spacing / 4, 2, 30))
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 0.001)
+    refined = cv2.cornerSubPix(grey, corners.astype(np.float32).reshape(-1, 1, 2),
+                               (half, half), (-1, -1), criteria)
+    return refined.reshape(-1, 2).astype(float)
 
 
 def check_measurable(board: Board) -> None:
