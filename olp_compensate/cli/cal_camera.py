@@ -3,7 +3,9 @@ camera's pose in the board frame.
 
 - ``board``: board.json (and optionally the printable SVG / PNG).
 - ``calibrate IMAGES... --board board.json -o camera.json``: the seed's RAC followed by the
-  full refinement (``--method rac-only`` keeps the RAC estimates).
+  full refinement (``--method rac-only`` keeps the RAC estimates); any board kind
+  (:mod:`..camera.board`), a charuco board's partial views included
+  (:mod:`..camera.find_board`).
 - ``measure IMAGES... --camera camera.json --board board.json -o poses.csv``: one row per
   image, the camera frame in the board frame; with ``--joints joints.csv`` a measurement CSV
   for ``olp-cal identify`` (the board is the measuring device, the camera the tool).
@@ -72,7 +74,10 @@ def add_arguments(p) -> None:
                                    "refinement on the reprojection error.")
     c.add_argument("images", nargs="+", metavar="IMAGES",
                    help="folders of .png/.jpg/.jpeg images, or image files")
-    c.add_argument("--board", required=True, help="board.json")
+    c.add_argument("--board", required=True,
+                   help="board.json; its \"kind\": olp-dots (default), opencv-circles, "
+                        "opencv-acircles, charuco (views showing part of the board are "
+                        "used) or chessboard")
     c.add_argument("-o", "--output", required=True, help="camera.json to write")
     c.add_argument("--method", choices=METHODS, default="rac",
                    help="rac: the RAC then the full refinement (default); rac-only: keep the "
