@@ -19,11 +19,13 @@ row); both found by ``cv2.findCirclesGrid``; "charuco" is OpenCV's ChArUco board
 ``rows`` squares of ``pitch_mm`` with ArUco markers of ``marker_mm`` from ``dictionary``
 (an OpenCV name, e.g. "DICT_4X4_50"), its "dots" the (rows - 1) x (cols - 1) inner chessboard
 corners at ``((c + 1) pitch, (r + 1) pitch)`` (OpenCV's board frame, origin at the board's
-corner), found by ``cv2.aruco.CharucoDetector``; it is not drawn or rendered here (OpenCV's
-``generateImage`` prints it); "chessboard" is a plain chessboard of ``cols`` x ``rows`` squares
-of ``pitch_mm`` (its "dots" the inner corners, laid out as a charuco board's), found by
-``cv2.findChessboardCornersSB``, whole boards only; like a symmetric circle grid it has no
-marker, so it calibrates but does not measure poses. And, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
+corner), found by ``cv2.aruco.CharucoDetector`` (a view may show part of the board); it is
+not drawn or rendered here (OpenCV's ``generateImage`` prints it). "chessboard" is a plain
+chessboard of ``cols`` x ``rows`` squares of ``pitch_mm`` (its "dots" the inner corners,
+laid out as a charuco board's), found whole by ``cv2.findChessboardCornersSB``; like a
+symmetric circle grid it has no marker, so it calibrates but does not measure poses.
+
+And, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
 :data:`SCALE_BAR_MM`; written only when it differs), which the user measures on the print
 to fix the board's scale (:mod:`.scale`).
 """

@@ -7,10 +7,11 @@ board gives the corners it shows), and plain chessboards, found whole by
 
 OpenCV orders the centres row by row, ``cols`` per row, as :meth:`.Board.dot_positions`
 lays the dots out for these kinds. The blob detector's default largest blob (5,000 px^2) is
-lifted to the image's share per dot so that near views of large circles are found; the circle-centre bias correction
-applies as for our board. A symmetric grid has no marker: its orientation is ambiguous by a
-half turn (OpenCV's own caveat), and so has a chessboard, which a calibration does not mind
-and a pose measurement does (:func:`check_measurable`).
+lifted to the image's share per dot so that near views of large circles are found; the
+circle-centre bias correction applies as for our board. A symmetric grid has no marker:
+its orientation is ambiguous by a half turn (OpenCV's own caveat), and so is a
+chessboard's, which a calibration does not mind and a pose measurement does
+(:func:`check_measurable`).
 """
 
 from __future__ import annotations

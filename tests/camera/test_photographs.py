@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import struct
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -209,3 +211,50 @@ def test_image_files_are_read_as_the_sensor_wrote_them(tmp_path):
     ok, png = cv2.imencode(".png", bgr)
     (tmp_path / "green.png").write_bytes(png.tobytes())
     assert abs(int(read_grey(tmp_path / "green.png")[0, 0]) - round(0.587 * 200)) <= 1
+
+
+def test_the_benchmarks_hand_eye_check_recovers_a_known_camera_mount(tmp_path, monkeypatch):
+    """benchmarks/camera_real.py --flange-poses: a camera 120 mm off a flange (known
+    mount X), a fixed board (known pose W); the views' camera_T_board follow from both. The
+    fit recovers X; the leave-one-out error is zero on exact poses and of the size of the
+    pose noise otherwise."""
+    import importlib.util
+
+    from olp_compensate.camera.board import Board
+    from olp_compensate.kinematics.conventions import (
+        invert_pose, pose_from_rotation_translation, quat_wxyz_from_matrix,
+        rotation_angle_between, rotation_from_rotvec)
+
+    spec = importlib.util.spec_from_file_location(
+        "camera_real", Path(__file__).resolve().parents[2] / "benchmarks" / "camera_real.py")
+    real = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "camera_real", real)      # its dataclasses need it
+    spec.loader.exec_module(real)
+    rng = np.random.default_rng(8)
+
+    def pose(angle_scale, centre, spread):
+        return pose_from_rotation_translation(rotation_from_rotvec(rng.normal(0, angle_scale, 3)),
+                                              centre + rng.normal(0, spread, 3))
+    X = pose(0.6, np.array([0.02, -0.05, 0.12]), 0.0)
+    W = pose(0.2, np.array([0.6, 0.1, 0.0]), 0.0)
+    board = Board(rows=7, cols=9, pitch_m=0.025, dot_diameter_m=0.025,
+                  marker_diameter_m=0.025, kind="chessboard")
+    flange, seen, noisy = {}, {}, {}
+    for k in range(7):
+        A = pose(0.35, np.array([0.6, 0.1, 0.5]), 0.08)
+        flange[f"v{k}"], seen[f"v{k}"] = A, invert_pose(A @ X) @ W
+        noisy[f"v{k}"] = pose(2e-4, np.zeros(3), 5e-5) @ seen[f"v{k}"]
+    lines = ["image,x_mm,y_mm,z_mm,qw,qx,qy,qz"] + [
+        ",".join([n] + [f"{v * 1e3:.6f}" for v in A[:3, 3]]
+                 + [f"{v:.12f}" for v in quat_wxyz_from_matrix(A[:3, :3])])
+        for n, A in flange.items()]
+    (tmp_path / "flange.csv").write_text("\n".join(lines) + "\n")
+    flange = real.read_flange_poses(str(tmp_path / "flange.csv"))
+    p = board.dot_positions()
+    found = real.hand_eye(list(flange.values()), list(noisy.values()), p[[0, 7, -8, -1]])
+    assert np.linalg.norm(found[:3, 3] - X[:3, 3]) < 1e-3
+    assert np.degrees(rotation_angle_between(found[:3, :3], X[:3, :3])) < 0.1
+    exact, distances = real.hand_eye_errors(flange, seen, board)
+    assert np.max(exact) < 1e-6 and np.all((distances > 0.2) & (distances < 1.5))
+    errors, _ = real.hand_eye_errors(flange, noisy, board)
+    assert 1e-5 < np.median(errors) < 1e-3
