@@ -25,7 +25,9 @@ Known motions:
   the board is in the robot base from the one left out; the distance between that and
   where the others put it, per view, is the error; reported for our poses and for
   OpenCV's, as mm and as 1:N of the camera-board distance. It includes the robot's own
-  positioning error, so it bounds the camera's from above.
+  positioning error, so it bounds the camera's from above. Also, with no fit at all: the
+  angle the flange turned between two views against the angle the camera turned (equal
+  whatever the mount), per pair of views.
 """
 
 from __future__ import annotations
@@ -47,8 +49,8 @@ from olp_compensate.camera.calibrate import View, calibrate  # noqa: E402
 from olp_compensate.camera.find_board import centre_bias_of, find_board  # noqa: E402
 from olp_compensate.io.images import image_paths, read_grey  # noqa: E402
 from olp_compensate.kinematics.conventions import (  # noqa: E402
-    matrix_from_quat_wxyz, pose_from_rotation_translation, rotation_from_rotvec,
-    rotvec_from_rotation)
+    matrix_from_quat_wxyz, pose_from_rotation_translation, rotation_angle_between,
+    rotation_from_rotvec, rotvec_from_rotation)
 
 
 def detect_all(paths, board):
@@ -161,11 +163,29 @@ def hand_eye_errors(flange: dict, camera_T_board: dict, board: Board):
     return np.array(errors), np.array(distances)
 
 
-def print_hand_eye(label: str, errors: np.ndarray, distances: np.ndarray) -> None:
+def turn_errors_deg(flange: dict, camera_T_board: dict) -> np.ndarray:
+    """Per pair of views, |the flange's turn - the camera's turn| (deg): both turn by the
+    same angle whatever the mount (the motions are conjugate), so this needs no hand-eye
+    fit."""
+    names = [n for n in camera_T_board if n in flange]
+    out = []
+    for k, a in enumerate(names):
+        for b in names[k + 1:]:
+            robot = rotation_angle_between(flange[a][:3, :3], flange[b][:3, :3])
+            camera = rotation_angle_between(camera_T_board[a][:3, :3],
+                                            camera_T_board[b][:3, :3])
+            out.append(abs(np.degrees(robot - camera)))
+    return np.array(out)
+
+
+def print_hand_eye(label: str, errors: np.ndarray, distances: np.ndarray,
+                   turns: np.ndarray) -> None:
     ratio = distances / np.maximum(errors, 1e-12)
     print(f"  {label}: board centre from the view left out, median {np.median(errors) * 1e3:.3f}"
           f" mm, max {np.max(errors) * 1e3:.3f} mm; median 1:{np.median(ratio):,.0f} of the "
-          f"{np.median(distances) * 1e3:.0f} mm distance")
+          f"{np.median(distances) * 1e3:.0f} mm distance; turn between views, robot vs "
+          f"camera, median {np.median(turns):.3f} deg, max {np.max(turns):.3f} deg "
+          f"({len(turns)} pairs)")
 
 
 def print_ours(cal, found: dict) -> None:
@@ -238,10 +258,11 @@ def main() -> None:
         ours = {v.name: v.camera_T_board for v in cal.views}
         print(f"hand-eye, {sum(n in flange for n in ours)} views with flange poses "
               f"(leave one out):")
-        print_hand_eye("ours", *hand_eye_errors(flange, ours, board))
+        print_hand_eye("ours", *hand_eye_errors(flange, ours, board),
+                       turn_errors_deg(flange, ours))
         for peer in peers:
-            print_hand_eye(f"OpenCV {peer.label}",
-                           *hand_eye_errors(flange, peer.poses, board))
+            print_hand_eye(f"OpenCV {peer.label}", *hand_eye_errors(flange, peer.poses, board),
+                           turn_errors_deg(flange, peer.poses))
 
 
 if __name__ == "__main__":

@@ -258,6 +258,10 @@ def test_the_benchmarks_hand_eye_check_recovers_a_known_camera_mount(tmp_path, m
     assert np.max(exact) < 1e-6 and np.all((distances > 0.2) & (distances < 1.5))
     errors, _ = real.hand_eye_errors(flange, noisy, board)
     assert 1e-5 < np.median(errors) < 1e-3
+    # the turn between two views is the flange's and the camera's alike, with no fit
+    assert len(real.turn_errors_deg(flange, seen)) == 21
+    assert np.max(real.turn_errors_deg(flange, seen)) < 1e-4
+    assert 1e-4 < np.median(real.turn_errors_deg(flange, noisy)) < 0.1
 
 
 @pytest.mark.parametrize("kind", ["opencv-acircles", "opencv-circles", "olp-dots"])
