@@ -4,6 +4,8 @@ robot's flange looking at a printed board of dots.
 - :mod:`.model` the RAC camera model (pixels from camera-frame points);
 - :mod:`.board` the board (dots in the board frame, board.json);
 - :mod:`.detect` subpixel dot centres ordered by the marker dot;
+- :mod:`.detect_opencv`, :mod:`.find_board` the boards users own (OpenCV's circle grids,
+  ChArUco boards, chessboards), a ChArUco board's partial views included;
 - :mod:`.rac`, :mod:`.refine`, :mod:`.calibrate` Tsai's RAC with the seed's changes, then a
   full Levenberg-Marquardt refinement; :mod:`.rac_batch` the RAC's stages for all views at
   once (its searches), :mod:`.block_lm` the refinement's solver on per-view blocks (Schur

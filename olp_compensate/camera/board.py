@@ -19,8 +19,13 @@ row); both found by ``cv2.findCirclesGrid``; "charuco" is OpenCV's ChArUco board
 ``rows`` squares of ``pitch_mm`` with ArUco markers of ``marker_mm`` from ``dictionary``
 (an OpenCV name, e.g. "DICT_4X4_50"), its "dots" the (rows - 1) x (cols - 1) inner chessboard
 corners at ``((c + 1) pitch, (r + 1) pitch)`` (OpenCV's board frame, origin at the board's
-corner), found by ``cv2.aruco.CharucoDetector``; it is not drawn or rendered here (OpenCV's
-``generateImage`` prints it). And, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
+corner), found by ``cv2.aruco.CharucoDetector`` (a view may show part of the board); it is
+not drawn or rendered here (OpenCV's ``generateImage`` prints it). "chessboard" is a plain
+chessboard of ``cols`` x ``rows`` squares of ``pitch_mm`` (its "dots" the inner corners,
+laid out as a charuco board's), found whole by ``cv2.findChessboardCornersSB``; like a
+symmetric circle grid it has no marker, so it calibrates but does not measure poses.
+
+And, optionally, ``"scale_bar_mm"``: the nominal length of the printed scale bar (default
 :data:`SCALE_BAR_MM`; written only when it differs), which the user measures on the print
 to fix the board's scale (:mod:`.scale`).
 """
@@ -39,8 +44,11 @@ from ..errors import DataError
 from ..io.atomic import write_text_atomic
 
 BOARD_KEYS = ("rows", "cols", "pitch_mm", "dot_diameter_mm", "marker_diameter_mm")
-KINDS = ("olp-dots", "opencv-circles", "opencv-acircles", "charuco")
+KINDS = ("olp-dots", "opencv-circles", "opencv-acircles", "charuco", "chessboard")
 """Board kinds board.json may name (module docstring)."""
+CORNER_KINDS = ("charuco", "chessboard")
+"""Kinds whose "dots" are chessboard corners: no circle-centre bias, (rows - 1) x (cols - 1)
+inner corners of ``rows`` x ``cols`` squares."""
 READ_KINDS = KINDS
 SCALE_BAR_MM = 100.0
 """Nominal length of the printed scale bar, mm (board.json's optional ``scale_bar_mm``)."""
@@ -108,6 +116,8 @@ class Board:
         if self.kind == "charuco":
             self._check_charuco()
             return
+        if self.kind == "chessboard":
+            return
         if self.kind == "olp-dots" and self.marker_diameter_m <= self.dot_diameter_m * 1.2:
             raise DataError(
                 f"board: the marker diameter ({self.marker_diameter_m / MM:g} mm) must be at "
@@ -138,14 +148,14 @@ class Board:
 
     @property
     def grid_shape(self) -> tuple[int, int]:
-        """(rows, columns) of the dots (a charuco board's inner corners)."""
-        if self.kind == "charuco":
+        """(rows, columns) of the dots (a charuco board's or chessboard's inner corners)."""
+        if self.kind in CORNER_KINDS:
             return self.rows - 1, self.cols - 1
         return self.rows, self.cols
 
     @property
     def count(self) -> int:
-        """Number of dots, rows * cols (a charuco board: its inner corners)."""
+        """Number of dots, rows * cols (a charuco board, a chessboard: its inner corners)."""
         rows, cols = self.grid_shape
         return rows * cols
 
@@ -156,7 +166,7 @@ class Board:
         r, c = np.divmod(np.arange(self.count), self.grid_shape[1])
         if self.kind == "opencv-acircles":
             c = 2 * c + r % 2
-        elif self.kind == "charuco":
+        elif self.kind in CORNER_KINDS:
             r, c = r + 1, c + 1
         return np.stack([c * self.pitch_m, r * self.pitch_m, np.zeros(self.count)], -1)
 
@@ -188,14 +198,15 @@ class Board:
 
     def dot_radii(self) -> np.ndarray:
         """Printed radius of every dot, shape (rows*cols,), m (index 0 is the marker)."""
-        radii = np.full(self.count, 0.0 if self.kind == "charuco" else self.dot_diameter_m / 2)
+        radii = np.full(self.count,
+                        0.0 if self.kind in CORNER_KINDS else self.dot_diameter_m / 2)
         if self.kind == "olp-dots":
             radii[0] = self.marker_diameter_m / 2
         return radii
 
     def sheet_extent(self) -> SheetExtent:
         """The light sheet the dots are printed on: one pitch beyond the outer dots' edges."""
-        if self.kind == "charuco":
+        if self.kind in CORNER_KINDS:
             return SheetExtent(0.0, self.cols * self.pitch_m, 0.0, self.rows * self.pitch_m)
         margin = self.pitch_m + float(np.max(self.dot_radii()))
         last = self.dot_positions().max(axis=0)
@@ -212,6 +223,8 @@ def board_from_dict(data: dict, source: str = "<board>") -> Board:
         raise DataError(f"{source}: 'kind' must be a string, got {kind!r}")
     if kind == "charuco":
         return _charuco_from_dict(data, source)
+    if kind == "chessboard":
+        return _chessboard_from_dict(data, source)
     if kind != "olp-dots" and "marker_diameter_mm" not in data:
         data = {**data, "marker_diameter_mm": data.get("dot_diameter_mm")}
     for key in BOARD_KEYS:
@@ -254,8 +267,26 @@ def _charuco_from_dict(data: dict, source: str) -> Board:
         raise DataError(f"{source}: {exc}") from None
 
 
+def _chessboard_from_dict(data: dict, source: str) -> Board:
+    for key in ("rows", "cols", "pitch_mm"):
+        if key not in data:
+            raise DataError(f"{source}: a chessboard needs '{key}' (rows, cols: squares; "
+                            f"pitch_mm: square side)")
+    if isinstance(data["pitch_mm"], bool) or not isinstance(data["pitch_mm"], (int, float)):
+        raise DataError(f"{source}: 'pitch_mm' must be a number, got {data['pitch_mm']!r}")
+    try:
+        return Board(rows=data["rows"], cols=data["cols"], pitch_m=data["pitch_mm"] * MM,
+                     dot_diameter_m=data["pitch_mm"] * MM,
+                     marker_diameter_m=data["pitch_mm"] * MM, kind="chessboard")
+    except DataError as exc:
+        raise DataError(f"{source}: {exc}") from None
+
+
 def board_to_dict(board: Board) -> dict:
     """The board.json mapping (mm) of ``board``."""
+    if board.kind == "chessboard":
+        return {"kind": "chessboard", "rows": int(board.rows), "cols": int(board.cols),
+                "pitch_mm": _mm(board.pitch_m)}
     if board.kind == "charuco":
         return {"kind": "charuco", "rows": int(board.rows), "cols": int(board.cols),
                 "pitch_mm": _mm(board.pitch_m), "marker_mm": _mm(board.dot_diameter_m),

@@ -78,6 +78,9 @@ def _drawable(board: Board) -> None:
     if board.kind == "charuco":
         raise DataError("board drawing: a charuco board is printed from OpenCV's "
                         "CharucoBoard.generateImage, not drawn here")
+    if board.kind == "chessboard":
+        raise DataError("board drawing: chessboards are not drawn here (OpenCV's "
+                        "samples/data/chessboard.png, or any print with measured squares)")
 
 
 def board_svg(board: Board) -> str:

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..kinematics.conventions import invert_pose, pose_from_rotation_translation
 from ..errors import DataError
-from .board import Board
+from .board import CORNER_KINDS, Board
 from .model import CameraIntrinsics, project_points
 
 _CHUNK = 1 << 18  # rays per batch when supersampling
@@ -101,8 +101,8 @@ class _Scene:
     """Signed distances to the dot edges and the sheet edge of one board (m)."""
 
     def __init__(self, board: Board):
-        if board.kind == "charuco":
-            raise DataError("render: charuco boards are not rendered here (use an olp-dots "
+        if board.kind in CORNER_KINDS:
+            raise DataError(f"render: {board.kind} boards are not rendered here (use an olp-dots "
                             "or OpenCV circle-grid board for virtual views)")
         self.board = board
         self.sheet = board.sheet_extent()

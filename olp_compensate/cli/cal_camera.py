@@ -3,7 +3,9 @@ camera's pose in the board frame.
 
 - ``board``: board.json (and optionally the printable SVG / PNG).
 - ``calibrate IMAGES... --board board.json -o camera.json``: the seed's RAC followed by the
-  full refinement (``--method rac-only`` keeps the RAC estimates).
+  full refinement (``--method rac-only`` keeps the RAC estimates); any board kind
+  (:mod:`..camera.board`), a charuco board's partial views included
+  (:mod:`..camera.find_board`).
 - ``measure IMAGES... --camera camera.json --board board.json -o poses.csv``: one row per
   image, the camera frame in the board frame; with ``--joints joints.csv`` a measurement CSV
   for ``olp-cal identify`` (the board is the measuring device, the camera the tool).
@@ -24,12 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera.board import READ_KINDS, Board, board_to_dict, read_board, write_board
+from ..camera.board import (CORNER_KINDS, READ_KINDS, Board, board_to_dict, read_board,
+                            write_board)
 from ..camera.detect_opencv import check_measurable
 from ..camera.scale import (SCALE_LINE, BoardScale, from_scale_bar, read_reference,
                             scaled_board, unverified_note)
 from ..camera.calibrate import METHODS, View, calibrate
-from ..camera.detect import circle_centre_bias, detect_dots
+from ..camera.find_board import centre_bias_of, find_board
 from ..camera.measure import measure_pose
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
@@ -71,7 +74,10 @@ def add_arguments(p) -> None:
                                    "refinement on the reprojection error.")
     c.add_argument("images", nargs="+", metavar="IMAGES",
                    help="folders of .png/.jpg/.jpeg images, or image files")
-    c.add_argument("--board", required=True, help="board.json")
+    c.add_argument("--board", required=True,
+                   help="board.json; its \"kind\": olp-dots (default), opencv-circles, "
+                        "opencv-acircles, charuco (views showing part of the board are "
+                        "used) or chessboard")
     c.add_argument("-o", "--output", required=True, help="camera.json to write")
     c.add_argument("--method", choices=METHODS, default="rac",
                    help="rac: the RAC then the full refinement (default); rac-only: keep the "
@@ -174,17 +180,17 @@ def _expand(images: list[str]) -> list[Path]:
 
 
 def _detect(paths: list[Path], board: Board):
-    """(name, pixels or None, reason, (width, height)) per image, in order; an unreadable
-    image is a DataError."""
+    """(name, :class:`FoundView` or None, reason, (width, height)) per image, in order; an
+    unreadable image is a DataError."""
     out = []
     for path in paths:
         if not path.is_file():
             raise DataError(f"{path}: no such image file")
         grey = read_grey(path)
-        found = detect_dots(grey, board, path.name)
+        found = find_board(grey, board, path.name)
         size = (grey.shape[1], grey.shape[0])
         if found.ok:
-            out.append((path.name, found.pixels, "", size))
+            out.append((path.name, found, "", size))
         else:
             out.append((path.name, None, found.reason, size))
     return out
@@ -244,19 +250,19 @@ def _run_calibrate(args) -> int:
     width, height = sizes.pop()
     scale = board_scale(args, board)
     nominal_board, board = board, scaled_board(board, scale)
-    points = board.dot_positions()
-    views = [View(name, pix, points) for name, pix, _, _ in found if pix is not None]
-    not_found = [(name, reason) for name, pix, reason, _ in found if pix is None]
+    views = [View(name, f.pixels, f.points(board)) for name, f, _, _ in found if f is not None]
+    partial = {name: f.describe() for name, f, _, _ in found if f is not None and f.partial}
+    not_found = [(name, reason) for name, f, reason, _ in found if f is None]
     for name, reason in not_found:
         print(f"skipped {name}: {reason}")
-    bias = None if args.no_circle_correction else \
-        (lambda k, T: circle_centre_bias(k, T, board))
+    bias = centre_bias_of(board, not args.no_circle_correction)
     cal = dataclasses.replace(calibrate(views, width, height, method=args.method,
                                         centre_bias=bias), scale=scale)
     what = ("the seed's RAC estimates kept" if args.method == "rac-only" else
             "the seed's RAC, then the full refinement" if cal.start == "rac" else
             "too few views tilted for the RAC: homographies (Zhang), then the full refinement")
     corr = (f"circle-centre correction, {cal.bias_iterations} passes" if cal.bias_iterations
+            else "corners as detected" if board.kind in CORNER_KINDS
             else "detected centroids as they are")
     print(f"camera {width} x {height} px from {len(cal.views)} of {len(paths)} images "
           f"(method {args.method}: {what}; {corr})")
@@ -265,7 +271,7 @@ def _run_calibrate(args) -> int:
                                        "RAC's intrinsics)",
                 "homography": "  (started from its homography)"}[v.stage]
         print(f"  {v.name}: rms {v.rms_px:.3f} px, max {v.max_px:.3f} px, board tilted "
-              f"{v.tilt_deg:.0f} deg{note}")
+              f"{v.tilt_deg:.0f} deg{partial.get(v.name, '')}{note}")
     for s in cal.skipped:
         print(f"skipped {s.name}: {s.reason}")
     n_dots = sum(len(v.pixels) for v in views)
@@ -287,8 +293,10 @@ def _run_calibrate(args) -> int:
     if args.html:
         from ..report.camera_html import write_calibration_html
         _check_output(Path(args.html), paths + [Path(args.board), out])
+        # the report draws whole boards; a partial charuco view is listed, not drawn
         write_calibration_html(args.html, cal, board,
-                               {name: pix for name, pix, _, _ in found if pix is not None},
+                               {name: f.pixels for name, f, _, _ in found
+                                if f is not None and not f.partial},
                                {p.name: p for p in paths})
         print(f"wrote {args.html}")
     return 0
@@ -357,18 +365,17 @@ def _run_measure(args) -> int:
     k = cal.intrinsics
     scale = board_scale(args, board, cal.scale)
     nominal_board, board = board, scaled_board(board, scale)
-    bias = None if args.no_circle_correction else \
-        (lambda intr, T: circle_centre_bias(intr, T, board))
-    points = board.dot_positions()
+    bias = centre_bias_of(board, not args.no_circle_correction)
     measured = {}
-    for name, pix, reason, (w, h) in _detect(paths, nominal_board):
+    for name, found, reason, (w, h) in _detect(paths, nominal_board):
         if (w, h) != (k.width, k.height):
             raise DataError(f"{name}: image is {w} x {h} px, the camera was calibrated at "
                             f"{k.width} x {k.height} ({args.camera})")
-        if pix is None:
+        if found is None:
             print(f"{name}: board not found ({reason}); left out")
             continue
-        measured[name] = measure_pose(pix, points, k, name=name, centre_bias=bias)
+        measured[name] = measure_pose(found.pixels, found.points(board), k, name=name,
+                                      centre_bias=bias)
     if joints is None:
         text = _poses_csv(measured)
         count = len(measured)

@@ -40,7 +40,7 @@ def run(args) -> int:
     from ..camera.assess import assess_moves, assessment_table, read_moves
     from ..camera.board import read_board
     from ..camera.campaign import board_centre
-    from ..camera.detect import circle_centre_bias, detect_dots
+    from ..camera.find_board import centre_bias_of, find_board
     from ..camera.measure import measure_pose
     from ..errors import DataError
     from ..io.atomic import write_text_atomic
@@ -68,23 +68,22 @@ def run(args) -> int:
     missing = [n for n in names if n not in paths]
     if missing:
         raise DataError(f"{args.moves}: image '{missing[0]}' is not among the images given")
-    bias = None if args.no_circle_correction else \
-        (lambda k, T: circle_centre_bias(k, T, board))
-    points = board.dot_positions()
+    bias = centre_bias_of(board, not args.no_circle_correction)
     kept, poses, known = [], [], []
     for name, move in zip(names, moves):
         grey = read_grey(paths[name])
         if (grey.shape[1], grey.shape[0]) != (intrinsics.width, intrinsics.height):
             raise DataError(f"{name}: image is {grey.shape[1]} x {grey.shape[0]} px, the camera "
                             f"was calibrated at {intrinsics.width} x {intrinsics.height}")
-        found = detect_dots(grey, nominal_board, name)
+        found = find_board(grey, nominal_board, name)
         if not found.ok:
             if not kept:
                 raise DataError(f"{name}: board not found ({found.reason}); the reference "
                                 f"(first) view must be measured")
             print(f"{name}: board not found ({found.reason}); left out")
             continue
-        m = measure_pose(found.pixels, points, intrinsics, name=name, centre_bias=bias)
+        m = measure_pose(found.pixels, found.points(board), intrinsics, name=name,
+                         centre_bias=bias)
         kept.append(name)
         poses.append(m.board_T_camera)
         known.append(move)

@@ -1,4 +1,10 @@
-"""Camera images at the file edge: PNG and JPEG, 8-bit grey or colour, any size.
+"""Camera images at the file edge: PNG and JPEG, 8- or 16-bit, grey or colour, any size.
+
+Pixels are read as the sensor wrote them: a JPEG's EXIF orientation tag is ignored, so that
+photographs taken with the camera turned share one pixel frame (one set of intrinsics)
+instead of coming out rotated, at swapped sizes. A 16-bit image (a machine-vision camera's
+10- or 12-bit data) is scaled linearly so that its brightest pixel is 255: its top byte
+alone would leave 12-bit data at 0-15.
 
 An IMAGES argument is a folder (its image files, sorted by name) or a list of files.
 Pixel coordinates elsewhere in the package have integer values at pixel centres
@@ -65,12 +71,15 @@ def _decode(path: Path, flags: int) -> np.ndarray:
 
 def read_grey(path: str | Path) -> np.ndarray:
     """The image at ``path`` as 8-bit grey, shape (height, width), uint8 (colour is
-    converted with the usual luma weights)."""
+    converted with the usual luma weights; 16 bits scaled to the brightest pixel; EXIF
+    orientation ignored, see the module docstring)."""
     import cv2
 
-    image = _decode(Path(path), cv2.IMREAD_GRAYSCALE)
+    image = _decode(Path(path), cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
+                    | cv2.IMREAD_IGNORE_ORIENTATION)
     if image.dtype != np.uint8:
-        image = (image / 257.0).round().astype(np.uint8)
+        peak = max(float(image.max()), 1.0)
+        image = np.round(image * (255.0 / peak)).astype(np.uint8)
     return image
 
 
@@ -78,7 +87,7 @@ def read_rgb(path: str | Path) -> np.ndarray:
     """The image at ``path`` as 8-bit RGB, shape (height, width, 3), uint8."""
     import cv2
 
-    image = _decode(Path(path), cv2.IMREAD_COLOR)
+    image = _decode(Path(path), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 

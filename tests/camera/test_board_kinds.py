@@ -44,7 +44,7 @@ def test_board_json_names_the_kind_and_the_layout_is_opencvs(tmp_path):
     with pytest.raises(DataError, match="charuco board needs 'marker_mm'"):
         board_from_dict({**doc, "kind": "charuco"})
     with pytest.raises(DataError, match="unknown kind"):
-        board_from_dict({**doc, "kind": "chessboard"})
+        board_from_dict({**doc, "kind": "apriltag-grid"})
 
 
 def _views(board, count, seed):
