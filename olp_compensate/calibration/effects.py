@@ -46,66 +46,15 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import DataError, ModelError
-from .gravity import gravity_model
-from ..kinematics.robot import Robot
+from .effect_inputs import Conditions, EffectInputs, effect_inputs
+
+__all__ = ["Conditions", "EffectInputs", "effect_inputs", "Effect", "JointCompliance",
+           "GearHarmonic", "Backlash", "JointScale", "ThermalExpansion", "CyclicError",
+           "make_effect", "effect_from_dict", "joint_effects", "geometry_effects",
+           "needs_torque", "joint_deflection", "joint_deflection_dq", "length_scale"]
 
 TORQUE_SIGN_TOLERANCE = 1e-6
 """Load torques below this (N.m) count as zero for the sign in the backlash term."""
-
-
-@dataclass(frozen=True)
-class Conditions:
-    """Operating conditions beyond the joints, per row (all optional).
-
-    ``payload_kg`` (m,) carried at ``payload_point_m`` (m, 3), flange frame, m (default the
-    flange origin); ``temperature_c`` (m,), deg C; ``directions`` (m, n) approach direction
-    per controller axis, +1 / -1, 0 when unknown.
-    """
-
-    payload_kg: np.ndarray | None = None
-    payload_point_m: np.ndarray | None = None
-    temperature_c: np.ndarray | None = None
-    directions: np.ndarray | None = None
-
-
-@dataclass(frozen=True)
-class EffectInputs:
-    """What the effects read, per row: ``q`` (m, n) controller axes, rad/m; ``torque``
-    (m, n) gravity load torque about the controller axes, N.m, and ``dtorque_dq`` (m, n, n)
-    (each None when not computed); ``temperature_c`` (m,) or None; ``directions`` (m, n) or
-    None."""
-
-    q: np.ndarray
-    torque: np.ndarray | None = None
-    dtorque_dq: np.ndarray | None = None
-    temperature_c: np.ndarray | None = None
-    directions: np.ndarray | None = None
-
-    @property
-    def n_rows(self) -> int:
-        return len(self.q)
-
-    def subset(self, mask) -> "EffectInputs":
-        """The rows selected by a boolean mask or index array."""
-        def pick(a):
-            return None if a is None else a[mask]
-        return EffectInputs(q=self.q[mask], torque=pick(self.torque),
-                            dtorque_dq=pick(self.dtorque_dq),
-                            temperature_c=pick(self.temperature_c),
-                            directions=pick(self.directions))
-
-
-def effect_inputs(robot: Robot, q_ctrl: np.ndarray, conditions: Conditions | None = None,
-                  torque: bool = True, derivatives: bool = False) -> EffectInputs:
-    """Evaluate the inputs of the effects for controller axis values ``q_ctrl`` (m, n)."""
-    q_ctrl = np.atleast_2d(np.asarray(q_ctrl, dtype=float))
-    conditions = conditions or Conditions()
-    tau = dtau = None
-    if torque:
-        tau, dtau = gravity_model(robot).load_torque(q_ctrl, conditions.payload_kg,
-                                                     conditions.payload_point_m, derivatives)
-    return EffectInputs(q=q_ctrl, torque=tau, dtorque_dq=dtau,
-                        temperature_c=conditions.temperature_c, directions=conditions.directions)
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ def add_arguments(p) -> None:
     p.add_argument("-o", "--output", help="also write the per-view figures as CSV")
     p.add_argument("--no-circle-correction", action="store_true",
                    help="use the detected dot centroids as they are")
-    from .cal_camera import add_scale_arguments
+    from .camera_scale import add_scale_arguments
     add_scale_arguments(p, inherit=True)
 
 
@@ -49,7 +49,7 @@ def run(args) -> int:
 
     from ..camera.detect_opencv import check_measurable
     from ..camera.scale import scaled_board
-    from .cal_camera import board_scale, print_scale
+    from .camera_scale import board_scale, print_scale
 
     board = read_board(args.board)
     check_measurable(board)
