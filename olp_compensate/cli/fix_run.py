@@ -18,6 +18,9 @@ from .fix_models import add_options as add_model_options
 from .fix_unit import (ROBOT_COMMENT_SPAN, check_not_cut_short, check_robot, load_calibrations,
                        loadable_outputs, make_compensator)
 
+DESCRIPTION = ("``olp-fix``: rewrite robot programs so the real (calibrated) robot reaches "
+               "what they meant.")
+"""The first line of ``olp-fix --help`` (the command's module docstring says the same)."""
 SHOWN_PROBLEMS = 20
 EMIT_MODES = ("pose", "joints")
 """As :data:`olp_compensate.programs.object_model.program.EMIT_MODES` (a test checks),
@@ -30,7 +33,7 @@ def _languages_help() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="olp-fix", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="olp-fix", description=DESCRIPTION)
     p.add_argument("program", nargs="+", metavar="PATH",
                    help=f"program files ({_languages_help()}), task folders or "
                         f"controller backups")
