@@ -69,6 +69,15 @@ class Language:
 _REGISTERED: dict[str, Language] = {}
 
 
+def lazy(module: str, name: str, package: str | None = None) -> Callable[..., Any]:
+    """A hook that imports ``name`` from ``module`` (relative to ``package``) when first
+    called, so a ``language`` module stays light to import."""
+    def hook(*args, **kwargs):
+        return getattr(importlib.import_module(module, package), name)(*args, **kwargs)
+    hook.__name__ = hook.__qualname__ = name
+    return hook
+
+
 def register(language: Language) -> Language:
     """Add ``language`` (or replace the one of its name); its extensions must be new."""
     if not language.extensions or any(not e.startswith(".") or e != e.lower()

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from ..languages import Language
+from ..languages import Language, lazy
 
 
 def compensate(files, texts: list[str], run):
@@ -22,11 +22,6 @@ def compensate(files, texts: list[str], run):
     return pose_program_result(files, program, fanuc_rules(backup.turn_axes), run)
 
 
-def _stated_loads(texts, config=None):
-    from .payload import stated_loads
-
-    return stated_loads(texts, config)
-
-
 LANGUAGE = Language(name="fanuc", title="FANUC TP", extensions=(".ls",),
-                    compensate=compensate, stated_loads=_stated_loads)
+                    compensate=compensate,
+                    stated_loads=lazy(".payload", "stated_loads", __package__))

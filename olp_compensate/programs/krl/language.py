@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..languages import Language
+from ..languages import Language, lazy
 
 EXTENSIONS = (".src", ".dat")
 
@@ -34,20 +34,9 @@ def partner(path: Path) -> Path | None:
     return None
 
 
-def _loadable(paths, outputs, data):
-    from .names import match_krl_names
-
-    return match_krl_names(paths, outputs, data)
-
-
-def _stated_loads(texts, config=None):
-    from .payload import stated_loads
-
-    return stated_loads(texts, config)
-
-
 LANGUAGE = Language(
     name="krl", title="KUKA KRL", extensions=EXTENSIONS, compensate=compensate,
     unit_key=lambda path, given_alone: (path.parent, path.stem.lower()),
     member_order=lambda path, name: path.suffix.lower() != ".src",       # .src first
-    partner=partner, loadable_outputs=_loadable, stated_loads=_stated_loads)
+    partner=partner, loadable_outputs=lazy(".names", "match_krl_names", __package__),
+    stated_loads=lazy(".payload", "stated_loads", __package__))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ..languages import Language
+from ..languages import Language, lazy
 
 EXTENSIONS = (".mod", ".modx", ".prg", ".sys")
 
@@ -57,12 +57,6 @@ def _readable(files, texts: list[str], run):
     return FilesResult(new=tuple(new), report=report)
 
 
-def _stated_loads(texts, config=None):
-    from .payload import stated_loads
-
-    return stated_loads(texts, config)
-
-
 def _warm_up() -> None:
     """The parser loaded and the object model imported (a pool's workers inherit them)."""
     from .. import loads
@@ -75,4 +69,5 @@ LANGUAGE = Language(
     name="rapid", title="ABB RAPID", extensions=EXTENSIONS, compensate=compensate,
     unit_key=task_root,
     member_order=lambda path, name: (path.suffix.lower() != ".sys", name.lower()),
-    stated_loads=_stated_loads, warm_up=_warm_up, emits_joints=True)
+    stated_loads=lazy(".payload", "stated_loads", __package__), warm_up=_warm_up,
+    emits_joints=True)

@@ -4,7 +4,7 @@ controller's model is warned."""
 
 from __future__ import annotations
 
-from ..languages import Language
+from ..languages import Language, lazy
 
 NO_CONTROLLER_MODEL = (
     "warning: UR controllers run their own factory calibration (calibration.conf), not the "
@@ -22,13 +22,7 @@ def compensate(files, texts: list[str], run):
     return pose_program_result(files, parse_urscript(texts[0], files.names[0]), URSCRIPT, run)
 
 
-def _stated_loads(texts, config=None):
-    from .payload import stated_loads
-
-    return stated_loads(texts, config)
-
-
 LANGUAGE = Language(
     name="urscript", title="URScript", extensions=(".script", ".urscript"),
-    compensate=compensate, stated_loads=_stated_loads,
+    compensate=compensate, stated_loads=lazy(".payload", "stated_loads", __package__),
     controller_warning=lambda controller: NO_CONTROLLER_MODEL if controller is None else None)
