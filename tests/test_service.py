@@ -374,6 +374,20 @@ def test_pipe_krl_src_and_dat_as_olp_fix_writes_them(root, pipe, tmp_path):
         [(r["target"], r["status"], r["note"]) for r in expected]
 
 
+def test_pipe_program_text_with_characters_no_file_encoding_holds(pipe):
+    """A program text sent as JSON may hold characters latin-1 cannot (a comment in Greek):
+    they come back as sent, around the compensated numbers."""
+    text = KRL.replace("DEF prog( )", "DEF prog( ) ; \u03b1\u03b2 \u20ac", 1)
+    assert text != KRL
+    plain = pipe.call("compensate_program", {"calibration": "calib.json", "dialect": "krl",
+                                             "text": KRL, "file": "prog.src"})["result"]
+    answer = pipe.call("compensate_program", {"calibration": "calib.json", "dialect": "krl",
+                                              "text": text, "file": "prog.src"})["result"]
+    assert answer["text"] == plain["text"].replace("DEF prog( )",
+                                                   "DEF prog( ) ; \u03b1\u03b2 \u20ac", 1)
+    assert [r["status"] for r in answer["rows"]] == [r["status"] for r in plain["rows"]]
+
+
 def test_pipe_krl_configuration_as_olp_fix_reads_it(pipe):
     from scipy.spatial.transform import Rotation
 

@@ -48,10 +48,6 @@ import numpy as np
 from ..errors import DataError, ModelError
 from .effect_inputs import Conditions, EffectInputs, effect_inputs
 
-__all__ = ["Conditions", "EffectInputs", "effect_inputs", "Effect", "JointCompliance",
-           "GearHarmonic", "Backlash", "JointScale", "ThermalExpansion", "CyclicError",
-           "make_effect", "effect_from_dict", "joint_effects", "geometry_effects",
-           "needs_torque", "joint_deflection", "joint_deflection_dq", "length_scale"]
 
 TORQUE_SIGN_TOLERANCE = 1e-6
 """Load torques below this (N.m) count as zero for the sign in the backlash term."""
@@ -446,6 +442,7 @@ def length_scale(effects, inputs: EffectInputs) -> np.ndarray:
     return scale
 
 
-__all__ = ["Conditions", "EffectInputs", "Effect", "JointCompliance", "GearHarmonic", "Backlash",
-           "JointScale", "ThermalExpansion", "EFFECT_KINDS", "make_effect", "effect_from_dict",
-           "effect_inputs", "joint_deflection", "joint_deflection_dq", "length_scale", "CyclicError"]
+__all__ = ["Conditions", "EffectInputs", "Effect", "JointCompliance", "GearHarmonic",
+           "Backlash", "JointScale", "ThermalExpansion", "EFFECT_KINDS", "make_effect",
+           "effect_from_dict", "effect_inputs", "joint_deflection", "joint_deflection_dq",
+           "length_scale", "CyclicError"]

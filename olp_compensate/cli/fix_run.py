@@ -137,7 +137,8 @@ def _run_one(args, unit, retain: list | None) -> int:
     from ..compensation.files import ProgramFiles, compensate_files
     from ..io.atomic import write_files_atomic
 
-    from .fix_models import load_sensitive, read_controller, unit_load, warn_no_controller_model, with_load_notes
+    from .fix_models import (load_sensitive, read_controller, unit_load,
+                             warn_no_controller_model, with_load_notes)
 
     calibration, taught_on = load_calibrations(args)
     controller = read_controller(args, calibration)

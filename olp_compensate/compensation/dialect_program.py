@@ -1,7 +1,8 @@
 """Compensation of a program of a pose dialect (KRL, FANUC TP, VAL3, URScript).
 
-For each target a motion uses, as for RAPID (:mod:`olp_compensate.programs.object_model.program`): the pose the program means
-(base frame x target x tool), the joints the dialect's controller takes for it (its written
+For each target a motion uses, as for RAPID
+(:mod:`olp_compensate.programs.object_model.program`): the pose the program means (base
+frame x target x tool), the joints the dialect's controller takes for it (its written
 configuration picks the branch: :mod:`.dialect_rules`), the joints at which the calibrated
 arm puts its real tool there on that branch, and the target the nominal controller turns
 into exactly those joints, written back in place of the original numbers (configuration

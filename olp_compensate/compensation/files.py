@@ -49,12 +49,13 @@ class ProgramFiles:
 class FilesResult:
     """The new content of each file (same order as ``ProgramFiles.paths``) and the report.
 
-    new : each file's new bytes, or its text with the edits still to splice
+    new : each file's new bytes, its new text (``str``: a text given to the service may
+        hold characters no latin-1 file can), or its text with the edits still to splice
         (:class:`~olp_compensate.programs.emit.SplicedText`, a RAPID module: a big one is
         written by :meth:`pieces` without its new text ever held whole).
     """
 
-    new: tuple[bytes | SplicedText, ...]
+    new: tuple[bytes | str | SplicedText, ...]
     report: CompensationReport
 
     @functools.cached_property
@@ -65,7 +66,16 @@ class FilesResult:
     def pieces(self, i: int) -> bytes | Iterator[bytes]:
         """The new bytes of file ``i``, whole or in consecutive pieces (to write)."""
         new = self.new[i]
-        return new if isinstance(new, bytes) else new.blocks(ENCODING)
+        if isinstance(new, (bytes, str)):
+            return new if isinstance(new, bytes) else new.encode(ENCODING)
+        return new.blocks(ENCODING)
+
+    def text(self, i: int) -> str:
+        """The new text of file ``i`` (bytes decoded as latin-1)."""
+        new = self.new[i]
+        if isinstance(new, (bytes, str)):
+            return new if isinstance(new, str) else new.decode(ENCODING)
+        return new.spliced()
 
 
 @dataclass(frozen=True)
@@ -114,8 +124,8 @@ def compensate_files(files: ProgramFiles, calibration: Calibration | Compensator
                      frames_path: str | Path | None = None, jobs: int = 1) -> FilesResult:
     """Compensate the files of ``files`` with their language's machinery.
 
-    emit, unused : as :func:`~olp_compensate.programs.object_model.task.compensate_program` (``emit="joints"`` only where
-        the language can write joints).
+    emit, unused : as :func:`~olp_compensate.programs.object_model.task.compensate_program`
+        (``emit="joints"`` only where the language can write joints).
     taught_on : the calibration of the robot the targets were taught on: the pose to reach
         is where that robot's real tool went (robot-to-robot transfer).
     frames_path : the controller's files (a path, several, or a
@@ -142,5 +152,4 @@ def pose_program_result(files: ProgramFiles, program, rules, run: CompensationRu
     from .dialect_program import compensate_pose_program
 
     new, report = compensate_pose_program(program, rules, run.comp, taught_on=run.taught_on)
-    return FilesResult(new=tuple(new[name].encode(ENCODING) for name in files.names),
-                       report=report)
+    return FilesResult(new=tuple(new[name] for name in files.names), report=report)

@@ -10,8 +10,8 @@ A façade like the ``json`` module::
 
 Files are decoded as latin-1 (one character per byte, so every byte round-trips, including
 Latin-1 comments and CR LF line ends) and encoded back the same way. Each stage is public
-too: :mod:`.rapid.reader` and :mod:`.vplus.reader` (parse), :mod:`.semantics` (targets with their tool and
-work object as poses in metres), :mod:`.emit` (edits and splicing).
+too: :mod:`.rapid.reader` and :mod:`.vplus.reader` (parse), :mod:`.semantics` (targets with
+their tool and work object as poses in metres), :mod:`.emit` (edits and splicing).
 """
 
 from __future__ import annotations

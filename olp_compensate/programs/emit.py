@@ -20,8 +20,9 @@ from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_qu
 from .targets import QUAT_WXYZ, CartesianTarget, Edit, JointTarget, ToolData
 
 __all__ = ["splice", "splice_in_order", "SplicedText", "EditColumns", "EditsInTurn",
-           "target_edits", "tool_edits", "joint_target_edits", "format_like", "format_int_like", "aligned_quaternion",
-           "nearest_euler_zyz_deg", "MM_DECIMALS", "QUAT_DECIMALS", "DEG_DECIMALS"]
+           "target_edits", "tool_edits", "joint_target_edits", "format_like", "format_int_like",
+           "aligned_quaternion", "nearest_euler_zyz_deg", "MM_DECIMALS", "QUAT_DECIMALS",
+           "DEG_DECIMALS"]
 
 
 def splice(text: str, edits: Iterable[Edit]) -> str:

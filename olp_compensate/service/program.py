@@ -28,11 +28,12 @@ def compensate_text(comp: Compensator, dialect: str, text: str, file: str,
         names = (file,) if dat is None else (file, str(Path(file).with_suffix(".dat")))
         files = ProgramFiles(dialect=dialect, paths=tuple(map(Path, names)), names=names)
         result = language_named(dialect).compensate(
-            files, [text] if dat is None else [text, dat], CompensationRun(comp, frames=frames_path))
+            files, [text] if dat is None else [text, dat],
+            CompensationRun(comp, frames=frames_path))
         report = result.report
-        out = {"text": result.data[0].decode("latin-1")}
+        out = {"text": result.text(0)}
         if dat is not None:
-            out["dat"] = result.data[1].decode("latin-1")
+            out["dat"] = result.text(1)
     out["rows"] = [row_dict(r, report.n_joints) for r in report.rows]
     return out
 

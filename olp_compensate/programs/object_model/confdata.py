@@ -44,8 +44,9 @@ controller will take for it, never the one the program had when the joints left 
   asked for (the solver keeps the configuration asked for, and so does the rule of
   :mod:`.config_rule`);
 - KUKA S and T, FANUC's letters and turn numbers, VAL3's shoulder/elbow/wrist: those of
-  the written joints (:mod:`~olp_compensate.compensation.dialect_rules`, :mod:`..fanuc.rules`, :mod:`..val3.rules`;
-  KRL's T bit of an axis within 1e-5 rad of 0 keeps the written bit, as here);
+  the written joints (:mod:`~olp_compensate.compensation.dialect_rules`,
+  :mod:`..fanuc.rules`, :mod:`..val3.rules`; KRL's T bit of an axis within 1e-5 rad of 0
+  keeps the written bit, as here);
 - V+ and URScript write no configuration with a target.
 
 V+ (Adept, Staubli CS7) and similar PUMA-style flags (RIGHTY/LEFTY, ABOVE/BELOW,

@@ -4,8 +4,9 @@ A RAPID task is many modules (``CalibData.mod`` with the tools and work objects,
 modules with the motions, system modules such as ``user.sys``); a target's tool and work
 object are often declared in another module than the motion. :func:`compensate_task`
 resolves every module's targets with the controller's scope rules across the task
-(:func:`~olp_compensate.programs.semantics.resolve_task`, :mod:`olp_compensate.programs.rapid.task_scope`),
-compensates each module as :mod:`.program` does, and gives one report over the task.
+(:func:`~olp_compensate.programs.semantics.resolve_task`,
+:mod:`olp_compensate.programs.rapid.task_scope`), compensates each module as
+:mod:`.program` does, and gives one report over the task.
 """
 
 from __future__ import annotations

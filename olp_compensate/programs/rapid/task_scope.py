@@ -65,7 +65,8 @@ def _in_comment_or_string(line_before: str) -> bool:
 
 class TaskScope:
     """Name lookup with RAPID rules over the modules of a task; no case: routine data
-    first, then the module's LOCAL data, then the task's global data (see :mod:`..object_model.task`).
+    first, then the module's LOCAL data, then the task's global data (see
+    :mod:`..object_model.task`).
 
     ``table`` holds every item of a name (all elements of an array) under (lower name,
     owner), ``elements`` each one under (lower name, owner, array index); owner is
