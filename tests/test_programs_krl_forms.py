@@ -260,3 +260,31 @@ def test_tool_and_base_set_in_the_src_take_their_own_frames():
     assert rows["XP1"].tool == "TOOL_DATA[1]" and rows["XP2"].tool == "$TOOL@L4"
     assert rows["XP2"].status != "unresolved"              # solved with that frame
     assert rows["XP3"].status == "unresolved" and "TOOL_DATA[n]" in rows["XP3"].note
+
+
+def test_a_routine_that_may_set_the_frames_makes_motions_without_one_run_time():
+    """A cell whose routine sets ``FDAT_ACT``/``$TOOL`` at run time (``MoveSettings(nBase,
+    nTool, ..)``, as a public milling cell does): a motion after it, with no tool or base
+    set in the file, is never solved with the flange or the robot base; a frame set after
+    the call is used again, and without the call the flange is taken as before, noted."""
+    dat = ("DEFDAT m\nDECL E6POS XP1={X 1000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL E6POS XP2={X 1000,Y 50,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL E6POS XP3={X 1000,Y 90,Z 900,A 0,B 90,C 0,S 2,T 2}\nENDDAT\n")
+    src = ("DEF m( )\nIF (n > 0) THEN\nWAIT SEC 0.1\nENDIF\nMoveSettings(11, 20, 100, 500)\n"
+           "LIN XP1\nLIN XP2 : {X 0,Y 4,Z 0,A 0,B 0,C 0}\nBAS(#TOOL,1)\nBAS(#BASE,0)\n"
+           "LIN XP3\nEND\n")
+    _, report = compensate_pose_program(parse_krl(src, dat, "m.src", "m.dat", CONFIG), KRL,
+                                        nominal_calibration(ROBOT))
+    rows = {(r.file, r.line): r for r in report.rows}
+    first = rows["m.src", 6]
+    assert first.status == "runtime" and "MoveSettings() (line 5)" in first.note
+    assert rows["m.dat", 2].status == "unused"                # written back unchanged
+    composed = rows["m.src", 7]
+    assert composed.status == "runtime" and "MoveSettings()" in composed.note
+    assert rows["m.dat", 4].tool == "TOOL_DATA[1]"
+    assert rows["m.dat", 4].status not in ("runtime", "unresolved", "unused")
+    plain = src.replace("MoveSettings(11, 20, 100, 500)\n", "\n")
+    _, report = compensate_pose_program(parse_krl(plain, dat, "m.src", "m.dat", CONFIG), KRL,
+                                        nominal_calibration(ROBOT))
+    first = next(r for r in report.rows if (r.file, r.line) == ("m.dat", 2))
+    assert first.status not in ("runtime", "unused") and "taken as the flange" in first.note

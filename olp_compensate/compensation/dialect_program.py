@@ -94,13 +94,16 @@ class _Uses:
 
 
 def _motion_uses(program: PoseProgram, by_name, rows: list[TargetReport]) -> _Uses:
-    """The uses of every target by the motions; rows for run-time motions, motions to
-    names declared nowhere, targets kept with a reason and unknown instructions."""
+    """The uses of every target by the motions; rows for run-time motions (at the literal
+    a motion writes, else at the motion), motions to names declared nowhere, targets kept
+    with a reason and unknown instructions."""
     out = _Uses(defaultdict(set), {}, {})
     for order, motion in enumerate(program.motions):
         if motion.runtime is not None:
-            rows.append(TargetReport(target=motion.target or "<inline>", file=motion.source[0],
-                                     line=motion.source[1], column=motion.source[2],
+            where = (motion.source if motion.inline is None       # a literal: at its place
+                     else program.targets[motion.inline].source)
+            rows.append(TargetReport(target=motion.target or "<inline>", file=where[0],
+                                     line=where[1], column=where[2],
                                      status="runtime", tool=motion.tool or "",
                                      wobj=motion.base or "", note=motion.runtime))
             if motion.inline is not None:

@@ -295,6 +295,8 @@ def _motion(program: PoseProgram, instruction: str, where, arg, frames: ToolBase
                or _runtime(program, instruction, r_name, r_inline, r_kind, functions))
         if why is not None:
             why = f"{left_text} : {r_name or '{...}'}: {why}"
+        elif frames.unknown_frame() is not None:
+            why = frames.unknown_frame()
         elif l_name is None or r_inline is None:
             why = (f"{left_text} : {r_name or '{...}'} is composed with the geometric "
                    f"operator; only 'point : {{literal}}' is written back (into the literal)")
@@ -304,7 +306,8 @@ def _motion(program: PoseProgram, instruction: str, where, arg, frames: ToolBase
     name, inline, kind = arg
     return PoseMotion(instruction=instruction, target=name, source=where, tool=frames.tool,
                       base=frames.base, inline=inline,
-                      runtime=_runtime(program, instruction, name, inline, kind, functions))
+                      runtime=(_runtime(program, instruction, name, inline, kind, functions)
+                               or frames.unknown_frame()))
 
 
 def parse_krl(src_text: str | None, dat_text: str | None, src_file: str = "<src>",
