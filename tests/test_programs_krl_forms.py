@@ -288,3 +288,15 @@ def test_a_routine_that_may_set_the_frames_makes_motions_without_one_run_time():
                                         nominal_calibration(ROBOT))
     first = next(r for r in report.rows if (r.file, r.line) == ("m.dat", 2))
     assert first.status not in ("runtime", "unused") and "taken as the flange" in first.note
+
+
+def test_older_inline_forms_load_the_fdat_frames_with_bas_frames():
+    """KSS 4-style folds (``BAS(#PTP_DAT)``, ``FDAT_ACT=F1``, ``BAS(#FRAMES)``): KUKA's
+    BAS.SRC runs ``FRAMES()`` there, which sets $TOOL and $BASE from ``FDAT_ACT``."""
+    dat = ("DEFDAT m\nDECL E6POS XP1={X 1000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\n"
+           "DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE}\nENDDAT\n")
+    src = ("DEF m( )\nA20(ARC_INI)\nBAS(#PTP_DAT)\nFDAT_ACT=FP1\nBAS(#FRAMES)\n"
+           "BAS(#VEL_PTP,100)\nPTP XP1\nEND\n")
+    program = parse_krl(src, dat, "m.src", "m.dat", CONFIG)
+    assert program.motions[0].tool == "TOOL_DATA[1]" and program.motions[0].runtime is None
+    assert program.motions[0].base == "BASE_DATA[0]"
