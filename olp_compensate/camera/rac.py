@@ -251,32 +251,34 @@ def rac_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: flo
     return np.sqrt(total / count)
 
 
-def stage2_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
-                cy: float, mu: float) -> float:
-    """RMS over all views of the eq. 66 residuals (column px) after both stages (the views
-    at once by :mod:`.rac_batch` when they have equal point counts)."""
+def _stage2_residual_vector(pixels, points, cx: float, cy: float, mu: float):
+    """The eq. 66 residuals of every view (column px) after both stages as one vector, or
+    None when a view is degenerate or the focal length is not positive."""
     stacked = rac_batch.stack(pixels, points, cx, cy, mu)
     first = None if stacked is None else rac_batch.stage1(stacked)
     if first is not None:
         second = rac_batch.stage2(stacked, first)
-        return float(np.sqrt(np.mean(second.residuals ** 2))) if second.fx > 0 else np.inf
-    s1 = [stage1(pix, pts, cx, cy, mu) for pix, pts in zip(pixels, points)]
+        return second.residuals.ravel() if second.fx > 0 else None
     try:
-        res = np.concatenate(stage2(s1, pixels, points, cx, cy, mu).residuals)
+        s1 = [stage1(pix, pts, cx, cy, mu) for pix, pts in zip(pixels, points)]
+        return np.concatenate(stage2(s1, pixels, points, cx, cy, mu).residuals)
     except DataError:
-        return np.inf
-    return float(np.sqrt(np.mean(res * res)))
+        return None
 
 
-def search_mu(pixels, points, cx: float, cy: float,
-              bounds: tuple[float, float] = MU_BOUNDS) -> float:
-    """mu minimizing :func:`stage2_cost` averaged over all views (bounded 1-D search)."""
-    res = minimize_scalar(lambda mu: stage2_cost(pixels, points, cx, cy, mu), bounds=bounds,
-                          method="bounded", options={"xatol": 2e-6})
-    return float(res.x)
+def stage2_cost(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], cx: float,
+                cy: float, mu: float) -> float:
+    """RMS over all views of the eq. 66 residuals (column px) after both stages (the views
+    at once by :mod:`.rac_batch` when they have equal point counts); inf where the stages
+    fail."""
+    res = _stage2_residual_vector(pixels, points, cx, cy, mu)
+    return np.inf if res is None else float(np.sqrt(np.mean(res * res)))
 
 
-CENTRE_TOL_PX = 1e-3
+MU_TOL = 2e-7
+""":func:`search_mu` stops when its step is smaller than this."""
+
+CENTRE_TOL_PX = 5e-3
 """:func:`search_centre` stops when its step is shorter than this (px)."""
 
 
@@ -294,6 +296,63 @@ def _rac_residual_vector(pixels, points, cx: float, cy: float, mu: float):
         return None
 
 
+def _small_lm(fun, x0: np.ndarray, h: float, max_step: float, tol: float,
+              bounds: tuple[float, float] = (-np.inf, np.inf)) -> np.ndarray | None:
+    """Levenberg-Marquardt on a residual vector ``fun(x)`` (None where undefined) of one or
+    two unknowns ``x0``, the Jacobian by forward differences of ``h``, steps at most
+    ``max_step`` long and kept inside ``bounds``, until a step is shorter than ``tol``.
+    None when ``fun(x0)`` is undefined."""
+    x = np.array(x0, dtype=float)
+    res = fun(x)
+    if res is None:
+        return None
+    cost, damping, eye = float(res @ res), 0.0, np.eye(len(x))
+    for _ in range(40):
+        jac = np.empty((len(res), len(x)))
+        for i in range(len(x)):
+            other = fun(x + h * eye[i])
+            jac[:, i] = np.inf if other is None else (other - res) / h
+        normal, gradient = jac.T @ jac, jac.T @ res
+        if not np.all(np.isfinite(normal)) or not np.all(np.diag(normal) > 0):
+            break
+        for _ in range(20):
+            step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal)), gradient)
+            length = float(np.linalg.norm(step))
+            if length > max_step:
+                step *= max_step / length
+            step = np.clip(x + step, *bounds) - x
+            length = float(np.linalg.norm(step))
+            if length < tol and damping == 0.0:
+                return x + step     # the Gauss-Newton step: converged, no trial needed
+            trial = fun(x + step)
+            if trial is not None and float(trial @ trial) <= cost:
+                break
+            damping = max(10.0 * damping, 1e-3)
+        else:
+            break
+        x, res, cost = x + step, trial, float(trial @ trial)
+        damping = damping / 10.0 if damping > 1e-6 else 0.0
+        if length < tol:
+            break
+    return x
+
+
+def search_mu(pixels, points, cx: float, cy: float,
+              bounds: tuple[float, float] = MU_BOUNDS, start: float = 1.0) -> float:
+    """mu minimizing :func:`stage2_cost` averaged over all views: Levenberg-Marquardt on
+    the residual vector from ``start`` (steps of at most 0.05, until one is below
+    :data:`MU_TOL`: some 6 evaluations of both stages where the bounded scalar search
+    took 14); the bounded scalar search over ``bounds`` when that fails or ends on a
+    bound."""
+    found = _small_lm(lambda x: _stage2_residual_vector(pixels, points, cx, cy, x[0]),
+                      np.array([float(np.clip(start, *bounds))]), 1e-6, 0.05, MU_TOL, bounds)
+    if found is not None and bounds[0] < found[0] < bounds[1]:
+        return float(found[0])
+    res = minimize_scalar(lambda mu: stage2_cost(pixels, points, cx, cy, mu), bounds=bounds,
+                          method="bounded", options={"xatol": 2e-6})
+    return float(res.x)
+
+
 def search_centre(pixels, points, mu: float, start: tuple[float, float],
                   step_px: float = 20.0) -> tuple[float, float]:
     """Image centre (cx, cy), px, minimizing :func:`rac_cost` averaged over all views.
@@ -303,36 +362,11 @@ def search_centre(pixels, points, mu: float, start: tuple[float, float],
     shorter than :data:`CENTRE_TOL_PX`: 3-4 steps (some 12 evaluations of stage 1 for every
     view) where Nelder-Mead took 30-50 evaluations for 5e-3 px (benchmarks/camera_speed.py).
     """
-    centre = np.asarray(start, dtype=float)
-    res = _rac_residual_vector(pixels, points, centre[0], centre[1], mu)
-    if res is None:
+    found = _small_lm(lambda c: _rac_residual_vector(pixels, points, c[0], c[1], mu),
+                      np.asarray(start, dtype=float), 1e-3, step_px, CENTRE_TOL_PX)
+    if found is None:
         raise DataError("RAC stage 1: degenerate view (the points do not constrain the pose)")
-    cost, damping, h = float(res @ res), 0.0, 1e-3
-    for _ in range(40):
-        jac = np.empty((len(res), 2))
-        for i in range(2):
-            moved = centre + h * np.eye(2)[i]
-            other = _rac_residual_vector(pixels, points, moved[0], moved[1], mu)
-            jac[:, i] = np.inf if other is None else (other - res) / h
-        normal, gradient = jac.T @ jac, jac.T @ res
-        if not np.all(np.isfinite(normal)):
-            break
-        for _ in range(20):
-            step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal)), gradient)
-            length = float(np.hypot(*step))
-            if length > step_px:
-                step *= step_px / length
-            trial = _rac_residual_vector(pixels, points, *(centre + step), mu)
-            if trial is not None and float(trial @ trial) <= cost:
-                break
-            damping = max(10.0 * damping, 1e-3)
-        else:
-            break
-        centre, res, cost = centre + step, trial, float(trial @ trial)
-        damping /= 10.0
-        if length < CENTRE_TOL_PX:
-            break
-    return float(centre[0]), float(centre[1])
+    return float(found[0]), float(found[1])
 
 
 def rac_poses(pixels, points, intrinsics: CameraIntrinsics, stages: Stage2 | None = None,
@@ -369,7 +403,7 @@ def rac_calibrate(pixels: Sequence[np.ndarray], points: Sequence[np.ndarray], wi
     for k in range(rounds):   # later rounds start at the last centre: a small simplex
         step = 20.0 if k == 0 and centre is None else 1.0
         cx_new, cy_new = search_centre(pixels, points, mu, (cx, cy), step)
-        mu_new = search_mu(pixels, points, cx_new, cy_new)
+        mu_new = search_mu(pixels, points, cx_new, cy_new, start=mu)
         moved = abs(cx_new - cx) + abs(cy_new - cy) + abs(mu_new - mu) * 1e3
         cx, cy, mu = cx_new, cy_new, mu_new
         if moved < 1e-3:
