@@ -303,7 +303,8 @@ def circle_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
     benchmarks/camera_speed.py (k1 0.12 and -0.4) it agrees with the Richardson-extrapolated
     centroid of 4096- and 8192-chord polygons to 1.6e-8 px (that reference's own rounding),
     where the polygon of 256 chords (this function before, :func:`polygon_centre_bias`)
-    was 1.5e-5 and 3.2e-5 px off (tests/camera/test_detect.py). A charuco board's corners have no such bias (zeros).
+    was 1.5e-5 and 3.2e-5 px off (tests/camera/test_detect.py). A charuco board's corners
+    have no such bias (zeros).
     """
     if board.kind == "charuco":
         return np.zeros((board.count, 2))
