@@ -23,7 +23,9 @@ alike; the table gives the median and the minimum over the rounds.
   such correction, it is the source of our smaller focal-length error).
 
 Accuracy: errors of fx, fy, cx, cy against the truth (px), the reprojection RMS (px); the
-refinement's two solvers must reach the same cost (printed). Ratios: CPU against OpenCV at
+refinement's two solvers must reach the same cost (printed); the circle-centre bias's
+largest error over the views against polygons of 4096 and 8192 boundary points
+extrapolated, next to the 256-point polygon's (the method before issue 32). Ratios: CPU against OpenCV at
 its defaults, in the same run.
 
 ``--baseline DIR`` (an older package exported with ``git archive REV olp_compensate | tar -x
@@ -55,6 +57,7 @@ from camera import BOARD, TRUTH, detect_all, rendered_views  # noqa: E402
 from olp_compensate.calibration.lm import levenberg_marquardt  # noqa: E402
 from olp_compensate.camera import rac  # noqa: E402
 from olp_compensate.camera.calibrate import View, calibrate  # noqa: E402
+from olp_compensate.camera.centres import polygon_centre_bias  # noqa: E402
 from olp_compensate.camera.detect import circle_centre_bias  # noqa: E402
 from olp_compensate.camera.refine import (N_INTRINSIC, N_POSE,  # noqa: E402
                                           intrinsics_from_vector, intrinsics_vector,
@@ -267,6 +270,28 @@ def side_by_side(pixels, rounds: int) -> None:
           f" ms median")
     print("rms px: RMS over all dots of the distance between projected and detected centre "
           "(OpenCV's own figure; ours for calibrate on the corrected centres when corrected)")
+    bias_accuracy(views)
+
+
+def bias_accuracy(views) -> None:
+    """Largest error (px) of circle_centre_bias over the views, at the corrected
+    calibration's intrinsics and poses, against the centroid of polygons of 4096 and 8192
+    projected boundary points extrapolated (Richardson, error O(1/n^4)); next to it the
+    256-point polygon's (the method before issue 32)."""
+    cal = calibrate(views, TRUTH.width, TRUTH.height,
+                    centre_bias=lambda k, T: circle_centre_bias(k, T, BOARD))
+    worst = {"quadrature": 0.0, "polygon 256": 0.0, "polygon 4096": 0.0}
+    for view in cal.views:
+        k, T = cal.intrinsics, view.camera_T_board
+        fine = polygon_centre_bias(k, T, BOARD, 4096)
+        reference = (4 * polygon_centre_bias(k, T, BOARD, 8192) - fine) / 3
+        for label, value in (("quadrature", circle_centre_bias(k, T, BOARD)),
+                             ("polygon 256", polygon_centre_bias(k, T, BOARD, 256)),
+                             ("polygon 4096", fine)):
+            worst[label] = max(worst[label], float(np.abs(value - reference).max()))
+    print("circle_centre_bias against the extrapolated 4096/8192-point polygons, largest "
+          "error over the views (px): " + ", ".join(f"{label} {value:.1e}"
+                                                    for label, value in worst.items()))
 
 
 if __name__ == "__main__":

@@ -116,3 +116,18 @@ def test_inputs_are_never_overwritten_and_output_is_atomic(tmp_path, measured):
     assert main(["identify", str(meas), "--robot", "abb_irb2400", "-o", str(calib), "--folds", "0"]) == 0
     assert meas.read_bytes() == before
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_help_and_unknown_commands_list_every_command(capsys):
+    """Only the chosen command's sub-parser is built; without one (help, a typo) every
+    command is still listed."""
+    from olp_compensate.cli.cal import COMMANDS
+
+    for argv, stream in ((["--help"], "out"), (["idnetify", "x.csv"], "err")):
+        with pytest.raises(SystemExit):
+            main(argv)
+        text = getattr(capsys.readouterr(), stream)
+        assert all(name in text for name in COMMANDS), (argv, text)
+    with pytest.raises(SystemExit) as stop:
+        main(["identify", "--help"])
+    assert stop.value.code == 0 and "--robot" in capsys.readouterr().out

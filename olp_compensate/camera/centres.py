@@ -31,6 +31,7 @@ import numpy as np
 
 from .blobs import Blobs
 from .board import Board
+from ..errors import DataError
 from .model import CameraIntrinsics, project_points
 
 BORDER_MARGIN_PX = 2
@@ -281,19 +282,76 @@ def ellipse_centres(blobs: Blobs, indices: np.ndarray) -> np.ndarray:
     return out
 
 
+BIAS_NODES = 24
+"""Nodes of :func:`circle_centre_bias`'s quadrature around each dot's boundary (8 already
+agree with 256 to 5e-10 px on the views of benchmarks/camera_speed.py, 12 to 6e-14 px)."""
+
+
 def circle_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
-                       board: Board, samples: int = 256) -> np.ndarray:
+                       board: Board, samples: int = BIAS_NODES) -> np.ndarray:
     """Perspective bias of every dot (n, 2) px, row-major: the centroid of the area of the
     dot's image minus the image of the dot's centre.
 
-    The printed circle's boundary is projected through the full camera model
-    (``samples`` points, distortion included) and the centroid of the enclosed polygon
-    taken (exact to O(1/samples^2)). Subtract it from detected centroids to get the
-    images of the dot centres; ``camera_T_board`` (4, 4, m) from a first calibration pass.
-    A charuco board's corners have no such bias (zeros).
+    The area and first moments of the dot's image are boundary integrals (Green's theorem)
+    over the printed circle's angle ``t``: ``A = 1/2 integral (x y' - y x') dt`` and
+    ``A c = 1/3 integral (x, y) (x y' - y x') dt``, with ``(x, y)`` the boundary's pixels
+    relative to the image of the centre (full camera model, distortion included) and
+    ``(x', y')`` their derivatives in ``t`` (the chain rule through the pose, the
+    perspective division and the distortion, as :mod:`.refine` differentiates it). The
+    integrands are smooth and periodic, so the trapezoidal rule on ``samples`` equally
+    spaced angles converges geometrically (:data:`BIAS_NODES`). On the 20 views of
+    benchmarks/camera_speed.py (k1 0.12 and -0.4) it agrees with the Richardson-extrapolated
+    centroid of 4096- and 8192-chord polygons to 1.6e-8 px (that reference's own rounding),
+    where the polygon of 256 chords (this function before, :func:`polygon_centre_bias`)
+    was 1.5e-5 and 3.2e-5 px off (tests/camera/test_detect.py). A charuco board's corners
+    have no such bias (zeros).
     """
     if board.kind == "charuco":
         return np.zeros((board.count, 2))
+    angles = np.linspace(0, 2 * np.pi, samples, endpoint=False)
+    cos, sin = np.cos(angles), np.sin(angles)
+    T = np.asarray(camera_T_board, dtype=float)
+    rot, t = T[:3, :3], T[:3, 3]
+    centres = board.dot_positions() @ rot.T + t                    # (n, 3) camera frame, m
+    radii = board.dot_radii()[:, None]
+    # boundary p = centre + r (cos R[:, 0] + sin R[:, 1]); its derivative in t, (n, s) each
+    p = [centres[:, i, None] + radii * (rot[i, 0] * cos + rot[i, 1] * sin) for i in range(3)]
+    dp = [radii * (rot[i, 1] * cos - rot[i, 0] * sin) for i in range(3)]
+    if np.any(p[2] <= 0) or np.any(centres[:, 2] <= 0):
+        raise DataError("camera: a point lies behind the camera (z <= 0)")
+    ux, uy = p[0] / p[2], p[1] / p[2]
+    dux, duy = (dp[0] - ux * dp[2]) / p[2], (dp[1] - uy * dp[2]) / p[2]
+    k1, k2 = intrinsics.k1, intrinsics.k2
+    if k1 == 0.0 and k2 == 0.0:
+        dx, dy, ddx, ddy = ux, uy, dux, duy
+        cdx, cdy = centres[:, 0] / centres[:, 2], centres[:, 1] / centres[:, 2]
+    else:
+        every = np.stack([np.concatenate([ux.ravel(), centres[:, 0] / centres[:, 2]]),
+                          np.concatenate([uy.ravel(), centres[:, 1] / centres[:, 2]])], -1)
+        distorted = intrinsics.distort_normalized(every)
+        m = ux.size
+        dx, dy = distorted[:m, 0].reshape(ux.shape), distorted[:m, 1].reshape(ux.shape)
+        cdx, cdy = distorted[m:, 0], distorted[m:, 1]
+        # dd = (I - a d d^T) du / g (see refine.py's module text)
+        rho = dx * dx + dy * dy
+        g = 1.0 + rho * (k1 + k2 * rho)
+        c = 2.0 * (k1 + 2.0 * k2 * rho)
+        a = c / (g + c * rho)
+        along = a * (dx * dux + dy * duy)
+        ddx, ddy = (dux - along * dx) / g, (duy - along * dy) / g
+    fx, fy = intrinsics.fx, intrinsics.fy
+    x, y = fx * (dx - cdx[:, None]), fy * (dy - cdy[:, None])
+    sweep = x * (fy * ddy) - y * (fx * ddx)                          # x y' - y x'
+    area = sweep.sum(axis=1) / 2
+    return np.stack([(x * sweep).sum(axis=1), (y * sweep).sum(axis=1)], -1) \
+        / (3 * area[:, None])
+
+
+def polygon_centre_bias(intrinsics: CameraIntrinsics, camera_T_board: np.ndarray,
+                        board: Board, samples: int = 256) -> np.ndarray:
+    """:func:`circle_centre_bias` by the centroid of the polygon through ``samples``
+    projected boundary points (exact to O(1/samples^2)): the former method, kept as the
+    independent reference of the tests and benchmarks/camera_speed.py."""
     angles = np.linspace(0, 2 * np.pi, samples, endpoint=False)
     ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(samples)], -1)
     centres = board.dot_positions()

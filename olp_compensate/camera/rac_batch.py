@@ -1,8 +1,9 @@
 """The RAC's two stages for every view at once, for the centre and mu searches.
 
-:func:`.rac.search_centre` and :func:`.rac.search_mu` evaluate the stages some 80 times, each
-time for every view; one view at a time that is thousands of small ``lstsq`` and SVD calls
-(82 % of a 20-view calibration before this module). Here the views, when they all have the
+:func:`.rac.search_centre` and :func:`.rac.search_mu` evaluate the stages some 30 times (120
+with the former Nelder-Mead and bounded scalar searches), each time for every view; one
+view at a time that is thousands of small ``lstsq`` and SVD calls (82 % of a 20-view
+calibration before this module). Here the views, when they all have the
 same number of points (a board detected whole), are stacked on a leading axis and each
 view's least squares solved by a batched QR; the arithmetic is that of :func:`.rac.stage1`
 and :func:`.rac.stage2` (same equations, same sign rules, same two-pass weighting), so the

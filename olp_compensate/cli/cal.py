@@ -73,7 +73,11 @@ def _chosen(argv: list[str]) -> str | None:
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
-    """The parser; only the command chosen in ``argv`` gets its options (None: all)."""
+    """The parser. When ``argv`` names a command, only that command's sub-parser is made
+    (with its options): each sub-parser costs some 0.15 ms of gettext look-ups, 3 ms for
+    all 19, 1.5 % of an ``olp-cal identify`` on 100 poses; the others would only serve
+    ``olp-cal --help`` and the error for an unknown command, where ``argv`` names none and
+    every command is listed (None: every command with its options)."""
     chosen = _chosen(argv) if argv is not None else None
     parser = argparse.ArgumentParser(prog="olp-cal", description=__doc__.splitlines()[0],
                                      epilog=THREADS_HELP + ".")
@@ -82,6 +86,8 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
                         help="more logging; -v also shows tracebacks")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (_, summary) in COMMANDS.items():
+        if chosen is not None and name != chosen:
+            continue
         command = sub.add_parser(name, help=summary, description=summary)
         if argv is None or name == chosen:
             command_module(name).add_arguments(command)

@@ -16,6 +16,7 @@ from olp_compensate.camera.board import Board
 from olp_compensate.camera.detect import (BORDER_MARGIN_PX, Detection, DetectionFailure,
                                           circle_centre_bias, detect_dots, detect_many, match_grid,
                                           refine_centres)
+from olp_compensate.camera.centres import polygon_centre_bias
 from olp_compensate.camera.model import CameraIntrinsics, project_points
 from olp_compensate.camera.render import RenderOptions, random_views, render_board
 from olp_compensate.kinematics.conventions import pose_from_rotation_translation, rot_x
@@ -67,6 +68,35 @@ def test_bias_polygon_matches_analytic_conic_centre(steep):
         conic_centre = -np.linalg.solve(Q[:2, :2], Q[:2, 2])
         np.testing.assert_allclose(centre + d, conic_centre, atol=1e-4)
     assert np.abs(bias).max() > 0.02  # not trivially zero at 50 degrees
+
+
+def test_bias_quadrature_matches_extrapolated_fine_polygons(views, steep):
+    """The boundary quadrature against the centroid of polygons of 4096 and 8192 projected
+    boundary points, Richardson-extrapolated (error O(1/n^4)), under strong distortion of
+    either sign: closer than the 256-chord polygon by far, and already at 12 nodes."""
+    for camera in (CameraIntrinsics(fx=1100.0, mu=0.98, cx=484.0, cy=355.0, k1=-0.4, k2=0.2),
+                   CAMERA):
+        for pose in list(views) + [steep]:
+            reference = (4 * polygon_centre_bias(camera, pose, BOARD, 8192)
+                         - polygon_centre_bias(camera, pose, BOARD, 4096)) / 3
+            chords = np.abs(polygon_centre_bias(camera, pose, BOARD, 256) - reference).max()
+            for nodes in (12, 24):
+                error = np.abs(circle_centre_bias(camera, pose, BOARD, nodes) - reference).max()
+                assert error < 2e-7 and error < chords / 20, (nodes, error, chords)
+
+
+def test_bias_quadrature_is_the_conic_centre_without_distortion(steep):
+    camera = CameraIntrinsics(fx=1100.0, mu=0.98, cx=484.0, cy=355.0)
+    bias = circle_centre_bias(camera, steep, BOARD)
+    K = np.array([[camera.fx, 0, camera.cx], [0, camera.fy, camera.cy], [0, 0, 1]])
+    Hinv = np.linalg.inv(K @ np.column_stack([steep[:3, 0], steep[:3, 1], steep[:3, 3]]))
+    centres = project_points(camera, steep, BOARD.dot_positions())
+    for (a, b, _), rho, centre, d in zip(BOARD.dot_positions(), BOARD.dot_radii(), centres,
+                                         bias):
+        C = np.array([[1, 0, -a], [0, 1, -b], [-a, -b, a * a + b * b - rho * rho]])
+        Q = Hinv.T @ C @ Hinv
+        np.testing.assert_allclose(centre + d, -np.linalg.solve(Q[:2, :2], Q[:2, 2]),
+                                   atol=1e-8)
 
 
 def test_no_bias_when_the_board_faces_a_distortion_free_camera():

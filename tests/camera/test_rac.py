@@ -146,6 +146,28 @@ def test_centre_search_finds_the_centre():
     assert np.hypot(cx - TRUTH.cx, cy - TRUTH.cy) < 3.0
 
 
+@pytest.mark.parametrize("start", [0.82, 0.95, 1.2])
+def test_mu_search_finds_mu_from_any_start(start):
+    """The least-squares search from either side of the truth, far or near, and its result
+    a minimum of the stage-2 cost: no neighbour 1e-4 away is lower."""
+    rng = np.random.default_rng(4)
+    points, pixels, _ = synthetic_views(rng, 10, noise_px=0.1)
+    mu = rac.search_mu(pixels, [points] * 10, TRUTH.cx, TRUTH.cy, start=start)
+    assert mu == pytest.approx(TRUTH.mu, abs=2e-3)
+    cost = rac.stage2_cost(pixels, [points] * 10, TRUTH.cx, TRUTH.cy, mu)
+    for other in (mu - 1e-4, mu + 1e-4):
+        assert cost <= rac.stage2_cost(pixels, [points] * 10, TRUTH.cx, TRUTH.cy, other)
+
+
+def test_centre_search_ends_at_a_minimum_of_the_rac_cost():
+    rng = np.random.default_rng(5)
+    points, pixels, _ = synthetic_views(rng, 10, noise_px=0.1)
+    cx, cy = rac.search_centre(pixels, [points] * 10, TRUTH.mu, (620.0, 530.0))
+    cost = rac.rac_cost(pixels, [points] * 10, cx, cy, TRUTH.mu)
+    for dx, dy in ((0.05, 0), (-0.05, 0), (0, 0.05), (0, -0.05)):
+        assert cost <= rac.rac_cost(pixels, [points] * 10, cx + dx, cy + dy, TRUTH.mu)
+
+
 def test_rac_calibrate_end_to_end():
     rng = np.random.default_rng(6)
     points, pixels, poses = synthetic_views(rng, 12, noise_px=0.1)
