@@ -57,7 +57,6 @@ from camera import BOARD, TRUTH, detect_all, rendered_views  # noqa: E402
 from olp_compensate.calibration.lm import levenberg_marquardt  # noqa: E402
 from olp_compensate.camera import rac  # noqa: E402
 from olp_compensate.camera.calibrate import View, calibrate  # noqa: E402
-from olp_compensate.camera.centres import polygon_centre_bias  # noqa: E402
 from olp_compensate.camera.detect import circle_centre_bias  # noqa: E402
 from olp_compensate.camera.refine import (N_INTRINSIC, N_POSE,  # noqa: E402
                                           intrinsics_from_vector, intrinsics_vector,
@@ -277,7 +276,10 @@ def bias_accuracy(views) -> None:
     """Largest error (px) of circle_centre_bias over the views, at the corrected
     calibration's intrinsics and poses, against the centroid of polygons of 4096 and 8192
     projected boundary points extrapolated (Richardson, error O(1/n^4)); next to it the
-    256-point polygon's (the method before issue 32)."""
+    256-point polygon's (the method before issue 32). Imported here: ``--baseline`` runs
+    this script's children on older trees, which have no polygon_centre_bias."""
+    from olp_compensate.camera.centres import polygon_centre_bias
+
     cal = calibrate(views, TRUTH.width, TRUTH.height,
                     centre_bias=lambda k, T: circle_centre_bias(k, T, BOARD))
     worst = {"quadrature": 0.0, "polygon 256": 0.0, "polygon 4096": 0.0}

@@ -297,15 +297,17 @@ def _rac_residual_vector(pixels, points, cx: float, cy: float, mu: float):
 
 
 def _small_lm(fun, x0: np.ndarray, h: float, max_step: float, tol: float,
-              bounds: tuple[float, float] = (-np.inf, np.inf)) -> np.ndarray | None:
+              bounds: tuple[float, float] = (-np.inf, np.inf)
+              ) -> tuple[np.ndarray | None, bool]:
     """Levenberg-Marquardt on a residual vector ``fun(x)`` (None where undefined) of one or
     two unknowns ``x0``, the Jacobian by forward differences of ``h``, steps at most
-    ``max_step`` long and kept inside ``bounds``, until a step is shorter than ``tol``.
-    None when ``fun(x0)`` is undefined."""
+    ``max_step`` long and kept inside ``bounds``, until a step is shorter than ``tol`` or
+    none lowers the cost. Returns (the last point, None when ``fun(x0)`` is undefined;
+    whether it converged: False when the derivatives were undefined or the steps ran out)."""
     x = np.array(x0, dtype=float)
     res = fun(x)
     if res is None:
-        return None
+        return None, False
     cost, damping, eye = float(res @ res), 0.0, np.eye(len(x))
     for _ in range(40):
         jac = np.empty((len(res), len(x)))
@@ -314,7 +316,7 @@ def _small_lm(fun, x0: np.ndarray, h: float, max_step: float, tol: float,
             jac[:, i] = np.inf if other is None else (other - res) / h
         normal, gradient = jac.T @ jac, jac.T @ res
         if not np.all(np.isfinite(normal)) or not np.all(np.diag(normal) > 0):
-            break
+            return x, False
         for _ in range(20):
             step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal)), gradient)
             length = float(np.linalg.norm(step))
@@ -323,18 +325,18 @@ def _small_lm(fun, x0: np.ndarray, h: float, max_step: float, tol: float,
             step = np.clip(x + step, *bounds) - x
             length = float(np.linalg.norm(step))
             if length < tol and damping == 0.0:
-                return x + step     # the Gauss-Newton step: converged, no trial needed
+                return x + step, True   # the Gauss-Newton step: converged, no trial needed
             trial = fun(x + step)
             if trial is not None and float(trial @ trial) <= cost:
                 break
             damping = max(10.0 * damping, 1e-3)
         else:
-            break
+            return x, True      # no step lowers the cost: a minimum to rounding
         x, res, cost = x + step, trial, float(trial @ trial)
         damping = damping / 10.0 if damping > 1e-6 else 0.0
         if length < tol:
-            break
-    return x
+            return x, True
+    return x, False
 
 
 def search_mu(pixels, points, cx: float, cy: float,
@@ -344,9 +346,10 @@ def search_mu(pixels, points, cx: float, cy: float,
     :data:`MU_TOL`: some 6 evaluations of both stages where the bounded scalar search
     took 14); the bounded scalar search over ``bounds`` when that fails or ends on a
     bound."""
-    found = _small_lm(lambda x: _stage2_residual_vector(pixels, points, cx, cy, x[0]),
-                      np.array([float(np.clip(start, *bounds))]), 1e-6, 0.05, MU_TOL, bounds)
-    if found is not None and bounds[0] < found[0] < bounds[1]:
+    found, converged = _small_lm(
+        lambda x: _stage2_residual_vector(pixels, points, cx, cy, x[0]),
+        np.array([float(np.clip(start, *bounds))]), 1e-6, 0.05, MU_TOL, bounds)
+    if converged and bounds[0] < found[0] < bounds[1]:
         return float(found[0])
     res = minimize_scalar(lambda mu: stage2_cost(pixels, points, cx, cy, mu), bounds=bounds,
                           method="bounded", options={"xatol": 2e-6})
@@ -359,11 +362,13 @@ def search_centre(pixels, points, mu: float, start: tuple[float, float],
 
     Levenberg-Marquardt on the residual vector from ``start``, its 2 columns of derivatives
     by forward differences of 1e-3 px, each step at most ``step_px`` long, until a step is
-    shorter than :data:`CENTRE_TOL_PX`: 3-4 steps (some 12 evaluations of stage 1 for every
-    view) where Nelder-Mead took 30-50 evaluations for 5e-3 px (benchmarks/camera_speed.py).
+    shorter than :data:`CENTRE_TOL_PX`, as Nelder-Mead's tolerance was: 18 evaluations of
+    stage 1 for every view from 7 px away, then 3 per later round, where Nelder-Mead took
+    48 and about 30 (benchmarks/camera_speed.py). Where the derivatives are undefined the
+    last point is returned (the refinement starts from it).
     """
-    found = _small_lm(lambda c: _rac_residual_vector(pixels, points, c[0], c[1], mu),
-                      np.asarray(start, dtype=float), 1e-3, step_px, CENTRE_TOL_PX)
+    found, _ = _small_lm(lambda c: _rac_residual_vector(pixels, points, c[0], c[1], mu),
+                         np.asarray(start, dtype=float), 1e-3, step_px, CENTRE_TOL_PX)
     if found is None:
         raise DataError("RAC stage 1: degenerate view (the points do not constrain the pose)")
     return float(found[0]), float(found[1])

@@ -184,3 +184,24 @@ def test_a_view_with_too_few_points_is_refused():
     points = grid()[:5]
     with pytest.raises(DataError, match="at least"):
         rac.rac_calibrate([np.zeros((5, 2))], [points], 1280, 1024)
+
+
+def test_small_least_squares_converges_or_says_it_did_not():
+    target = np.array([3.0, -2.0])
+    found, converged = rac._small_lm(lambda x: np.array([x[0] - 3.0, 2 * (x[1] + 2.0),
+                                                         x[0] * x[1] + 6.0]),
+                                     np.zeros(2), 1e-6, 10.0, 1e-9)
+    assert converged and np.allclose(found, target, atol=1e-7)
+    # undefined beyond the start: its derivatives cannot be taken
+    found, converged = rac._small_lm(lambda x: None if x[0] > 0 else x - 1.0,
+                                     np.zeros(1), 1e-6, 1.0, 1e-9)
+    assert not converged and found[0] == 0.0
+    assert rac._small_lm(lambda x: None, np.zeros(1), 1e-6, 1.0, 1e-9) == (None, False)
+
+
+def test_mu_search_falls_back_to_the_bounded_search(monkeypatch):
+    rng = np.random.default_rng(4)
+    points, pixels, _ = synthetic_views(rng, 10, noise_px=0.1)
+    monkeypatch.setattr(rac, "_small_lm", lambda fun, x0, *a, **k: (x0, False))
+    mu = rac.search_mu(pixels, [points] * 10, TRUTH.cx, TRUTH.cy)
+    assert mu == pytest.approx(TRUTH.mu, abs=2e-3)
