@@ -66,6 +66,7 @@ def test_an_effect_fitted_on_half_of_joint_2_falls_back_to_geometry_on_the_other
     assert np.allclose(extended[outside], geometric[outside], atol=2e-9, rtol=0)
     lines = [ln for ln in notes.splitlines() if "geometric model used" in ln]
     assert len(lines) == outside.sum() and sum("q2 = " in ln for ln in lines) >= 40
+    assert f"{outside.sum()} of {len(fresh)} rows lie outside the joint ranges" in notes
     # inside: the effect is used, and it is the better model of the truth there
     err = {k: np.linalg.norm(v[~outside] - truth.points[~outside], axis=1)
            for k, v in (("ext", extended), ("geo", geometric))}

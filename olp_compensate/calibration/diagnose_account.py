@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cyclic_scan import MAX_MOVES, BandOutcome, dominant_orders
-from .moment_arms import LEVER_SHARE, MIN_LEVER_M
+from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders
 from .effects import CyclicError
 from .remainder import Predictability
 
@@ -80,10 +79,9 @@ def band_round_lines(bands: BandOutcome | None) -> list[str]:
     """One line per round of the band scan."""
     if bands is None:
         return []
-    lines = [f"cyclic error bands: no band for joint {j + 1} (its axis passes near the "
-             f"measured points: moment arm below max({MIN_LEVER_M * 1e3:.0f} mm, "
-             f"{LEVER_SHARE:.0%} of the largest joint's) RMS; its angle barely moves them)"
-             for j in bands.short_lever]
+    lines = [f"cyclic error bands: no band for joint {j + 1} (its axis passes within "
+             f"{MIN_LEVER_M * 1e3:.0f} mm RMS of the measured points: its angle barely moves "
+             f"them)" for j in bands.short_lever]
     if not bands.rounds:
         return lines + ["cyclic error bands: no joint's angles resolve a band"]
     for number, (threshold, results) in enumerate(zip(bands.thresholds, bands.rounds), 1):
