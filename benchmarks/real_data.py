@@ -13,8 +13,8 @@ independent peer of it (k-nearest neighbours in the joints' sin/cos, k by the sa
 folds; it shares no code with the flexible model) and the noise floor, with its source.
 With ``--range-joint J`` it also holds out the top fifth of joint J's range, fits the
 geometric model and the diagnosis on the rest, and prints both models' RMS on the rows
-held out (outside the fitted range the cyclic bands fall back to the rest of the model:
-it must not be worse than the geometric model there).
+held out (outside the effects' fitted ranges the extended model falls back to the
+geometric one, as olp-cal diagnose -o writes it: it must not be worse there).
 """
 
 import os
@@ -29,9 +29,8 @@ import numpy as np  # noqa: E402
 
 from olp_compensate.calibration.cross_validation import pose_folds  # noqa: E402
 from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose  # noqa: E402
-from olp_compensate.calibration.identify import (IdentificationOptions, identify,  # noqa: E402
-                                                 measurement_inputs)
-from olp_compensate.calibration.problem import problem_at  # noqa: E402
+from olp_compensate.calibration.effect_ranges import with_geometric_fallback  # noqa: E402
+from olp_compensate.calibration.identify import IdentificationOptions, identify  # noqa: E402
 from olp_compensate.io.measurements import read_measurements  # noqa: E402
 from olp_compensate.kinematics.model import build_model  # noqa: E402
 from olp_compensate.kinematics.robot import load_robot  # noqa: E402
@@ -60,11 +59,10 @@ def knn_peer(q: np.ndarray, target: np.ndarray, folds, ks=(1, 2, 4, 8, 16, 32)) 
 
 
 def rms_on(robot, calibration, meas) -> float:
-    """3-D RMS of measured minus predicted by ``calibration`` on ``meas``, m."""
-    tools = {name: tool.xyz_m for name, tool in calibration.tools.items()}
-    inputs = measurement_inputs(robot, meas, tools, calibration.effects)
-    problem, x = problem_at(calibration, meas, inputs)
-    return float(np.sqrt(np.mean(np.sum(problem.residuals(x).reshape(-1, 3) ** 2, axis=1))))
+    """3-D RMS of measured minus predicted by ``calibration`` on ``meas`` (as olp-cal
+    predict does: rows outside the effects' fitted ranges by its geometric fallback), m."""
+    predicted = calibration.predict_points(meas.joints, meas.point_names)
+    return float(np.sqrt(np.mean(np.sum((meas.points - predicted) ** 2, axis=1))))
 
 
 def range_check(robot, meas, joint: int, folds: int) -> None:
@@ -75,10 +73,12 @@ def range_check(robot, meas, joint: int, folds: int) -> None:
     train = meas.subset(~test)
     geometric = identify(robot, train, IdentificationOptions(folds=0)).calibration
     d = diagnose(robot, train, DiagnoseOptions(folds=folds))
+    extended = with_geometric_fallback(d.extended.calibration, d.geometric.calibration,
+                                       train.joints)
     print(f"  joint {joint + 1} above {np.degrees(cut):.1f} deg held out ({int(test.sum())} "
           f"rows, outside the fitted range): geometric "
           f"{rms_on(robot, geometric, meas.subset(test)) * 1e3:.4f} mm, named effects "
-          f"{rms_on(robot, d.extended.calibration, meas.subset(test)) * 1e3:.4f} mm ("
+          f"{rms_on(robot, extended, meas.subset(test)) * 1e3:.4f} mm ("
           + (", ".join(k.effect.label for k in d.effects) or "none") + ")")
 
 

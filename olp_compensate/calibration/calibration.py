@@ -13,6 +13,7 @@ from ..kinematics.conventions import matrix_from_quat_wxyz
 from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
                       geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
                       length_scale, needs_torque)
+from .effect_ranges import outside_fitted
 from ..errors import DataError
 from ..kinematics.model import KinematicModel, build_model, forward
 from ..kinematics.robot import Robot
@@ -157,6 +158,10 @@ class Calibration:
     residual_map: ResidualMap | None = None
     """Optional cross-validated map of what the model leaves (``olp-cal diagnose
     --residual-map``): applied on request, inside its joint region only."""
+    geometric_fallback: Calibration | None = None
+    """The geometric model fitted on the same rows as the effects (``olp-cal diagnose``):
+    it predicts the rows where an effect is outside its ``fitted_range``
+    (:mod:`.effect_ranges`); None: the effects are used everywhere."""
 
     def __post_init__(self):
         object.__setattr__(self, "warnings", tuple(self.warnings))
@@ -248,9 +253,42 @@ class Calibration:
         where = ["tcp"] * len(names) if "tcp" in self.tools else names
         return dataclasses.replace(conditions, payload_point_m=self.tool_points(where))
 
-    def flange_poses(self, q: np.ndarray, conditions: Conditions | None = None) -> np.ndarray:
+    def outside_fitted(self, q: np.ndarray) -> np.ndarray:
+        """(m,) True for the rows of controller axis values (m, n) that the geometric
+        fallback predicts (some effect outside its fitted range; never without one)."""
+        q = np.atleast_2d(np.asarray(q, float))
+        if self.geometric_fallback is None:
+            return np.zeros(len(q), dtype=bool)
+        return outside_fitted(self.effects, q)
+
+    def _split(self, method: str, q: np.ndarray, names, conditions, shape: tuple):
+        """Call ``method`` on the rows inside the effects' ranges and the geometric
+        fallback's on the others (tools: the fallback's own, this one's where it has none);
+        None when every row is inside."""
+        q = np.atleast_2d(np.asarray(q, float))
+        outside = self.outside_fitted(q)
+        if not np.any(outside):
+            return None
+        fallback = self.geometric_fallback
+        fallback = dataclasses.replace(fallback, tools={**self.tools, **fallback.tools})
+        out = np.empty((len(q),) + shape)
+        for rows, cal in ((~outside, self), (outside, fallback)):
+            if np.any(rows):
+                args = () if names is None else (np.asarray(list(names), dtype=object)[rows],)
+                kwargs = {"conditions": _rows_of(conditions, rows)}
+                if cal is self:
+                    kwargs["fallback"] = False
+                out[rows] = getattr(cal, method)(q[rows], *args, **kwargs)
+        return out
+
+    def flange_poses(self, q: np.ndarray, conditions: Conditions | None = None,
+                     fallback: bool = True) -> np.ndarray:
         """Flange poses (m, 4, 4) in the base frame for controller axis values (m, n), rad/m;
-        ``conditions`` (payload, temperature...) default to none (see :meth:`actual_joints`)."""
+        ``conditions`` (payload, temperature...) default to none (see :meth:`actual_joints`);
+        rows outside the effects' fitted ranges from the geometric fallback (``fallback``)."""
+        split = self._split("flange_poses", q, None, conditions, (4, 4)) if fallback else None
+        if split is not None:
+            return split
         q_actual = self.actual_joints(self.robot.joints_from_controller(q), conditions=conditions)
         flange = forward(self.model, self.values, q_actual).flange
         if geometry_effects(self.effects):
@@ -265,29 +303,53 @@ class Calibration:
             raise DataError(f"no calibrated tool point named {', '.join(missing)} (known: {known})")
         return np.array([self.tools[name].xyz_m for name in names]).reshape(-1, 3)
 
-    def predict_points(self, q: np.ndarray, names, conditions: Conditions | None = None) -> np.ndarray:
+    def predict_points(self, q: np.ndarray, names, conditions: Conditions | None = None,
+                       fallback: bool = True) -> np.ndarray:
         """Positions (m, 3) of the named tool points in the device frame, metres, for
         controller axis values (m, n); ``conditions`` as in :meth:`flange_poses` (a payload
-        without a point sits at the tool point 'tcp')."""
+        without a point sits at the tool point 'tcp'), rows outside the effects' fitted
+        ranges from the geometric fallback (its own device frame; ``fallback``)."""
+        split = self._split("predict_points", q, names, conditions, (3,)) if fallback else None
+        if split is not None:
+            return split
         conditions = self._conditions_for(names, conditions)
-        flange = self.flange_poses(q, conditions)
+        flange = self.flange_poses(q, conditions, fallback=False)
         local = self.tool_points(names)
         base = flange[:, :3, 3] + np.einsum("mij,mj->mi", flange[:, :3, :3], local)
         return base @ self.device_T_base[:3, :3].T + self.device_T_base[:3, 3]
 
     def predict_rotations(self, q: np.ndarray, names, conditions: Conditions | None = None,
-                          ) -> np.ndarray:
+                          fallback: bool = True) -> np.ndarray:
         """Rotations (m, 3, 3) of the named tools' frames in the device frame (what a
         full-pose device measures) for controller axis values (m, n); every named tool needs
-        its orientation (``quat_wxyz``)."""
+        its orientation (``quat_wxyz``); rows outside the effects' fitted ranges as in
+        :meth:`predict_points`."""
+        split = self._split("predict_rotations", q, names, conditions, (3, 3)) if fallback \
+            else None
+        if split is not None:
+            return split
         names = list(names)
         unknown = sorted({n for n in names if n not in self.tools or self.tools[n].quat_wxyz is None})
         if unknown:
             raise DataError(f"no calibrated tool orientation for {', '.join(unknown)}")
         conditions = self._conditions_for(names, conditions)
-        flange = self.flange_poses(q, conditions)
+        flange = self.flange_poses(q, conditions, fallback=False)
         turn = np.array([matrix_from_quat_wxyz(self.tools[n].quat_wxyz) for n in names])
         return self.device_T_base[:3, :3] @ flange[:, :3, :3] @ turn.reshape(-1, 3, 3)
+
+
+def _rows_of(conditions: Conditions | None, rows: np.ndarray) -> Conditions | None:
+    """The conditions of the rows of a mask (per-row arrays cut, scalars kept)."""
+    if conditions is None:
+        return None
+    return Conditions(**{f.name: _cut(getattr(conditions, f.name), rows)
+                         for f in dataclasses.fields(conditions)})
+
+
+def _cut(value, rows: np.ndarray):
+    if value is None or np.ndim(value) == 0 or np.shape(value)[0] != len(rows):
+        return value
+    return np.asarray(value)[rows]
 
 
 def nominal_calibration(robot: Robot, convention: str = "auto") -> Calibration:

@@ -2,7 +2,9 @@
 
 Every row of one pose goes to the same fold (repeated measurements of a pose never sit on
 both sides); the poses are shared out at random with a fixed seed, so a data set always
-gets the same folds.
+gets the same folds. Rows that carry their acquisition time can also be split into
+contiguous blocks of time (:func:`time_blocked_folds`): along a path, random folds put a
+row's neighbours in time in the training set, so slow drift looks predictable.
 """
 
 from __future__ import annotations
@@ -31,6 +33,28 @@ def pose_folds(pose_ids: np.ndarray, k: int) -> list[np.ndarray]:
     k near-equal consecutive parts of a random permutation of the sorted distinct ids."""
     codes, n_poses = pose_codes(pose_ids)
     order = np.random.default_rng(FOLD_SEED).permutation(n_poses)
+    fold_of_pose = np.empty(n_poses, dtype=int)
+    for fold, part in enumerate(np.array_split(order, k)):
+        fold_of_pose[part] = fold
+    fold_of_row = fold_of_pose[codes]
+    return [fold_of_row == fold for fold in range(k)]
+
+
+def time_blocked_folds(time_s: np.ndarray | None, pose_ids: np.ndarray, k: int
+                       ) -> list[np.ndarray] | None:
+    """k boolean row masks, each a contiguous block of acquisition time: the poses sorted
+    by their first row's ``time_s`` (s; ties by the row order) and cut into k near-equal
+    consecutive parts, every row of one pose in the same fold. None without times, with
+    times that do not vary, or with fewer than k poses."""
+    if time_s is None:
+        return None
+    time_s = np.asarray(time_s, float)
+    codes, n_poses = pose_codes(pose_ids)
+    if n_poses < max(k, 2) or not np.all(np.isfinite(time_s)) or np.ptp(time_s) <= 0:
+        return None
+    first = np.full(n_poses, np.inf)
+    np.minimum.at(first, codes, time_s)
+    order = np.lexsort((np.arange(n_poses), first))
     fold_of_pose = np.empty(n_poses, dtype=int)
     for fold, part in enumerate(np.array_split(order, k)):
         fold_of_pose[part] = fold

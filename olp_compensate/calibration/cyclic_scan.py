@@ -8,10 +8,10 @@ data cover, the highest order completing a period within that span, at most ``MA
 and the band's 2K parameters at most ``PARAMETER_SHARE`` of the equations. The band
 starts at the lowest order completing a period over the span (:func:`lowest_order`; lower
 orders are smooth there: the geometry takes them, and fitted with it they reach any
-amplitude, as on a real arm's 25-degree wrist span). A joint whose axis passes within
-``MIN_LEVER_M`` (RMS) of the measured points gets no band: its angle barely moves them, and
-a band there only proxies other joints (seen on real data with the reflector at the wrist
-centre).
+amplitude, as on a real arm's 25-degree wrist span). A joint whose moment arm over the
+measured points is short (:mod:`.moment_arms`) gets no band: its angle barely moves them,
+and a band there only proxies other joints (seen on real data with the reflector at the
+wrist centre).
 
 The fit is linear at the current model's full-data solution (as the effect scan's): the
 residual r (3m,) and the unit-scaled Jacobian of the current unknowns u (unpenalized)
@@ -38,6 +38,7 @@ from .effect_scan import EffectScan, Heldout
 from .problem import problem_at
 from .identify import IdentificationResult
 from .effects import CyclicError
+from .moment_arms import MIN_LEVER_M, moment_arms  # noqa: F401  (MIN_LEVER_M: re-exported)
 from ..kinematics.robot import Robot
 
 MAX_ORDER = 48
@@ -46,9 +47,6 @@ SAMPLES_PER_PERIOD = 6
 """Distinct angles needed per period of the highest order, over the joint's span."""
 PARAMETER_SHARE = 0.1
 """A band's parameters (2K) may be at most this share of the equations."""
-MIN_LEVER_M = 0.05
-"""A joint's band is tested only when its axis lies at least this far (RMS over the rows)
-from the measured points, m."""
 MAX_MOVES = 2.0
 """A band that moves the measured points by more than this times the current held-out
 RMS is not kept: it explains little of what it moves, so it cancels against the geometry
@@ -62,14 +60,6 @@ def lowest_order(q: np.ndarray) -> int:
     """The lowest order completing a period over the span of the angles ``q`` (rad)."""
     span = float(np.ptp(q)) if len(q) else 0.0
     return max(1, int(np.ceil(2 * np.pi / span - 1e-9))) if span > 1e-6 else 1
-
-
-def _lever(block: np.ndarray, weight: np.ndarray) -> float:
-    """RMS lever arm (m per rad) of a band's joint over the measured points: its first pair
-    of columns (sin^2 + cos^2 = 1) on the position rows, without the rows' weights."""
-    m = len(weight)
-    pair = block[:3 * m, :2].reshape(m, 3, 2) / np.where(weight > 0, weight, 1.0)[:, None, None]
-    return float(np.sqrt(np.sum(pair**2) / m))
 
 
 def resolvable_order(q: np.ndarray, n_equations: int) -> int:
@@ -154,12 +144,13 @@ class _Schur:
 class BandScan:
     """The cyclic bands of every joint the data resolve, at one model (an EffectScan)."""
 
-    def __init__(self, scan: EffectScan, robot: Robot, q_ctrl: np.ndarray):
+    def __init__(self, scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, folds=None):
         self.scan = scan
         n_eq = len(scan.residual)
         blocks, self.templates, self.columns = [], {}, {}
         self.short_lever: list[int] = []
         start = scan.scaled.shape[1]
+        self.arms = moment_arms(scan.problem, scan.x, robot)
         for j, joint in enumerate(robot.joints):
             if joint.kind != "revolute":
                 continue
@@ -169,7 +160,7 @@ class BandScan:
             template = CyclicError(joint=j, max_order=order, min_order=lowest_order(q_ctrl[:, j]),
                                    q_range=(float(q_ctrl[:, j].min()), float(q_ctrl[:, j].max())))
             block = scan.columns(template)
-            if not np.any(block) or _lever(block, scan.problem.position_weight) < MIN_LEVER_M:
+            if not np.any(block) or not self.arms.allows(j):
                 self.short_lever.append(j)
                 continue
             self.templates[j] = template
@@ -180,7 +171,7 @@ class BandScan:
         a = np.hstack([scan.scaled] + blocks)
         self.a = a
         r = scan.residual
-        self.fold_eq = [np.repeat(test, 3) for test in scan.folds]
+        self.fold_eq = [np.repeat(test, 3) for test in (scan.folds if folds is None else folds)]
         self.grams = [a[eq].T @ a[eq] for eq in self.fold_eq]
         self.rhs = [a[eq].T @ r[eq] for eq in self.fold_eq]
         self.rr = [float(r[eq] @ r[eq]) for eq in self.fold_eq]
@@ -306,11 +297,13 @@ class BandScan:
         return self._heldout(fits, cols, rss / max(dof, 1)), x
 
 
-def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float) -> BandOutcome:
+def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
+               folds=None) -> BandOutcome:
     """Add the significant bands one at a time, the one of least held-out error first,
     until no other band lowers the held-out error significantly (alpha / K, K the bands
-    tested in the round); see the module docstring."""
-    bands = BandScan(scan, robot, q_ctrl)
+    tested in the round); see the module docstring. ``folds``: row masks in place of the
+    scan's (time blocks, :mod:`.time_blocks`)."""
+    bands = BandScan(scan, robot, q_ctrl, folds)
     outcome = BandOutcome(short_lever=list(bands.short_lever))
     kept: list[tuple[int, float]] = []
     base, _ = bands.current(kept)

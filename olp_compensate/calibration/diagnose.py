@@ -39,10 +39,11 @@ import numpy as np
 from .effects import (CyclicError, Effect, EffectInputs, GearHarmonic, JointCompliance,
                       ThermalExpansion)
 from ..errors import DataError
-from .cross_validation import pose_folds
-from .cyclic_scan import BandOutcome, apply_bands, band_text, scan_bands
+from .cross_validation import pose_folds, time_blocked_folds
+from .cyclic_scan import BandOutcome, apply_bands, band_text
 from .diagnose_account import account, account_lines, band_round_lines, band_rounds, cyclic_entry
 from .remainder import Predictability, predictability
+from .time_blocks import BlockedFigures, blocked_entry, blocked_line, scan_bands_blocked
 from .effect_scan import (CandidateResult, EffectScan, candidate_effects, choose_candidate,
                           drift_warning)
 from .identify import (IdentificationOptions, IdentificationResult, identify,
@@ -80,6 +81,8 @@ class DiagnoseOptions:
     account: bool = True
     """Estimate what remains predictable (:mod:`.remainder`); without it the noise floor
     falls back to the residual of the final model (the diagnosis before issue 28)."""
+    time_blocks: bool = True
+    """With a time_s column, choose the cyclic bands on blocks of time (:mod:`.time_blocks`)."""
 
 
 @dataclass(frozen=True)
@@ -152,6 +155,8 @@ class Diagnosis:
     """The cyclic band scan (None when not run)."""
     remainder: Predictability | None = None
     """How much of the extended model's held-out residual a flexible model predicts."""
+    blocked: BlockedFigures | None = None
+    """Held-out figures by blocks of time (rows with time_s; :mod:`.time_blocks`)."""
 
     @property
     def found(self) -> bool:
@@ -282,9 +287,11 @@ def diagnose(robot: Robot, meas: Measurements,
 
     drift = drift_warning(scan, options.alpha)
     extended = current
-    bands = None
-    if options.cyclic:
-        bands = scan_bands(scan, robot, inputs.q, options.alpha)
+    bands = blocked = None
+    if options.cyclic:  # with time_s, the bands chosen on blocks of time
+        blocks = (time_blocked_folds(meas.time_s, meas.pose_ids, folds_k)
+                  if options.time_blocks else None)
+        bands, blocked = scan_bands_blocked(scan, robot, inputs.q, options, blocks)
         if bands.bands:
             extended = apply_bands(current, scan, bands)
             kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
@@ -318,7 +325,7 @@ def diagnose(robot: Robot, meas: Measurements,
                      predicted_change=predicted_after - predicted_before,
                      dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
                      alpha=options.alpha, candidates_tried=len(candidates), bands=bands,
-                     remainder=remainder)
+                     remainder=remainder, blocked=blocked)
 
 
 def _mm(value_m: float | None) -> float | None:
@@ -379,6 +386,7 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
         "account": _account(d),
         "cyclic_bands": band_rounds(d.bands),
         "cyclic_short_lever_joints": [j + 1 for j in (d.bands.short_lever if d.bands else [])],
+        **blocked_entry(d.blocked),
         "heldout_max_mm": {"geometric": _mm(d.geometric.heldout_max),
                            "extended": _mm(d.extended.heldout_max)},
         "heldout_method": d.extended.calibration.validation.method,
@@ -448,7 +456,7 @@ def summary(d: Diagnosis) -> str:
     lines += band_round_lines(d.bands)
     if d.drift:
         lines.append(f"WARNING: {d.drift}")
-    lines += account_lines(_account(d))
+    lines += account_lines(_account(d)) + ([blocked_line(d.blocked)] if d.blocked else [])
     if not d.found:
         lines.append(f"no effect found: no candidate lowers the held-out error significantly; "
                      f"the geometric model stands (held-out RMS {g.heldout_rms * 1e3:.4f} mm, "

@@ -70,6 +70,10 @@ class Effect:
     joint: int | None = None
     values: tuple[float, ...] = ()
     std: tuple[float, ...] = ()
+    fitted_range: tuple[tuple[int, float, float], ...] = ()
+    """(axis 0-based, low, high) of each controller axis the effect depends on, over the
+    rows it was fitted on (rad or m); empty: unknown (files before issue 28), used
+    everywhere. See :mod:`.effect_ranges`."""
 
     def __post_init__(self):
         p = len(self.parameter_names)
@@ -123,12 +127,17 @@ class Effect:
         return self.values[0], self.std[0], self.units[0]
 
     def to_dict(self) -> dict:
-        """The calib.json entry (SI units, joint 1-based or null)."""
-        return {"kind": self.kind, "joint": None if self.joint is None else self.joint + 1,
-                "parameters": dict(zip(self.parameter_names, self.values)),
-                "std": {k: (None if not np.isfinite(v) else v)
-                        for k, v in zip(self.parameter_names, self.std)},
-                "unit": dict(zip(self.parameter_names, self.units))}
+        """The calib.json entry (SI units, joint 1-based or null); ``fitted_range`` (a list
+        of ``{"joint" (1-based), "min", "max"}``, rad or m) only when known."""
+        doc = {"kind": self.kind, "joint": None if self.joint is None else self.joint + 1,
+               "parameters": dict(zip(self.parameter_names, self.values)),
+               "std": {k: (None if not np.isfinite(v) else v)
+                       for k, v in zip(self.parameter_names, self.std)},
+               "unit": dict(zip(self.parameter_names, self.units))}
+        if self.fitted_range:
+            doc["fitted_range"] = [{"joint": j + 1, "min": lo, "max": hi}
+                                   for j, lo, hi in self.fitted_range]
+        return doc
 
 
 def _torque(inputs: EffectInputs, joint: int, kind: str) -> np.ndarray:
@@ -391,10 +400,15 @@ def effect_from_dict(entry: dict, n_joints: int, source: str = "<calibration>") 
         std_doc = entry.get("std") or {}
         std = [float("nan") if std_doc.get(name) is None else float(std_doc[name])
                for name in names]
-        return make_effect(kind, None if joint is None else int(joint) - 1, n_joints,
-                           order=int(entry.get("order", 1)),
-                           reference_temperature_c=entry.get("reference_temperature_c"),
-                           values=values, std=std, extra=entry)
+        effect = make_effect(kind, None if joint is None else int(joint) - 1, n_joints,
+                             order=int(entry.get("order", 1)),
+                             reference_temperature_c=entry.get("reference_temperature_c"),
+                             values=values, std=std, extra=entry)
+        spans = tuple((int(r["joint"]) - 1, float(r["min"]), float(r["max"]))
+                      for r in entry.get("fitted_range") or ())
+        if any(not 0 <= j < n_joints or not lo <= hi for j, lo, hi in spans):
+            raise DataError("fitted_range: a joint out of range or min above max")
+        return dataclasses.replace(effect, fitted_range=spans) if spans else effect
     except KeyError as exc:
         raise ModelError(f"{source}: effect entry of kind {entry.get('kind')!r} lacks "
                          f"{exc}") from None

@@ -129,7 +129,14 @@ def row_sigma_scales(meas: Measurements, position_sigma_m: float, rotation_sigma
     mm per axis) and ``sigma_deg`` (its orientation uncertainty, deg per axis), as written
     by ``olp-cal camera measure``: ``(position_sigma_m / sigma, rotation_sigma_rad /
     sigma)``, each (m,), the defaults where a cell is empty; None without either column.
-    :class:`DataError` (file, line, column) for a cell that is not a positive number."""
+    :class:`DataError` (file, line, column) for a cell that is not a positive number.
+
+    Each stated sigma is floored at the median of the column's stated sigmas (same unit:
+    mm or deg per axis): an instrument's per-point figure below its typical one states
+    its resolution, not its accuracy (the ASTL tracker's sx, sy, sz spread 0.0006-0.013 mm
+    while the data's noise floor is 0.012-0.03 mm), and unfloored they spread the weights
+    up to 480-fold. So no row weighs more than the median row; rows above it are
+    down-weighted by (median / sigma)^2 as stated."""
     columns = [c for c in ("sigma_mm", "sigma_deg") if c in meas.extra]
     if not columns:
         return None
@@ -150,5 +157,8 @@ def row_sigma_scales(meas: Measurements, position_sigma_m: float, rotation_sigma
                 raise DataError(f"{meas.source}:{line}: column '{column}': expected a positive "
                                 f"number, got '{text}'")
             sigma[k] = value * unit
+        stated = np.array([bool(str(t).strip()) for t in meas.extra.get(column, [])], bool)
+        if stated.any():
+            sigma[stated] = np.maximum(sigma[stated], np.median(sigma[stated]))
         scales.append(default / sigma)
     return scales[0], scales[1]

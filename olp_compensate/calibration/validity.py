@@ -1,4 +1,6 @@
-"""Where the fitted-in-a-range parts of a calibration hold: the cyclic angle errors
+"""Where the fitted-in-a-range parts of a calibration hold: the named effects (outside the
+joint ranges they were fitted on the geometric fallback predicts, :mod:`.effect_ranges`),
+the cyclic angle errors
 (:class:`.effects.CyclicError`, valid in the axis span they were fitted on, zero outside)
 and the residual map (:class:`.remainder.ResidualMap`, refused outside its joint region).
 Prediction and compensation use them inside and say, per target, where they fell back."""
@@ -8,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .calibration import Calibration
+from .effect_ranges import fallback_notes
 from .effects import CyclicError
 
 
@@ -16,9 +19,16 @@ def range_notes(cal: Calibration, q_ctrl: np.ndarray, residual_map: bool = False
     calibration holds applies there."""
     q = np.atleast_2d(np.asarray(q_ctrl, float))
     notes = [[] for _ in range(len(q))]
+    fallback = cal.outside_fitted(q)
+    if np.any(fallback):
+        for k, note in enumerate(fallback_notes(cal.effects, q, cal.robot)):
+            if note:
+                notes[k].append(note)
     for effect in cal.effects:
         if not isinstance(effect, CyclicError):
             continue
+        if cal.geometric_fallback is not None and effect.fitted_range:
+            continue  # said above, with the geometric model
         lo, hi = np.degrees(effect.q_range)
         for k in np.flatnonzero(~effect.inside(q)):
             notes[k].append(f"q{effect.joint + 1} outside [{lo:.1f}, {hi:.1f}] deg where its "

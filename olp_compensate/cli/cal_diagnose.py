@@ -7,6 +7,7 @@ import dataclasses
 import json
 
 from ..calibration.diagnose import DiagnoseOptions, diagnose, diagnosis_to_dict, summary
+from ..calibration.effect_ranges import with_geometric_fallback
 from ..calibration.effects import EFFECT_KINDS
 from ..errors import DataError
 from ..io.atomic import write_text_atomic
@@ -96,7 +97,8 @@ def run(args) -> int:
     result = diagnose(robot, meas, options)
     print(summary(result))
     if args.output:
-        calibration = result.extended.calibration
+        calibration = with_geometric_fallback(result.extended.calibration,
+                                              result.geometric.calibration, meas.joints)
         if args.residual_map:
             calibration = _with_map(result, calibration)
         write_calibration(args.output, calibration)

@@ -86,6 +86,10 @@ def _range_report(cal, q: np.ndarray, lines: list[int], no_map: bool) -> np.ndar
               f"{figures.get('heldout_rms_mm_without', float('nan')):.4f} -> "
               f"{figures.get('heldout_rms_mm_with', float('nan')):.4f} mm) applied to "
               f"{inside} of {len(q)} rows (the others lie outside its joint region)")
+    fallback = int(np.sum(cal.outside_fitted(q)))
+    if fallback:
+        print(f"{fallback} of {len(q)} rows lie outside the joint ranges the named effects "
+              f"were fitted on: predicted by the geometric model of the same measurements")
     for line, note in zip(lines, notes):
         if note:
             print(f"note: line {line}: {note}")

@@ -24,7 +24,9 @@ def residual_map_pass(comp: Compensator, desired: np.ndarray, q: np.ndarray,
     by minus the map's residual at the first solution (base frame; the map was fitted at
     the calibration's measured point, its shift stands for the tool's); (q, flange) with
     those rows replaced where the second solve succeeds inside the region. ``notes`` (one
-    per row) get what was done."""
+    per row) get what was done. First the rows outside the effects' fitted ranges are
+    solved again on the geometric model (:func:`range_fallback_pass`)."""
+    q, flange = range_fallback_pass(comp, desired, q, flange, ok, notes)
     rmap = comp.calibration.residual_map
     if rmap is None or not np.any(ok):
         return q, flange
@@ -48,6 +50,31 @@ def residual_map_pass(comp: Compensator, desired: np.ndarray, q: np.ndarray,
     for i, used in zip(rows, good):
         _append(notes, i, APPLIED if used else "residual map not applied (its solution "
                                                "left the region or failed)")
+    return q, flange
+
+
+def range_fallback_pass(comp: Compensator, desired: np.ndarray, q: np.ndarray,
+                        flange: np.ndarray, ok: np.ndarray, notes: list):
+    """Solve the compensated rows whose joints leave a named effect's fitted range again
+    on the calibration's geometric fallback (:mod:`..calibration.effect_ranges`), on the
+    same configuration; (q, flange) with those rows replaced where it succeeds (the note
+    itself comes from :func:`add_range_notes`)."""
+    cal = comp.calibration
+    if cal.geometric_fallback is None or not np.any(ok):
+        return q, flange
+    rows = np.flatnonzero(ok)
+    rows = rows[cal.outside_fitted(comp.robot.controller_from_joints(q[rows]))]
+    if not len(rows):
+        return q, flange
+    geometric = Compensator(cal.geometric_fallback, comp.controller, comp.load)
+    q2, flange2, solution, _ = geometric.compensate_flanges(desired[rows], None,
+                                                           comp.confdata(q[rows]))
+    good = solution.success
+    q, flange = q.copy(), flange.copy()
+    q[rows[good]], flange[rows[good]] = q2[good], flange2[good]
+    for i in rows[~good]:
+        _append(notes, i, "the geometric model reaches no solution here: the extended "
+                          "model's kept")
     return q, flange
 
 

@@ -24,6 +24,12 @@ axis-aligned box in the base frame of the global calibration), "model", "device_
 robot) plus ``"global_heldout_rms_mm"`` and ``"global_heldout_max_mm"`` (the global model's
 held-out errors on the region's rows). Files without the key have no regions.
 
+A diagnosis's extended model (``olp-cal diagnose -o``) also has ``"geometric_fallback"``
+(the geometric model of the same rows: ``model``, ``device_T_base``, ``tools``,
+``effects`` (empty), ``validation``), and each effect its ``"fitted_range"``
+(:mod:`olp_compensate.calibration.effect_ranges`): rows outside an effect's range are
+predicted and compensated by the fallback. Files without them use the effects everywhere.
+
 A fit written although its own statistics rejected it (``--force``) carries ``"warnings"``:
 a list of one-line verdicts (:mod:`olp_compensate.calibration.fit_check`); files without
 the key have none.
@@ -159,6 +165,8 @@ def calibration_to_dict(cal: Calibration) -> dict:
         doc["warnings"] = list(cal.warnings)
     if cal.residual_map is not None:
         doc["residual_map"] = cal.residual_map.to_dict()
+    if cal.geometric_fallback is not None:
+        doc["geometric_fallback"] = _model_to_dict(cal.geometric_fallback)
     return doc
 
 
@@ -205,6 +213,9 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
     if doc.get("residual_map") is not None:
         calibration = dataclasses.replace(
             calibration, residual_map=_residual_map(doc["residual_map"], embedded, source))
+    if doc.get("geometric_fallback") is not None:
+        calibration = dataclasses.replace(calibration, geometric_fallback=_fallback(
+            doc["geometric_fallback"], embedded, source))
     regions = tuple(_region_from_dict(entry, embedded, f"{source}: regions/{k}")
                     for k, entry in enumerate(doc.get("regions", ())))
     if not regions:
@@ -213,6 +224,15 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
         return dataclasses.replace(calibration, regions=regions)
     except DataError as exc:
         raise ModelError(f"{source}: {exc}") from None
+
+
+def _fallback(doc: dict, robot: Robot, source: str) -> Calibration:
+    """The stored geometric fallback; :class:`ModelError` when it is not a model."""
+    where = f"{source}: geometric_fallback"
+    try:
+        return _model_from_dict(doc, robot, where)
+    except (KeyError, TypeError, ValueError, AttributeError, DataError) as exc:
+        raise ModelError(f"{where}: {exc!r}") from None
 
 
 def _residual_map(doc: dict, robot: Robot, source: str) -> ResidualMap:
