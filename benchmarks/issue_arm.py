@@ -36,8 +36,10 @@ as a subprocess, and checks the issue's numbers against the document:
    the rest written to an ext.json and predicted on the held-out rows
    (``olp-cal predict --model``) against the geometric model fitted on the same rows;
 5. with ``--timing N``: diagnose on the replica against diagnose without the band scan
-   and the account (``DiagnoseOptions(cyclic=False, account=False)``: the diagnosis before
-   the scan), interleaved N rounds, CPU time, and their ratio (target <= 3x).
+   and the account (``DiagnoseOptions(cyclic=False, account=False)``), or with
+   ``--baseline DIR`` the diagnose of an older tree exported to DIR (the commit before
+   cyclic_scan.py was added), each in its own process, interleaved N rounds, CPU time,
+   and their ratio (target <= 3x).
 """
 
 import os
@@ -278,7 +280,8 @@ def check(label: str, ok: bool, text: str) -> bool:
     return ok
 
 
-def diagnose_checks(replica: Replica, doc: dict, independent_mm: float) -> list[bool]:
+def diagnose_checks(replica: Replica, doc: dict, independent_mm: float,
+                    noise_mm: float = NOISE_MM) -> list[bool]:
     """The issue's numbers against the diagnosis document ``doc``."""
     held = doc["heldout_rms_mm"]
     j2 = next(e for e in replica.hidden if e.joint == 1)
@@ -297,9 +300,9 @@ def diagnose_checks(replica: Replica, doc: dict, independent_mm: float) -> list[
               held["predictable"] is not None
               and abs(held["predictable"] - independent_mm) <= 0.05,
               f"predictable {held['predictable']} mm, independent {independent_mm:.4f} mm"),
-        check("noise near the truth", abs(doc["noise_mm"] / NOISE_MM - 1) <= 0.3,
+        check("noise near the truth", abs(doc["noise_mm"] / noise_mm - 1) <= 0.3,
               f"noise_mm {doc['noise_mm']:.4f} per axis ({doc['noise_source']}), truth "
-              f"{NOISE_MM}"),
+              f"{noise_mm}"),
     ]
 
 
@@ -328,20 +331,43 @@ def range_check(replica: Replica, out: Path, joint: int) -> bool:
                  f"{rms['train_ext.json']:.4f} mm")
 
 
-def timing(replica: Replica, rounds: int) -> None:
-    """CPU time of diagnose with and without the band scan and account, interleaved."""
-    from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose
+TIMER = """
+import sys, time
+from olp_compensate.calibration.diagnose import DiagnoseOptions, diagnose
+from olp_compensate.io.measurements import read_measurements
+from olp_compensate.kinematics.robot import load_robot
+robot = load_robot(sys.argv[1])
+meas = read_measurements(sys.argv[2], robot)
+options = DiagnoseOptions(cyclic=False, account=False) if sys.argv[3] == "off" else DiagnoseOptions()
+start = time.process_time()
+diagnose(robot, meas, options)
+print(time.process_time() - start)
+"""
+"""One diagnosis in a fresh process; prints its CPU seconds."""
 
-    times = {False: [], True: []}
+
+def timing(csv: Path, robot: str, rounds: int, baseline: str | None) -> None:
+    """CPU time of diagnose against diagnose without the band scan and the account (or,
+    with ``baseline``, the diagnose of the tree exported there, run as it is), process by
+    process, interleaved."""
+    here = str(Path(__file__).resolve().parents[1])
+    peers = {"today": (baseline or here, "off" if baseline is None else "as-is"),
+             "with the scan": (here, "on")}
+    times = {name: [] for name in peers}
     for _ in range(rounds):
-        for scan in (False, True):
-            start = time.process_time()
-            diagnose(replica.robot, replica.meas, DiagnoseOptions(cyclic=scan, account=scan))
-            times[scan].append(time.process_time() - start)
-    before, after = np.median(times[False]), np.median(times[True])
-    print(f"time, {replica.meas.n_poses} poses, {rounds} interleaved rounds, CPU: diagnose "
-          f"without the band scan and the account {before:.1f} s, with them {after:.1f} s: "
-          f"{after / before:.2f}x (target <= 3x)")
+        for name, (root, mode) in peers.items():
+            env = dict(os.environ, PYTHONPATH=root)
+            done = subprocess.run([sys.executable, "-c", TIMER, robot, str(csv), mode],
+                                  capture_output=True, text=True, env=env, cwd=root)
+            if done.returncode != 0:
+                sys.exit(f"timing run failed ({root}):\n{done.stderr}")
+            times[name].append(float(done.stdout.split()[-1]))
+    before, after = np.median(times["today"]), np.median(times["with the scan"])
+    what = (f"the tree in {baseline}" if baseline
+            else "this tree without the band scan and the account")
+    print(f"time, {csv.name}, {rounds} interleaved rounds, CPU per process: diagnose of "
+          f"{what} {before:.1f} s {times['today']}, with the scan {after:.1f} s "
+          f"{times['with the scan']}: {after / before:.2f}x (target <= 3x)")
 
 
 def main() -> None:
@@ -350,18 +376,25 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=28)
     parser.add_argument("--out", help="folder for meas.csv, truth.json, d.json, ext.json "
                                       "(default: a temporary one)")
+    parser.add_argument("--robot", default=ROBOT, help="bundled robot (default %(default)s)")
+    parser.add_argument("--noise-mm", type=float, default=NOISE_MM,
+                        help="tracker noise per axis, mm (default %(default)s)")
     parser.add_argument("--orientation", type=float, default=0.0,
                         help="share of the rows with a measured orientation (6-D)")
     parser.add_argument("--range-joint", type=int, default=0,
                         help="hold out the top fifth of this joint's range (1-based)")
     parser.add_argument("--timing", type=int, default=0, help="interleaved timing rounds")
+    parser.add_argument("--baseline", help="with --timing: a folder holding an exported "
+                        "olp_compensate (git archive REV olp_compensate | tar -x -C DIR) "
+                        "whose diagnose is today's")
     parser.add_argument("--skip-diagnose", action="store_true")
     args = parser.parse_args()
     out = Path(args.out or tempfile.mkdtemp(prefix="issue_arm_"))
     out.mkdir(parents=True, exist_ok=True)
-    replica = make_replica(args.poses, args.seed, orientation_share=args.orientation)
+    replica = make_replica(args.poses, args.seed, noise_mm=args.noise_mm,
+                           orientation_share=args.orientation, robot_name=args.robot)
     print(f"replica of issue 28's arm: {replica.robot.name}, {args.poses} poses, tracker "
-          f"noise {NOISE_MM} mm per axis, {100 * args.orientation:.0f} % of rows with "
+          f"noise {args.noise_mm} mm per axis, {100 * args.orientation:.0f} % of rows with "
           f"orientation; files in {out}")
     for e in replica.hidden:
         print(f"  hidden: joint {e.joint + 1} cyclic error, dominant order "
@@ -380,13 +413,13 @@ def main() -> None:
         print(f"olp-cal diagnose {csv} --robot {replica.robot.name} --json d.json -o ext.json "
               f"({time.perf_counter() - start:.0f} s wall)")
         doc = json.loads((out / "d.json").read_text())
-        results += diagnose_checks(replica, doc, figures["orders 1-40"])
+        results += diagnose_checks(replica, doc, figures["orders 1-40"], args.noise_mm)
     if args.range_joint:
         results.append(range_check(replica, out, args.range_joint - 1))
     if results:
         print(f"{sum(results)}/{len(results)} checks pass")
     if args.timing:
-        timing(replica, args.timing)
+        timing(write_replica(replica, out), replica.robot.name, args.timing, args.baseline)
 
 
 if __name__ == "__main__":
