@@ -319,11 +319,20 @@ def range_check(replica: Replica, out: Path, joint: int) -> bool:
     olp_cal("identify", str(train_csv), "--robot", replica.robot.name,
             "-o", str(out / "train_geo.json"), "--folds", "0")
     held = replica.meas.subset(test)
-    rms = {}
-    for name in ("train_geo.json", "train_ext.json"):
-        cal = read_calibration(out / name, replica.robot)
+
+    def rms_of(cal) -> float:
         error = held.points - cal.predict_points(held.joints, list(held.point_names))
-        rms[name] = float(np.sqrt(np.mean(np.sum(error**2, axis=1)))) * 1e3
+        return float(np.sqrt(np.mean(np.sum(error**2, axis=1)))) * 1e3
+
+    cals = {name: read_calibration(out / name, replica.robot)
+            for name in ("train_geo.json", "train_ext.json")}
+    rms = {name: rms_of(cal) for name, cal in cals.items()}
+    ext = cals["train_ext.json"]
+    parts = [f"its geometry alone {rms_of(replace(ext, effects=())):.4f}"]
+    for k, effect in enumerate(ext.effects):
+        others = ext.effects[:k] + ext.effects[k + 1:]
+        parts.append(f"without {effect.label} {rms_of(replace(ext, effects=others)):.4f}")
+    print("  held-out top fifth, the diagnosed model's parts (mm): " + ", ".join(parts))
     return check(f"joint {joint + 1}'s top fifth held out, ext.json not worse than geometry",
                  rms["train_ext.json"] <= rms["train_geo.json"] * 1.0001,
                  f"{int(test.sum())} poses above {np.degrees(q[test].min()):.1f} deg: "
