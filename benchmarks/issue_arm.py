@@ -79,6 +79,9 @@ LOW_ORDERS = 7
 
 @dataclass(frozen=True)
 class Replica:
+    """The robot, the virtual arm with its hidden cyclic errors (truth), the poses'
+    controller axes (m, n; rad) and the tracker's measurements of them."""
+
     robot: object
     virtual: object
     joints: np.ndarray
@@ -87,8 +90,9 @@ class Replica:
 
 
 def band_of(joint: int, rng: np.random.Generator) -> tuple:
-    """((order, weight, phase), ...) of one joint's cyclic error: a peak at its dominant
-    order with its neighbours, over a floor of orders 2-40 whose weights fall off slowly."""
+    """((order, weight, phase), ...) of one joint's cyclic error: its dominant order at
+    weight 1, the two neighbours at 0.4, every other order 2-40 at the joint's floor
+    weight times U(0.3, 1) (orders 2-7 times 1.3: what a scan of low orders finds)."""
     peak, floor = SPECTRA[joint]
     terms = []
     for k in range(2, 41):
