@@ -390,7 +390,7 @@ class ReportRows(RowSequence):
 
     def csv_chunks(self, writer: _CsvRows):
         """The CSV lines of the rows, in pieces of :data:`CSV_CHUNK` rows: each run of
-        complete column rows in one ``%`` format (:meth:`_CsvRows.column_lines`), the
+        complete column rows in one ``%`` format (:meth:`_CsvRows.column_fields`), the
         others row by row."""
         c, others = self.columns, self.others
         whole = np.isfinite(c.correction_mm.sum(axis=1) + c.correction_deg + c.joint_change
