@@ -292,6 +292,35 @@ def test_batch_edits_agree_with_target_edits_across_span_forms():
     assert next(batch, None) is None
 
 
+@pytest.mark.parametrize("parts", ["both", "position", "orientation"])
+@pytest.mark.parametrize("separators", ["one", "several"])
+def test_batch_edits_of_plain_spans_at_once_agree_with_target_edits(parts, separators):
+    """Where every target's span is of the plain form, edits_for_targets reads them all
+    with one regex pass and writes those of one template with one format: each edit is
+    what target_edits writes, whether the targets share one template or several (blanks,
+    a comment holding '%'), for the position, the orientation or both."""
+    rng = np.random.default_rng(11)
+    forms = ["[[{:.2f},{:.1f},{:.0f}],[0.5,-0.5,0.5,-0.5]"]
+    if separators == "several":
+        forms += ["[[{:.2f}, {:.1f}, {:.0f}],[0.5,-0.5,0.5,-0.5]",
+                  "[[{:.3f},{:.1f},{:.0f}], ! pick %s %d\n [0.5,-0.5,0.5,-0.5]"]
+    styles = [forms[k % len(forms)].format(*xyz) for k, xyz in
+              enumerate(rng.uniform(-2000, 2000, (60, 3)))]
+    program = _module_of(styles)
+    targets = program.targets
+    pos, ori = _moved_a_little(targets, rng)
+    pos[4] = [-0.0001, 0.0004, -0.00049]    # round to zero: never "-0.000"
+    pos[5] = [12.0625, -0.0625, 2.5]        # halves that binary holds exactly
+    pos, ori = (None, ori) if parts == "orientation" else (pos, None) \
+        if parts == "position" else (pos, ori)
+    batch = edits_for_targets(program, pos, ori)
+    assert len(batch) == len(targets)
+    for k, (t, edit) in enumerate(zip(targets, batch)):
+        single = target_edits(t, position_mm=None if pos is None else pos[k],
+                              orientation=None if ori is None else ori[k])
+        assert splice(program.text, [edit]) == splice(program.text, single), t.display_name
+
+
 def test_edit_runs_one_after_the_other_are_read_as_one_run():
     from array import array
 

@@ -98,7 +98,8 @@ def _compiled() -> dict:
 
     found = {f"{m.__name__}.{k}": v for m in (literals, rapid_fast)
              for k, v in vars(m).items() if isinstance(v, re.Pattern)}
-    found["emit_batch"] = _PlainRun([0, 1, 2], [3, 3, 3], "").pattern
+    run = _PlainRun([0, 1, 2], [3, 3, 3], "")
+    found["emit_batch"], found["emit_batch joined"] = run.pattern, run.joined
     return found
 
 

@@ -160,8 +160,31 @@ class _CsvRows:
         self.n_joints = n_joints
         self.row_format = ",".join(["%s,%s,%d,%d,%s,%s,%s"] + ["%.4f"] * 3 + ["%.5f"] * 2
                                    + ["%s,%s"] + ["%.6f"] * n_joints + ["%s"])
+        self.row_line = self.row_format + "\n"
+        self.width = 15 + n_joints    # fields of a row
         self.empty_joints = "," * (n_joints - 1)
         self.quoted = _Quoted()
+
+    def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
+        """The fields of :attr:`row_format` for the complete rows ``rows`` of ``c``, row
+        after row in one flat list (each column converted in one pass)."""
+        if not len(rows):
+            return []
+        quoted = self.quoted.__getitem__
+        r = rows.tolist()
+        names = [c.names[i] for i in r]
+        if any(ch in "".join(names) for ch in ',"\n\r'):
+            names = list(map(_csv_field, names))
+        tools = [(quoted(t), quoted(w)) for t, w in c.pair_names]
+        tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
+        columns = [names, itertools.repeat(quoted(c.file)), c.line[rows].tolist(),
+                   c.column[rows].tolist(), map(quoted, [c.status[i] for i in r]), tool, wobj,
+                   *c.correction_mm[rows].T.tolist(), c.correction_deg[rows].tolist(),
+                   c.joint_change[rows].tolist(),
+                   map(quoted, [c.config_before[i] for i in r]),
+                   map(quoted, [c.config_after[i] for i in r]), *c.joints[rows].T.tolist(),
+                   map(quoted, [c.note[i] for i in r])]
+        return list(itertools.chain.from_iterable(zip(*columns)))
 
     def line(self, r: TargetReport) -> str:
         quoted = self.quoted
@@ -366,36 +389,30 @@ class ReportRows(RowSequence):
         return tuple(max(a, b) for a, b in zip(ours, found))
 
     def csv_chunks(self, writer: _CsvRows):
-        """The CSV lines of the rows, in pieces of :data:`CSV_CHUNK` rows."""
+        """The CSV lines of the rows, in pieces of :data:`CSV_CHUNK` rows: each run of
+        complete column rows in one ``%`` format (:meth:`_CsvRows.column_fields`), the
+        others row by row."""
         c, others = self.columns, self.others
-        quoted = writer.quoted
         whole = np.isfinite(c.correction_mm.sum(axis=1) + c.correction_deg + c.joint_change
-                            + c.joints.sum(axis=1)).tolist() if len(c) else []
-        file = quoted[c.file]
-        tools = [(quoted[t], quoted[w]) for t, w in c.pair_names]
-        row_format = writer.row_format
+                            + c.joints.sum(axis=1)) if len(c) else np.zeros(0, bool)
         for k in range(0, len(self.order), CSV_CHUNK):
             order = self.order[k:k + CSV_CHUNK]
-            mine = order[order >= 0]
-            fields = zip(mine.tolist(), c.line[mine].tolist(), c.column[mine].tolist(),
-                         c.pair[mine].tolist(), c.correction_mm[mine].tolist(),
-                         c.correction_deg[mine].tolist(), c.joint_change[mine].tolist(),
-                         c.joints[mine].tolist())
-            lines = []
-            for j in order.tolist():
-                if j < 0:
-                    lines.append(writer.line(others[-1 - j]))
+            fast = order >= 0
+            fast[fast] = whole[order[fast]]
+            fields = writer.column_fields(c, order[fast])
+            width = writer.width
+            pieces = []
+            bounds = [0, *(np.flatnonzero(fast[1:] != fast[:-1]) + 1).tolist(), len(order)]
+            done = 0    # fast rows written
+            for a, b in zip(bounds, bounds[1:]):
+                if fast[a]:
+                    pieces.append((writer.row_line * (b - a)) % tuple(
+                        fields[done * width:(done + b - a) * width]))
+                    done += b - a
                     continue
-                i, line, column, pair, shift, turn, change, joints = next(fields)
-                if not whole[i]:
-                    lines.append(writer.line(c.row(i)))
-                    continue
-                lines.append(row_format % (
-                    _csv_field(c.names[i]), file, line, column, quoted[c.status[i]],
-                    *tools[pair], *shift, turn, change, quoted[c.config_before[i]],
-                    quoted[c.config_after[i]], *joints, quoted[c.note[i]]))
-            lines.append("")
-            yield "\n".join(lines)
+                for j in order[a:b].tolist():
+                    pieces.append(writer.line(others[-1 - j] if j < 0 else c.row(j)) + "\n")
+            yield "".join(pieces)
 
 
 class ChainedRows(RowSequence):

@@ -12,7 +12,10 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+import operator
 from collections.abc import Iterable, Iterator, Sequence
+
+import numpy as np
 
 from ..errors import DataError
 from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, aligned_quaternion,
@@ -102,7 +105,13 @@ class SplicedText:
         return splice_in_order(self.text, self.edits())
 
     def blocks(self, encoding: str, block: int = 1 << 20) -> Iterator[bytes]:
-        """The new text's bytes in ``encoding``, about ``block`` characters at a time."""
+        """The new text's bytes in ``encoding``, about ``block`` characters at a time (at
+        least ``block`` in each but the last). Edits held in columns are merged, checked
+        and spliced as columns, a group of :data:`GROUP` edits per join."""
+        columns = _columns_of(self.runs)
+        if columns is not None and _in_bounds(*columns[:2], len(self.text)):
+            yield from _joined_blocks(self.text, *columns, encoding, block)
+            return
         parts, size = [], 0
         for piece in _spliced_pieces(self.text, self.edits()):
             parts.append(piece)
@@ -116,6 +125,72 @@ class SplicedText:
     def encode(self, encoding: str) -> bytes:
         """The new text's bytes in ``encoding``."""
         return b"".join(self.blocks(encoding))
+
+
+GROUP = 4096
+"""Edits spliced per join by :meth:`SplicedText.blocks` (the new text is never held whole)."""
+
+
+def _columns_of(runs: Sequence) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+    """(starts, ends, replacements) of all edits of ``runs`` in the order
+    :meth:`SplicedText.edits` gives (by offset, the earlier run first at one offset), or
+    None where a run is neither a list or tuple of edits, :class:`EditColumns` nor
+    :class:`EditsInTurn` of those, or is not in offset order (left to the merge)."""
+    starts, ends, replacements = [], [], []
+    for run in runs:
+        pieces = run.runs if type(run) is EditsInTurn else (run,)
+        for piece in pieces:
+            if type(piece) is EditColumns:
+                starts.append(np.asarray(piece.starts, np.int64))
+                ends.append(np.asarray(piece.ends, np.int64))
+                replacements += piece.replacements
+            elif type(piece) in (list, tuple):
+                a, b, texts = zip(*piece) if piece else ((), (), ())
+                starts.append(np.array(a, np.int64))
+                ends.append(np.array(b, np.int64))
+                replacements += texts
+            else:
+                return None
+        if len(pieces) > 1 or len(runs) > 1:
+            joined = np.concatenate(starts[-len(pieces):])
+            if np.any(joined[1:] < joined[:-1]):
+                return None
+    if not starts:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), []
+    start, end = np.concatenate(starts), np.concatenate(ends)
+    if len(runs) > 1 and len(start) > 1:
+        order = np.argsort(start, kind="stable")
+        start, end = start[order], end[order]
+        replacements = list(operator.itemgetter(*order.tolist())(replacements))
+    return start, end, replacements
+
+
+def _in_bounds(start: np.ndarray, end: np.ndarray, n: int) -> bool:
+    """Whether edits (in offset order) neither overlap nor leave a text of length ``n``."""
+    if not len(start):
+        return True
+    return bool(np.all(start[1:] >= end[:-1]) and np.all(end >= start) and end.max() <= n)
+
+
+def _joined_blocks(text: str, start: np.ndarray, end: np.ndarray, replacements: list[str],
+                   encoding: str, block: int) -> Iterator[bytes]:
+    """:meth:`SplicedText.blocks` of edits in order that neither overlap nor leave the
+    text: the kept text before each edit and its replacement, :data:`GROUP` edits a
+    join."""
+    kept_from = np.concatenate([[0], end])
+    parts, size, given = [], 0, False
+    for a in range(0, len(start), GROUP):
+        b = a + GROUP
+        kept = map(text.__getitem__, map(slice, kept_from[a:b].tolist(), start[a:b].tolist()))
+        piece = "".join(itertools.chain.from_iterable(zip(kept, replacements[a:b])))
+        parts.append(piece)
+        size += len(piece)
+        if size >= block:
+            yield "".join(parts).encode(encoding)
+            parts, size, given = [], 0, True
+    parts.append(text[int(kept_from[-1]):])
+    if not given or any(parts):
+        yield "".join(parts).encode(encoding)
 
 
 def _spliced_pieces(text: str, edits: Iterable[Edit]) -> Iterator[str]:

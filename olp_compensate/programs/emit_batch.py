@@ -192,13 +192,17 @@ class _PlainRun:
         # backtracking form spent 170 us failing each exponent-style span, 1.5E0)
         plain = [portable(r"-?\d++(?:\.\d{0,%d})?+" % d) for d in decimals]   # .regex_compat
         self.pattern = re.compile("(" + ")([^-+.0-9]*+)(".join(plain) + ")")
+        # the same form for spans joined by NUL (a separator holds none): one findall over
+        # them finds each plain span whole, giving its separators only
+        self.joined = re.compile(r"(?<=\0)(?:" + ")([^-+.0-9\0]*+)(?:".join(plain)
+                                 + r")(?=\0)")
         self.templates: dict[tuple[str, ...], str] = {}
 
-    def zero_small(self, new: np.ndarray) -> list[list[float]]:
-        """``new`` (k, columns) as rows of floats, values that round to zero written as 0 so
-        no ``-0.000`` appears (the general path strips the sign the same way)."""
+    def zero_small(self, new: np.ndarray) -> np.ndarray:
+        """``new`` (k, columns) with the values that round to zero made 0, so no ``-0.000``
+        appears (the general path strips the sign the same way)."""
         tol = 0.5 * 10.0 ** -np.array(self.decimals, float)
-        return np.where(np.abs(new) < tol, 0.0, new).tolist()
+        return np.where(np.abs(new) < tol, 0.0, new)
 
     def template(self, separators: tuple[str, ...]) -> str:
         """The ``%`` template of the columns with these separators between them."""
@@ -236,15 +240,48 @@ class _PlainRun:
     def edits(self, rows: list[int], begins: list[int], ends: list[int], new: np.ndarray
               ) -> tuple[list[int], list[Edit]]:
         """The edits writing ``new[i]`` (n, columns) over ``text[begin:end]`` for each of
-        ``rows`` whose span is of the plain form, and those rows."""
+        ``rows`` whose span is of the plain form, and those rows. Where every span is
+        (the common case), their separators are read by one regex pass over the spans
+        joined, and the new texts written by one ``%`` format per distinct template."""
+        if rows:
+            found = self.all_plain(begins, ends)
+            if found is not None:
+                return rows, list(map(Edit, begins, ends, self.written(found, new[rows])))
         templates = self.span_templates(begins, ends)
         plain = [template is not None for template in templates]
         replacements = map(operator.mod, compress(templates, plain),
-                           map(tuple, compress(self.zero_small(new[rows]), plain)))
+                           map(tuple, compress(self.zero_small(new[rows]).tolist(), plain)))
         edits = [Edit(start=start, end=end, replacement=replacement)
                  for start, end, replacement in zip(compress(begins, plain),
                                                     compress(ends, plain), replacements)]
         return list(compress(rows, plain)), edits
+
+    def all_plain(self, begins: list[int], ends: list[int]) -> list[tuple] | None:
+        """The separators of each span ``text[begin:end]`` when every span is of the plain
+        form (one findall over the spans joined by NUL: a match starts after a NUL and
+        ends before one, so it is one whole span), else None."""
+        spans = list(map(self.text.__getitem__, map(slice, begins, ends)))
+        joined = "\0".join(spans)
+        if joined.count("\0") != len(spans) - 1:
+            return None   # a NUL inside a span
+        found = self.joined.findall("\0" + joined + "\0")
+        if len(found) != len(spans):
+            return None
+        if len(self.cols) > 2:   # findall gives a tuple of the groups where there are two
+            return found
+        return [(sep,) for sep in found] if len(self.cols) == 2 else [()] * len(found)
+
+    def written(self, separators: list[tuple], new: np.ndarray) -> list[str]:
+        """The new text of each span: ``new`` (n, columns) written with the template of
+        its ``separators``; spans of one template in one ``%`` format."""
+        values = self.zero_small(new)
+        kinds = set(separators)
+        if len(kinds) == 1:   # (a template holds no NUL: the separators hold none)
+            return ("\0".join([self.template(kinds.pop())] * len(separators))
+                    % tuple(values.ravel().tolist())).split("\0")
+        template_of = self.template
+        return list(map(operator.mod, map(template_of, separators),
+                        map(tuple, values.tolist())))
 
 
 def _batch(name: str, values, n: int, k: int) -> np.ndarray:
