@@ -30,6 +30,7 @@ from .frame_lookup import FrameLookup
 from .pose import COMPENSATED, Compensator
 from .regions import RegionalCompensator
 from .report import CompensationReport, TargetReport
+from .residual_map import add_range_notes, residual_map_pass
 
 @dataclass
 class _Job:
@@ -278,13 +279,18 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
     options = {} if isinstance(comp, RegionalCompensator) else {"asked": on_rows(asked, keep)}
     q, flange, solution, _ = comp.compensate_flanges(desired, None, confdata, **options)
     failures = explain_failures(comp, solution, desired, confdata, on_rows(words, keep))
+    notes = [""] * len(jobs)         # the residual map and the effects' fitted ranges
+    if not isinstance(comp, RegionalCompensator):
+        q, flange = residual_map_pass(comp, desired, q, flange, solution.success, notes)
+        add_range_notes(comp.calibration, robot.controller_from_joints(q), solution.success,
+                        notes)
     for i, job in enumerate(jobs):
         if not solution.success[i]:
             rows.append(_failure_row(job, rules, failures[i], robot))
             continue
         q_ctrl = robot.controller_from_joints(q[i][None])[0]
         rows.append(_solved_row(job, rules, geometry, q_ctrl, flange[i], q_nominal[i],
-                                str(solution.reason[i]), robot, edits))
+                                str(solution.reason[i]), robot, edits, notes[i]))
 
 
 def _failure_row(job: _Job, rules: DialectRules, failure, robot) -> TargetReport:
@@ -320,9 +326,9 @@ def _taught(comp: Compensator, teacher: Compensator, rules: DialectRules, jobs: 
 
 def _solved_row(job: _Job, rules: DialectRules, geometry: ArmGeometry, q_ctrl: np.ndarray,
                 flange: np.ndarray, q_nominal: np.ndarray, status: str, robot,
-                edits: dict[str, list[Edit]]) -> TargetReport:
+                edits: dict[str, list[Edit]], extra_note: str = "") -> TargetReport:
     """The row of a compensated job; its edits (numbers, and the configuration of the
-    joints written) added to ``edits``."""
+    joints written) added to ``edits``; ``extra_note`` joins the job's note."""
     before = rules.config_words(rules.written(job.target))
     new_target = invert_pose(job.base) @ flange @ job.tool
     original = np.array([nb.value for nb in job.target.numbers])
@@ -343,7 +349,8 @@ def _solved_row(job: _Job, rules: DialectRules, geometry: ArmGeometry, q_ctrl: n
         correction_mm=tuple(float(v) for v in shift), correction_deg=turn,
         joint_change=float(np.max(np.abs(change))) if np.all(np.isfinite(change)) else np.nan,
         config_before=before, config_after=rules.config_words(config),
-        joints=tuple(robot.to_degrees_or_mm(q_ctrl[None])[0].tolist()), note=job.note)
+        joints=tuple(robot.to_degrees_or_mm(q_ctrl[None])[0].tolist()),
+        note="; ".join(x for x in (job.note, extra_note) if x))
 
 
 def _external_rows(program: PoseProgram, rules: DialectRules, rows: list[TargetReport],
