@@ -144,7 +144,8 @@ def _left_in_columns(text: str) -> list[str]:
 
 
 @pytest.mark.parametrize("change, why, objects", [
-    ("    MoveL Offs(pA,0,0,10),v500,z10,tGun;\n", "run-time use", {"pA"}),
+    ("    MoveJ Offs(pNever,0,0,50),v500,z10,tGun\\WObj:=wTable;\n",
+     "moved to only through Offs()", {"pNever"}),
     ("    MoveL pTable,v500,z10,tGun;\n", "two tool/work-object pairs", {"pTable"}),
     ("    MyRoutine pA;\n", "handed to a routine", {"pA"}),
     ("    pHeld := pA;\n", "copied", {"pA", "pHeld"}),
@@ -158,6 +159,35 @@ def test_targets_whose_meaning_is_not_plain_take_the_object_path(change, why, ob
     names = ["pA", "pNever", "pZero", "pOdd", "pFar", "pUnknownTool", "pTable", "pHeld"]
     assert _left_in_columns(text) == [n for n in names if n not in objects], why
     _both(text, "special.mod", comp, "skip")
+
+
+@pytest.mark.parametrize("change", [
+    "    MoveL Offs(pA,0,0,10),v500,z10,tGun;\n",
+    "    MoveJ Offs(pA,0,0,50),v500,z10,tGun;\n    MoveL RelTool(pA,0,0,-20),v500,z10,tGun;\n",
+    "    MoveL RelTool(pTable,0,0,-20),v500,z10,tFixed;\n",   # another pair than its MoveL
+    "    MoveL Offs(pFar,0,0,10),v500,z10,tGun;\n    MoveL Offs(pUnknownTool,0,0,1),"
+    "v500,z10,tGun;\n"])
+def test_a_target_also_displaced_at_run_time_stays_in_columns(change, comp):
+    """Offs()/RelTool() of a target that motions also move to by name is a ``runtime``
+    row of its own and leaves the target's meaning (pair, notes) as it is: the target
+    stays a table row, the text and report are the object path's."""
+    text = SPECIAL.replace("  ENDPROC", change + "  ENDPROC")
+    assert _taken(text)
+    assert _left_in_columns(text) == ["pA", "pNever", "pZero", "pOdd", "pFar",
+                                      "pUnknownTool", "pTable", "pHeld"]
+    report = _both(text, "special.mod", comp, "skip")
+    runtime = [r for r in report.rows if r.status == "runtime"]
+    assert len(runtime) == change.count("Move")
+    assert all(r.target.startswith(("Offs(", "RelTool(")) for r in runtime)
+
+
+def test_a_target_moved_to_only_through_offs_takes_its_pairs_from_them(comp):
+    text = SPECIAL.replace("  ENDPROC", "    MoveJ Offs(pNever,0,0,50),v500,z10,"
+                           "tGun\\WObj:=wTable;\n  ENDPROC")
+    report = _both(text, "special.mod", comp, "skip")
+    (row,) = [r for r in report.rows if r.target == "pNever"]
+    assert (row.tool, row.wobj) == ("tGun", "wTable")
+    assert row.note.endswith("moved to only through Offs()")
 
 
 def test_a_target_declared_twice_takes_the_object_path(comp):
@@ -178,8 +208,8 @@ def test_a_realistic_module_keeps_its_plain_targets_in_columns(comp):
 
     text = generate_realistic_module(120, seed=4)
     left = _left_in_columns(text)
-    assert 40 < len(left) < 120
-    assert not {f"p{k}" for k in range(0, 120, 5)} & set(left)   # moved to by Offs
+    local = {f"p{k}" for k in range(9, 120, 10)}     # declared in their routine
+    assert set(left) == {f"p{k}" for k in range(120)} - local   # Offs/RelTool ones too
     report = _both(text, "real.mod", comp, "skip")
     assert isinstance(report.rows, ReportRows)
 

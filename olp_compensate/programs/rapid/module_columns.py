@@ -43,7 +43,8 @@ from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
 from ..object_model.rows import failure_row, solved_note, written_row
-from .column_plans import Plan, modules_sharing_names, named_elsewhere, task_plans
+from .column_plans import (Plan, displaced_names, modules_sharing_names, named_elsewhere,
+                           task_plans)
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
 from ..targets import Program
@@ -162,13 +163,18 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     for k, name in enumerate(lower):
         if row_of.setdefault(name, k) != k:
             twice.add(name)
-    named = (twice | named_elsewhere(program)) & row_of.keys()
+    named = (twice | named_elsewhere(program, displaced=False)) & row_of.keys()
     keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
     rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
                         for name in moves.target_names), np.intp, len(moves))
     indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
         np.zeros(0, bool)
     keep_targets[rows[indexed & (rows >= 0)]] = False
+    moved = np.zeros(len(lower), bool)
+    moved[rows[rows >= 0]] = True
+    for name in displaced_names(program) & row_of.keys():
+        if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
+            keep_targets[row_of[name]] = False
     pair_of = {}
     for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
         if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:
