@@ -82,6 +82,8 @@ def plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = N
                        np.intp, len(moves))
     if np.any(rows < 0):
         return None
+    if outside_their_routine(table.routines, moves.routines, rows):
+        return None   # a routine's target moved to from another routine
     moved = np.zeros(len(table), bool)
     moved[rows] = True
     if any(not moved[row_of[name]] for name in displaced_names(program) & row_of.keys()):
@@ -144,3 +146,13 @@ def displaced_names(program: Program) -> set[str]:
     A target moved to only through them takes their pairs: it goes to the object model."""
     return {u.runtime.base_name.lower() for u in program.motions
             if u.runtime is not None and u.runtime.base_name}
+
+
+def outside_their_routine(routines: list, move_routines: list, rows: np.ndarray) -> list:
+    """The motions (indices) to a routine's table target (``routines`` of the rows, None
+    at module level; ``rows``: each motion's table row or -1) made outside that routine,
+    where the name means something else (another target, or none)."""
+    if not any(routines):
+        return []
+    return [k for k, row in enumerate(rows.tolist()) if row >= 0 and routines[row]
+            and (move_routines[k] or "").lower() != routines[row].lower()]

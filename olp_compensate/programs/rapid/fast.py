@@ -87,9 +87,9 @@ def _split_fast_decls(tok: Token, sink: Sink) -> None:
     declaration); the others are appended to ``sink.decls``."""
     text, pos, end = sink.text, tok.start_pos, tok.end_pos
     out, match = sink.decls, _FAST_DECL.match
-    module_level = sink.depth == 0
+    plain = sink.depth == 0 or sink.columns is not None   # a column parse: routines' too
     while pos < end:
-        if module_level:
+        if plain:
             pos = _plain_robtargets(sink, text, pos, end)
             if pos >= end:
                 break
@@ -109,7 +109,7 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
     CartesianTarget objects in ``sink.targets``. Returns the offset after them."""
     if sink.columns is not None:
         first, second = (rx.match for rx in robtarget_regexes(rows=True))
-        add = sink.columns.targets.append
+        add, routine = sink.columns.targets.append, sink.routine
         while True:
             m = first(text, pos, end)
             if m is None:
@@ -117,7 +117,9 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
                 if m is None:
                     return pos
                 first, second = second, first
-            add(m.group(3), m.group(1), m.regs)
+            if sink.depth and (m.start(1) != pos or m.group(1).upper() == "PERS"):
+                return pos   # not a routine's data (LOCAL, TASK, PERS): the builder says
+            add(m.group(3), m.group(1), m.regs, routine)
             pos = m.end()
     first, second = (rx.match for rx in robtarget_regexes(rows=False))
     append, file = sink.targets.append, sink.file

@@ -44,7 +44,7 @@ from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
 from ..object_model.rows import failure_row, solved_note, written_row
 from .column_plans import (Plan, displaced_names, modules_sharing_names, named_elsewhere,
-                           task_plans)
+                           outside_their_routine, task_plans)
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
 from ..targets import Program
@@ -153,9 +153,10 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     within the module. A target is not plain when its name is declared twice, named by
     any of the module's objects (a run-time expression, routine argument, copy,
     assignment, another declaration), moved to with an index, or moved to with several
-    tool/work-object pairs; a motion is not plain when its target is not a plain table
-    target (a routine-local target, a name the table does not declare). The rows that are
-    not plain go to the object path together with every table motion to them."""
+    tool/work-object pairs, or (a routine's target) moved to from another routine, or
+    moved to only through Offs()/RelTool(); a motion is not plain when its target is not a
+    plain table target (a name the table does not declare). The rows that are not plain
+    go to the object path together with every table motion to them."""
     table, moves = columns.targets, columns.moves
     lower = [name if name.islower() else name.lower() for name in table.names]
     row_of: dict[str, int] = {}
@@ -170,6 +171,8 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
         np.zeros(0, bool)
     keep_targets[rows[indexed & (rows >= 0)]] = False
+    for k in outside_their_routine(table.routines, moves.routines, rows):
+        keep_targets[rows[k]] = False   # a routine's target named in another routine
     moved = np.zeros(len(lower), bool)
     moved[rows[rows >= 0]] = True
     for name in displaced_names(program) & row_of.keys():
