@@ -84,7 +84,8 @@ def _on_fast_decls(tok: Token) -> Token:
 def _split_fast_decls(tok: Token, sink: Sink) -> None:
     """Record the declarations of a FAST_DECLS run (anchored, in order). At module level
     a plain robtarget becomes a target at once (one regex match for the whole
-    declaration); the others are appended to ``sink.decls``."""
+    declaration), in a column parse a routine's ``VAR``/``CONST`` one too (a table row
+    with its routine); the others are appended to ``sink.decls``."""
     text, pos, end = sink.text, tok.start_pos, tok.end_pos
     out, match = sink.decls, _FAST_DECL.match
     plain = sink.depth == 0 or sink.columns is not None   # a column parse: routines' too
