@@ -36,7 +36,7 @@ class Builder(PositionedBuilder):
         self.joints: list = []
         self.tools: list = []
         self.wobjs: list = []
-        self.runtime: list = []
+        self.runtime: list = sink.runtime   # the fast paths'; appended to
         self.references: list = []
         self.problems: list[TargetProblem] = []
         self.copies: list[TargetCopy] = []

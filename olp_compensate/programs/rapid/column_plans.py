@@ -29,8 +29,9 @@ def task_plans(programs: list[Program], columns: list[ModuleColumns]) -> list:
 
 def modules_sharing_names(programs: list[Program], columns: list[ModuleColumns]) -> set:
     """The modules with a table target declared in another module too, named by any
-    module's objects or moved to by another module's table motions (one dict of the
-    table names, no lower-case copies of names already in lower case)."""
+    module's objects (displaced by Offs()/RelTool(): by another module's), or moved to by
+    another module's table motions (one dict of the table names, no lower-case copies of
+    names already in lower case)."""
     owner: dict[str, int] = {}    # lower-case table name -> the first module declaring it
     shared = set()
     for m, c in enumerate(columns):
@@ -40,9 +41,13 @@ def modules_sharing_names(programs: list[Program], columns: list[ModuleColumns])
                 shared.update((first, m))
     if not owner:
         return shared
-    for name in set().union(*map(named_elsewhere, programs)):
-        if name in owner:
-            shared.add(owner[name])
+    for m, program in enumerate(programs):
+        for name in named_elsewhere(program, displaced=False):
+            if name in owner:
+                shared.add(owner[name])
+        for name in displaced_names(program):   # Offs()/RelTool() of another module's
+            if owner.get(name, m) != m:         # target: the task's resolution
+                shared.add(owner[name])
     if len(columns) > 1:
         for m, c in enumerate(columns):
             for name in c.moves.target_names:
@@ -70,13 +75,19 @@ def plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = N
     row_of = {name if name.islower() else name.lower(): k for k, name in enumerate(table.names)}
     if len(row_of) < len(table) or any(k >= 0 for k in moves.indices):
         return None
-    if not named_elsewhere(program).isdisjoint(row_of):
+    if not named_elsewhere(program, displaced=False).isdisjoint(row_of):
         return None
     rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
                         for name in moves.target_names),
                        np.intp, len(moves))
     if np.any(rows < 0):
         return None
+    if outside_their_routine(table.routines, moves.routines, rows):
+        return None   # a routine's target moved to from another routine
+    moved = np.zeros(len(table), bool)
+    moved[rows] = True
+    if any(not moved[row_of[name]] for name in displaced_names(program) & row_of.keys()):
+        return None   # moved to only through Offs()/RelTool(): the object model's pairs
     resolver = Resolver([program]) if resolver is None else resolver
     keys: dict = {}    # pair key -> index into pairs
     infos: list = []
@@ -105,15 +116,43 @@ def plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = N
     return Plan(pair=pair, uses=uses, pairs=tuple(frame_pair(info) for info in infos))
 
 
-def named_elsewhere(program: Program) -> set[str]:
-    """Lower-case names that the program's objects declare or use as targets."""
+def named_elsewhere(program: Program, displaced: bool = True) -> set[str]:
+    """Lower-case names that the program's objects declare or use as targets;
+    ``displaced=False``: without the names used only as the target a motion displaces at
+    run time (``MoveL Offs(p, ...)``, ``RelTool``: :func:`displaced_names`), which leave
+    the meaning of a target moved to by name as well unchanged."""
     names = {t.name for t in program.targets + program.joint_targets if t.name}
     names.update(u.target_name for u in program.motions if u.target_name)
-    names.update(r.base_name for r in program.runtime if r.base_name)
+    if displaced:
+        names.update(r.base_name for r in program.runtime if r.base_name)
+    else:
+        of_motions = {id(u.runtime) for u in program.motions if u.runtime is not None}
+        names.update(r.base_name for r in program.runtime
+                     if r.base_name and id(r) not in of_motions)
     names.update(u.runtime.base_name for u in program.motions
-                 if u.runtime is not None and u.runtime.base_name)
+                 if displaced and u.runtime is not None and u.runtime.base_name)
     names.update(r.name for r in program.references)
     for c in program.copies:
         names.update(n for n in (c.name, c.source_name) if n)
     names.update(p for r in program.routines for p in r.parameters)
     return {n.lower() for n in names}
+
+
+def displaced_names(program: Program) -> set[str]:
+    """Lower-case names of the targets that motions displace at run time (the first
+    argument of ``Offs()`` or ``RelTool()`` as a motion's target). Such a use is reported
+    as its own ``runtime`` row and changes nothing of a target that motions also move to
+    by name (:meth:`~..semantics.Resolver.entries_of`): that target stays a table row.
+    A target moved to only through them takes their pairs: it goes to the object model."""
+    return {u.runtime.base_name.lower() for u in program.motions
+            if u.runtime is not None and u.runtime.base_name}
+
+
+def outside_their_routine(routines: list, move_routines: list, rows: np.ndarray) -> list:
+    """The motions (indices) to a routine's table target (``routines`` of the rows, None
+    at module level; ``rows``: each motion's table row or -1) made outside that routine,
+    where the name means something else (another target, or none)."""
+    if not any(routines):
+        return []
+    return [k for k, row in enumerate(rows.tolist()) if row >= 0 and routines[row]
+            and (move_routines[k] or "").lower() != routines[row].lower()]

@@ -33,7 +33,8 @@ _BRACKETS = {ord("["): " ", ord("]"): " "}
 
 
 class TargetTable:
-    """Module-level plain robtarget declarations, in text order.
+    """Plain robtarget declarations, in text order: module-level, and ``VAR``/``CONST``
+    ones of a routine (``routines``: the routine's name as written, None at module level).
 
     Per row: ``names`` and ``storage`` ('CONST', 'PERS', 'VAR') as written; ``spans``:
     the literal's (start, end), the type word's (start, end), where its first number (x)
@@ -42,11 +43,13 @@ class TargetTable:
     :meth:`values` (one batch), their texts and offsets from :meth:`target`.
     """
 
-    __slots__ = ("names", "storage", "spans", "offsets", "line", "column", "_words")
+    __slots__ = ("names", "storage", "routines", "spans", "offsets", "line", "column",
+                 "_words")
 
     def __init__(self):
         self.names: list[str] = []
         self.storage: list[str] = []
+        self.routines: list[str | None] = []
         self.spans = array("q")      # SPANS per row
         self.offsets = array("q")    # where each name starts
         self.line = self.column = np.zeros(0, np.int64)
@@ -55,7 +58,7 @@ class TargetTable:
     def __len__(self) -> int:
         return len(self.names)
 
-    def append(self, name: str, storage: str, regs) -> None:
+    def append(self, name: str, storage: str, regs, routine: str | None = None) -> None:
         """Add a row from the ``regs`` of a declaration match (see rapid_fast.py
         ``_row_pattern``: group 3 the name, 2 the type word, 4 the literal, 5 its first
         number, 6 its seventh)."""
@@ -64,6 +67,7 @@ class TargetTable:
         if word is None:
             word = self._words[storage] = storage.upper()
         self.storage.append(word)
+        self.routines.append(routine)
         literal, kind = regs[4], regs[2]
         self.offsets.append(regs[3][0])
         self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
@@ -99,6 +103,7 @@ class TargetTable:
         rows = np.flatnonzero(keep).tolist()
         out.names = [self.names[k] for k in rows]
         out.storage = [self.storage[k] for k in rows]
+        out.routines = [self.routines[k] for k in rows]
         out.spans = array("q", self.span_columns()[keep].ravel().tolist())
         out.offsets = array("q", [self.offsets[k] for k in rows])
         out.line, out.column = self.line[keep], self.column[keep]
@@ -113,7 +118,7 @@ class TargetTable:
             name=self.names[i], source=(file, int(self.line[i]), int(self.column[i])),
             texts=m.groups(), starts=tuple(map(m.start, range(1, NUMBERS + 1))),
             orientation_kind=QUAT_WXYZ, span=(s[0], s[1]), storage=self.storage[i],
-            array_index=None, routine=None, type_span=(s[2], s[3]))
+            array_index=None, routine=self.routines[i], type_span=(s[2], s[3]))
 
     def targets(self, text: str, file: str) -> list[CartesianTarget]:
         """Every row as :meth:`target` makes it (in one pass)."""
@@ -121,10 +126,10 @@ class TargetTable:
         matches = map(ROBTARGET_RE.match, repeat(text), s[0::SPANS], s[1::SPANS])
         make, numbers = CartesianTarget._make, range(1, NUMBERS + 1)
         return [make((name, (file, line, column), m.groups(), tuple(map(m.start, numbers)),
-                      QUAT_WXYZ, (a, b), storage, None, None, (ta, tb)))
-                for m, name, line, column, storage, a, b, ta, tb in zip(
+                      QUAT_WXYZ, (a, b), storage, None, routine, (ta, tb)))
+                for m, name, line, column, storage, routine, a, b, ta, tb in zip(
                     matches, self.names, self.line.tolist(), self.column.tolist(),
-                    self.storage, s[0::SPANS], s[1::SPANS], s[2::SPANS], s[3::SPANS])]
+                    self.storage, self.routines, s[0::SPANS], s[1::SPANS], s[2::SPANS], s[3::SPANS])]
 
 
 class MoveTable:

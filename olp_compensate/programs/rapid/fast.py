@@ -20,7 +20,8 @@ from lark import Token
 from ..grammar import current_sink
 from ..literals import NUMBER_GROUP, ROBTARGET_PATTERN
 from ..regex_compat import portable
-from ..targets import QUAT_WXYZ, CartesianTarget, MotionUse
+from ..targets import QUAT_WXYZ, CartesianTarget, MotionUse, RuntimeTarget, SourceLocation
+from .instructions import RUNTIME_FUNCS
 from .records import Arg, Decl, Ex, Opt, Sink, call_record_of
 
 
@@ -83,12 +84,13 @@ def _on_fast_decls(tok: Token) -> Token:
 def _split_fast_decls(tok: Token, sink: Sink) -> None:
     """Record the declarations of a FAST_DECLS run (anchored, in order). At module level
     a plain robtarget becomes a target at once (one regex match for the whole
-    declaration); the others are appended to ``sink.decls``."""
+    declaration), in a column parse a routine's ``VAR``/``CONST`` one too (a table row
+    with its routine); the others are appended to ``sink.decls``."""
     text, pos, end = sink.text, tok.start_pos, tok.end_pos
     out, match = sink.decls, _FAST_DECL.match
-    module_level = sink.depth == 0
+    plain = sink.depth == 0 or sink.columns is not None   # a column parse: routines' too
     while pos < end:
-        if module_level:
+        if plain:
             pos = _plain_robtargets(sink, text, pos, end)
             if pos >= end:
                 break
@@ -108,7 +110,7 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
     CartesianTarget objects in ``sink.targets``. Returns the offset after them."""
     if sink.columns is not None:
         first, second = (rx.match for rx in robtarget_regexes(rows=True))
-        add = sink.columns.targets.append
+        add, routine = sink.columns.targets.append, sink.routine
         while True:
             m = first(text, pos, end)
             if m is None:
@@ -116,7 +118,9 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
                 if m is None:
                     return pos
                 first, second = second, first
-            add(m.group(3), m.group(1), m.regs)
+            if sink.depth and (m.start(1) != pos or m.group(1).upper() == "PERS"):
+                return pos   # not a routine's data (LOCAL, TASK, PERS): the builder says
+            add(m.group(3), m.group(1), m.regs, routine)
             pos = m.end()
     first, second = (rx.match for rx in robtarget_regexes(rows=False))
     append, file = sink.targets.append, sink.file
@@ -252,6 +256,12 @@ _SIMPLE_MOVE = re.compile(
     + _MOVE_TAIL)
 _INLINE_MOVE = re.compile(r"((?i:MoveL|MoveJ))[ \t]+(" + ROBTARGET_PATTERN + ")" + _MOVE_TAIL)
 _INLINE_NUMBERS = range(3, 20)
+# MoveL/MoveJ Offs(<name>, <number>, <number>, <number>) or RelTool(...) of the same form
+# (three numbers, no optional argument): instruction, target expression, function, its
+# target's name, tool, wobj, () where the arguments end
+_DISPLACED_MOVE = re.compile(
+    r"((?i:MoveL|MoveJ))[ \t]+(((?i:Offs|RelTool))\([ \t]*([A-Za-z_][A-Za-z0-9_]*)"
+    r"(?:[ \t]*,[ \t]*-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?){3}[ \t]*\))" + _MOVE_TAIL)
 
 
 def _on_fast_calls(tok: Token) -> Token:
@@ -271,7 +281,7 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
     so is any other call whose arguments they do not read.
     """
     text, pos, end = sink.text, tok.start_pos, tok.end_pos
-    out, inline = sink.calls, _INLINE_MOVE.match
+    out, inline, displaced = sink.calls, _INLINE_MOVE.match, _DISPLACED_MOVE.match
     name_match, skip = _NAME_RE.match, _SEP_RE.match
     while pos < end:
         pos = _plain_moves(sink, text, pos, end)
@@ -280,6 +290,11 @@ def _split_fast_calls(tok: Token, sink: Sink) -> None:
         m = inline(text, pos, end)
         if m is not None:
             _direct_inline_move(sink, m)
+            pos = m.end()
+            continue
+        m = displaced(text, pos, end)
+        if m is not None:
+            _displaced_move(sink, m)
             pos = m.end()
             continue
         semi = text.index(";", pos, end)
@@ -355,6 +370,24 @@ def _direct_inline_move(sink: Sink, m: re.Match) -> None:
         instruction=m.group(1), source=source, role="to", inline=target,
         tool=m.group(20), wobj=m.group(21), routine=sink.routine,
         instruction_span=m.span(1), statement_span=(m.start(), m.start(22)),
+        target_span=span))
+
+
+def _displaced_move(sink: Sink, m: re.Match) -> None:
+    """Append the MotionUse and the RuntimeTarget of a _DISPLACED_MOVE match: the objects
+    the builder makes of the same call (build.py ``Builder.call``), without its records."""
+    span = m.span(2)
+    line, col = sink.index.line_col(span[0])
+    instruction, expression, function = m.group(1, 2, 3)
+    runtime = RuntimeTarget(
+        expression=expression, location=SourceLocation(sink.file, line, col),
+        reason=f"{RUNTIME_FUNCS[function.lower()]} ({instruction})", base_name=m.group(4),
+        routine=sink.routine, span=span)
+    sink.runtime.append(runtime)
+    sink.motions.append(MotionUse(
+        instruction=instruction, source=(sink.file, line, col), role="to", runtime=runtime,
+        tool=m.group(5), wobj=m.group(6), routine=sink.routine,
+        instruction_span=m.span(1), statement_span=(m.start(), m.start(7)),
         target_span=span))
 
 

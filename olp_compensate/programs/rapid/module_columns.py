@@ -11,13 +11,16 @@ only a target solved in another batch (past :data:`CHUNK` targets, or retried) c
 in the last digits of its joints, as numpy's vector and scalar loops round differently.
 
 The column path is taken target by target where a target's meaning is plain: declared
-once, named by no other statement than its module's table motions (no routine parameter,
-copy, assignment, run-time expression or routine call), moved to without an index and with
-one tool/work-object pair (tools and work objects may be declared in any module). A target
-that is not plain goes to the object path with its motions (:func:`_plain_rows`), and so
-does a table motion to a target outside the table (a routine-local one); the module's other
-targets stay in columns. In a task whose modules declare or move to each other's table
-targets, such a module is compensated as objects whole.
+once (at module level, or ``VAR``/``CONST`` in a routine: a row with its routine), named by
+no other statement than its module's table motions and motions that displace it at run
+time (``MoveL Offs(p, ...)``, ``RelTool``: their own ``runtime`` rows, objects), with no
+routine parameter, copy, assignment, other run-time expression or routine call naming it,
+moved to by name without an index, from its own routine (a routine's target), and with
+one tool/work-object pair (tools and work objects may be declared in any module). A
+target that is not plain goes to the object path with its motions (:func:`_plain_rows`),
+and so does a table motion to a target outside the table; the module's other targets stay
+in columns. In a task whose modules declare or move to each other's table targets, such a
+module is compensated as objects whole.
 
 With ``jobs`` > 1 a big module's chunks (and the retries' batches) are shared with a forked
 process (:mod:`.forked`); the batches are the same, so the result is one process's, byte
@@ -43,7 +46,8 @@ from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
 from ..object_model.rows import failure_row, solved_note, written_row
-from .column_plans import Plan, modules_sharing_names, named_elsewhere, task_plans
+from .column_plans import (Plan, displaced_names, modules_sharing_names, named_elsewhere,
+                           outside_their_routine, task_plans)
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
 from ..targets import Program
@@ -152,9 +156,10 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     within the module. A target is not plain when its name is declared twice, named by
     any of the module's objects (a run-time expression, routine argument, copy,
     assignment, another declaration), moved to with an index, or moved to with several
-    tool/work-object pairs; a motion is not plain when its target is not a plain table
-    target (a routine-local target, a name the table does not declare). The rows that are
-    not plain go to the object path together with every table motion to them."""
+    tool/work-object pairs, or (a routine's target) moved to from another routine, or
+    moved to only through Offs()/RelTool(); a motion is not plain when its target is not a
+    plain table target (a name the table does not declare). The rows that are not plain
+    go to the object path together with every table motion to them."""
     table, moves = columns.targets, columns.moves
     lower = [name if name.islower() else name.lower() for name in table.names]
     row_of: dict[str, int] = {}
@@ -162,13 +167,20 @@ def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, n
     for k, name in enumerate(lower):
         if row_of.setdefault(name, k) != k:
             twice.add(name)
-    named = (twice | named_elsewhere(program)) & row_of.keys()
+    named = (twice | named_elsewhere(program, displaced=False)) & row_of.keys()
     keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
     rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
                         for name in moves.target_names), np.intp, len(moves))
     indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
         np.zeros(0, bool)
     keep_targets[rows[indexed & (rows >= 0)]] = False
+    for k in outside_their_routine(table.routines, moves.routines, rows):
+        keep_targets[rows[k]] = False   # a routine's target named in another routine
+    moved = np.zeros(len(lower), bool)
+    moved[rows[rows >= 0]] = True
+    for name in displaced_names(program) & row_of.keys():
+        if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
+            keep_targets[row_of[name]] = False
     pair_of = {}
     for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
         if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:

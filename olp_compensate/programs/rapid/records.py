@@ -110,7 +110,7 @@ class Sink:
     everything else is recorded for the builder."""
 
     __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
-                 "targets", "motions", "depth", "routine", "pending", "reparse", "reparsing",
+                 "targets", "motions", "runtime", "depth", "routine", "pending", "reparse", "reparsing",
                  "types", "columns", "indexed_text")
 
     def __init__(self, text: str, file: str, reparse, columns=None):
@@ -123,6 +123,7 @@ class Sink:
         self.modules: list[str] = []
         self.targets: list = []
         self.motions: list = []
+        self.runtime: list = []   # the fast paths' run-time targets (Offs() moves)
         self.types: dict[str, TypeDef] = {}  # ALIAS and RECORD: lower name -> TypeDef
         # set by lexer callbacks, in text order: routine nesting, name, names still to skip
         self.depth = 0
