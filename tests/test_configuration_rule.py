@@ -464,3 +464,42 @@ def test_krl_targets_at_the_range_ends_on_an_identified_robot():
         assert np.allclose(flange[0] @ real_tool, target, atol=1e-5), row.target
     # S changes only where the wrist point is next to axis 1 (S's bit 0 is undetermined)
     assert kept_s >= 0.8 * changed, (kept_s, changed)
+
+
+def test_the_search_solves_every_start_as_refine_alone_would(irb2400_world):
+    """The rule's search (shared across the batch: two branches the closed form stretches to
+    the same joints, out of reach, are solved once; a start that is none is not solved)
+    gives, start by start, what a damped Newton of that start alone gives: the same
+    verdict, end joints and errors."""
+    from olp_compensate.compensation.config_rule import SEARCH_STEPS, search
+    from olp_compensate.compensation.ik import refine
+
+    virtual, cal = irb2400_world
+    comp = Compensator(cal)
+    robot = comp.robot
+    rng = np.random.default_rng(5)
+    q = robot.joints_from_controller(random_joints(robot, 6, rng, margin=0.2,
+                                                   within_ranges=False))
+    desired = comp.nominal_flange(q)
+    desired[:2, :3, 3] *= 3.0                                  # out of reach
+    starts = closed_form_inverse(comp.family, desired, clip=True)
+    copies = sum(len(s) - len(np.unique(s, axis=0)) for s in starts[:2])
+    assert copies >= 1                                        # the stretched arm's copies
+    own = q + 0.05
+    own[1] = np.nan                                           # no own end: not solved
+    found = search(comp, desired, own)
+    every = np.concatenate([starts, own[:, None]], axis=1)
+    for i in range(len(desired)):
+        for j, start in enumerate(every[i]):
+            if not np.all(np.isfinite(start)):
+                assert found.reason[i, j] == "unreachable"
+                assert not np.isfinite(found.position_error_m[i, j])
+                continue
+            alone = refine(comp.real_flange_and_jacobian, start[None], desired[i][None],
+                           None, 1e-9, 1e-9, SEARCH_STEPS)
+            assert found.reason[i, j] == alone.reason[0], (i, j)
+            assert np.isclose(found.position_error_m[i, j], alone.position_error_m[0],
+                              rtol=1e-9, atol=1e-12)
+            end = robot.controller_from_joints(alone.q)[0]
+            turns = (found.q[i, j] - end) / (2 * np.pi)        # whole turns apart, per axis
+            assert np.allclose(turns, np.round(turns), atol=1e-9), (i, j)

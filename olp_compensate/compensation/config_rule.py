@@ -125,8 +125,8 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
     b, n = starts.shape[1], starts.shape[2]
     flat = starts.reshape(-1, n)
     given = np.all(np.isfinite(flat), axis=1)
-    result = refine(comp.real_flange_and_jacobian, np.nan_to_num(flat),
-                    np.repeat(desired, b, axis=0), None, 1e-9, 1e-9, SEARCH_STEPS)
+    result = _newton_once(comp, flat, np.repeat(desired, b, axis=0), given,
+                          _first_copies(starts))
     reason = np.where(given, result.reason, "unreachable")
     reached = np.isin(reason, ("ok", "singular"))
     q = np.full((k * b, n), np.nan)
@@ -151,6 +151,48 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
                       position_error_m=position.reshape(k, b),
                       rotation_error_rad=rotation.reshape(k, b), excess=excess.reshape(k, b),
                       cfx=cfx.reshape(k, b), cfx_of=cfx_of, own=own is not None)
+
+
+@dataclass(frozen=True)
+class _Ends:
+    """Where the search's Newton ended from each start: ``q (r, n)`` URDF rad, ``reason
+    (r,)``, ``position_error_m``, ``rotation_error_rad (r,)``."""
+
+    q: np.ndarray
+    reason: np.ndarray
+    position_error_m: np.ndarray
+    rotation_error_rad: np.ndarray
+
+
+def _first_copies(starts: np.ndarray) -> np.ndarray:
+    """(k * b,) for each start of ``starts (k, b, n)`` the flat index of the first start of
+    its row with the same bits (itself where none before it): two branches of the closed
+    form often stretch to the same joints for a pose out of reach."""
+    k, b, n = starts.shape
+    bits = np.ascontiguousarray(starts, dtype=float).view(np.int64)
+    same = np.all(bits[:, :, None, :] == bits[:, None, :, :], axis=-1)          # (k, b, b)
+    first = np.where(np.any(same, axis=2), np.argmax(same, axis=2), np.arange(b))
+    return (first + b * np.arange(k)[:, None]).reshape(-1)
+
+
+def _newton_once(comp: Compensator, flat: np.ndarray, desired: np.ndarray,
+                 given: np.ndarray, first: np.ndarray) -> _Ends:
+    """Damped Newton of the calibrated arm from each given start of ``flat (r, n)`` (URDF
+    rad) to ``desired (r, 4, 4)``, run once per ``first`` copy (:func:`_first_copies`; a
+    copy's iterates are its first's) and not at all where not given ('unreachable')."""
+    r, n = flat.shape
+    solve = given & (first == np.arange(r))
+    ends = _Ends(q=np.full((r, n), np.nan), reason=np.full(r, "unreachable", dtype="<U14"),
+                 position_error_m=np.full(r, np.inf), rotation_error_rad=np.full(r, np.inf))
+    if np.any(solve):
+        result = refine(comp.real_flange_and_jacobian, flat[solve], desired[solve], None,
+                        1e-9, 1e-9, SEARCH_STEPS)
+        ends.q[solve], ends.reason[solve] = result.q, result.reason
+        ends.position_error_m[solve] = result.position_error_m
+        ends.rotation_error_rad[solve] = result.rotation_error_rad
+    return _Ends(q=ends.q[first], reason=ends.reason[first],
+                 position_error_m=ends.position_error_m[first],
+                 rotation_error_rad=ends.rotation_error_rad[first])
 
 
 def confdata_asked(comp: Compensator, confdata: np.ndarray | None) -> Asked:
@@ -237,69 +279,100 @@ def _decide_rows(comp: Compensator, solution: IKSolution, desired: np.ndarray,
         on_asked_q[np.flatnonzero(picked)[outside]] = np.nan
     # the same predicate, ranges aside: is the out-of-range solution the asked one?
     any_q = predicate(failed, found.q, found.reached)
-    for i, row in enumerate(failed.tolist()):
-        q, reason, j, as_asked = _rule_for_row(found, i, on_asked_q[i], any_q[i],
-                                               str(solution.reason[row]))
-        solution.reason[row] = reason
-        solution.success[row] = reason in ("ok", "singular")
-        solution.on_asked[row] = as_asked
-        if q is not None:
-            solution.q[row] = robot.joints_from_controller(q[None])[0]
-            solution.position_error_m[row] = found.position_error_m[i, j]
-            solution.rotation_error_rad[row] = found.rotation_error_rad[i, j]
+    kept = _rule(comp, found, on_asked_q, any_q, solution.reason[failed] == "unreachable")
+    solution.reason[failed] = kept.reason
+    solution.success[failed] = np.isin(kept.reason, ("ok", "singular"))
+    solution.on_asked[failed] = kept.as_asked
+    has = np.flatnonzero(kept.has)
+    if len(has):
+        solution.q[failed[has]] = robot.joints_from_controller(kept.q[has])
+        solution.position_error_m[failed[has]] = found.position_error_m[has, kept.start[has]]
+        solution.rotation_error_rad[failed[has]] = found.rotation_error_rad[has, kept.start[has]]
 
 
-def _rule_for_row(found: Candidates, i: int, on_asked: np.ndarray, asked_any: np.ndarray,
-                  own_reason: str):
-    """(controller joints or None, reason, index of the start they came from, whether they
-    are on the asked configuration) of row ``i`` of ``found`` by the rule; ``on_asked`` /
-    ``asked_any`` the predicate's joints among the in-range / reached candidates (NaN
-    where none)."""
-    q, inside, reached = found.q[i], found.inside[i], found.reached[i]
-    if np.all(np.isfinite(on_asked)):
-        j = _index_of(q, on_asked, inside)
-        return on_asked, str(found.reason[i, j]), j, True
-    if np.any(inside):
-        j = _nearest_other(found, i, asked_any)
-        return q[j], "branch_changed", j, False
-    if np.any(reached):
-        if np.all(np.isfinite(asked_any)):
-            j = _index_of(q, asked_any, reached)
-            return asked_any, "joint_limit", j, True
-        j = int(np.argmin(np.where(reached, found.excess[i], np.inf)))
-        return q[j], "joint_limit", j, False
-    score = found.position_error_m[i] + 0.1 * found.rotation_error_rad[i]
+@dataclass(frozen=True)
+class _Kept:
+    """What the rule keeps of each of k rows: controller joints ``q (k, n)`` (written where
+    ``has``), ``reason (k,)``, ``start (k,)`` the index of the start they came from, and
+    ``as_asked (k,)`` whether they are on the asked configuration."""
+
+    q: np.ndarray
+    reason: np.ndarray
+    start: np.ndarray
+    as_asked: np.ndarray
+    has: np.ndarray
+
+
+def _rule(comp: Compensator, found: Candidates, on_asked: np.ndarray, asked_any: np.ndarray,
+          own_unreachable: np.ndarray) -> _Kept:
+    """The rule on every row of ``found`` at once; ``on_asked`` / ``asked_any`` (k, n) the
+    predicate's joints among the in-range / reached candidates (NaN where none),
+    ``own_unreachable (k,)`` where the solver's own verdict was 'unreachable'. In order: the
+    asked configuration inside the ranges (its status), another inside
+    ('branch_changed', :func:`_nearest_other`), one reaching outside ('joint_limit': the asked
+    one where it reaches, else the one least past the ranges), else the closest approach."""
+    q, inside, reached = found.q, found.inside, found.reached
+    k = len(q)
+    rows = np.arange(k)
+    asked_in = np.all(np.isfinite(on_asked), axis=1)
+    other_in = ~asked_in & np.any(inside, axis=1)
+    limit = ~asked_in & ~other_in & np.any(reached, axis=1)
+    asked_out = limit & np.all(np.isfinite(asked_any), axis=1)
+    start = np.zeros(k, int)
+    start[asked_in] = _index_of(q[asked_in], on_asked[asked_in], inside[asked_in])
+    start[other_in] = _nearest_other(comp, found, np.flatnonzero(other_in), asked_any[other_in])
+    start[asked_out] = _index_of(q[asked_out], asked_any[asked_out], reached[asked_out])
+    least = limit & ~asked_out
+    start[least] = np.argmin(np.where(reached[least], found.excess[least], np.inf), axis=1)
+    rest = ~asked_in & ~other_in & ~limit
+    score = found.position_error_m[rest] + 0.1 * found.rotation_error_rad[rest]
     score = np.where(np.isfinite(score), score, np.inf)
-    j = int(np.argmin(score))
-    if not np.isfinite(score[j]):
-        return None, "unreachable", 0, False
-    reason = str(found.reason[i, j])
-    if own_reason == "unreachable" or reason != "not_converged":
-        reason = "unreachable"
-    return q[j], reason, j, False
+    start[rest] = np.argmin(score, axis=1)
+    approach = np.zeros(k, bool)
+    approach[rest] = np.isfinite(score[np.arange(len(score)), start[rest]])
+    start[rest & ~approach] = 0
+    reason = found.reason[rows, start].astype(object)
+    reason[other_in] = "branch_changed"
+    reason[limit] = "joint_limit"
+    stopped = approach & (reason == "not_converged")
+    reason[rest & (own_unreachable | ~stopped)] = "unreachable"
+    kept_q = q[rows, start]
+    kept_q[asked_in] = on_asked[asked_in]
+    kept_q[asked_out] = asked_any[asked_out]
+    return _Kept(q=kept_q, reason=reason, start=start, as_asked=asked_in | asked_out,
+                 has=asked_in | other_in | limit | approach)
 
 
-def _index_of(q: np.ndarray, chosen: np.ndarray, usable: np.ndarray) -> int:
-    """The candidate of ``q (b, n)`` (usable only) nearest ``chosen`` modulo whole turns."""
-    gap = np.remainder(q - chosen + np.pi, 2 * np.pi) - np.pi
-    score = np.where(usable, np.nansum(gap ** 2, axis=1), np.inf)
-    return int(np.argmin(score))
+def _index_of(q: np.ndarray, chosen: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """(r,) for each row of ``q (r, b, n)`` the candidate (usable only) nearest ``chosen
+    (r, n)`` modulo whole turns."""
+    gap = np.remainder(q - chosen[:, None] + np.pi, 2 * np.pi) - np.pi
+    score = np.where(usable, np.nansum(gap ** 2, axis=2), np.inf)
+    return np.argmin(score, axis=1)
 
 
-def _nearest_other(found: Candidates, i: int, asked_any: np.ndarray) -> int:
-    """The in-range candidate of row ``i`` to name: where the asked configuration reaches
-    the pose outside a range (``asked_any``), one of its branch (same cfx: only a turn or
-    a quadrant differs) nearest those joints, else any nearest them; else the one nearest
-    zero. Without ``asked_any``, the solver's own end on the asked configuration stands
-    for it where it reached the pose."""
-    q, inside = found.q[i], found.inside[i]
-    if not np.all(np.isfinite(asked_any)) and found.own and found.reached[i, -1]:
-        asked_any = q[-1]           # where the solver on the asked configuration ended
-    if not np.all(np.isfinite(asked_any)):
-        return int(np.argmin(np.where(inside, np.nansum(q ** 2, axis=1), np.inf)))
-    same = inside & (found.cfx[i] == found.cfx_of(asked_any))
-    usable = same if np.any(same) else inside
-    return int(np.argmin(np.where(usable, np.nansum((q - asked_any) ** 2, axis=1), np.inf)))
+def _nearest_other(comp: Compensator, found: Candidates, rows: np.ndarray,
+                   asked_any: np.ndarray) -> np.ndarray:
+    """The in-range candidate to name for each of ``rows`` of ``found``: where the asked
+    configuration reaches the pose outside a range (``asked_any (r, n)``), one of its
+    branch (same cfx: only a turn or a quadrant differs) nearest those joints, else any
+    nearest them; else the one nearest zero. Without ``asked_any``, the solver's own end on
+    the asked configuration stands for it where it reached the pose."""
+    q, inside, robot = found.q[rows], found.inside[rows], comp.robot
+    target = np.array(asked_any, dtype=float, copy=True)
+    if found.own:               # where the solver on the asked configuration ended
+        ended = ~np.all(np.isfinite(target), axis=1) & found.reached[rows, -1]
+        target[ended] = q[ended, -1]
+    near = np.all(np.isfinite(target), axis=1)
+    pick = np.argmin(np.where(inside, np.nansum(q ** 2, axis=2), np.inf), axis=1)
+    if np.any(near):
+        t, qn, ins = target[near], q[near], inside[near]
+        cfx = comp.confdata(robot.joints_from_controller(t))[:, 3]
+        same = ins & (found.cfx[rows[near]] == cfx[:, None])
+        usable = np.where(np.any(same, axis=1)[:, None], same, ins)
+        pick[near] = np.argmin(np.where(usable, np.nansum((qn - t[:, None]) ** 2, axis=2),
+                                        np.inf), axis=1)
+    return pick
 
 
 def _excess(robot, q_ctrl: np.ndarray) -> np.ndarray:

@@ -38,13 +38,34 @@ def _config_words(conf) -> str:
     return "[" + ",".join(str(int(c)) for c in conf) + "]"
 
 
-def _range_words(robot, q_ctrl: np.ndarray) -> list[str]:
+@dataclass(frozen=True)
+class _Ranges:
+    """A robot's controller ranges and URDF limits as the notes write them (deg, mm)."""
+
+    robot: object
+    ranges: np.ndarray          # (n, 2) controller ranges, rad/m
+    lo: list                    # (n,) controller range ends, deg/mm
+    hi: list
+    jlo: list                   # (n,) URDF limits, deg/mm
+    jhi: list
+    unit: list
+
+    @classmethod
+    def of(cls, robot) -> "_Ranges":
+        ranges = robot.controller_ranges
+        lo, hi = (robot.to_degrees_or_mm(ranges[:, k][None])[0] for k in (0, 1))
+        jlo = robot.to_degrees_or_mm(robot.lower_limits[None])[0]
+        jhi = robot.to_degrees_or_mm(robot.upper_limits[None])[0]
+        unit = ["deg" if j.kind == "revolute" else "mm" for j in robot.joints]
+        return cls(robot, ranges, list(lo), list(hi), list(jlo), list(jhi), unit)
+
+
+def _range_words(limits: _Ranges, q_ctrl: np.ndarray) -> list[str]:
     """Each axis of ``q_ctrl (n,)`` outside the controller's range, and each URDF joint
     outside its limits, as words with values in deg (mm)."""
-    ranges = robot.controller_ranges
+    robot, ranges, unit = limits.robot, limits.ranges, limits.unit
+    lo, hi = limits.lo, limits.hi
     edge = robot.to_degrees_or_mm(q_ctrl[None])[0]
-    lo, hi = (robot.to_degrees_or_mm(ranges[:, k][None])[0] for k in (0, 1))
-    unit = ["deg" if j.kind == "revolute" else "mm" for j in robot.joints]
     words = []
     listed = np.flatnonzero((q_ctrl < ranges[:, 0] - 1e-9) | (q_ctrl > ranges[:, 1] + 1e-9))
     for a in listed:
@@ -54,13 +75,15 @@ def _range_words(robot, q_ctrl: np.ndarray) -> list[str]:
                      f"the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
     joints = robot.joints_from_controller(q_ctrl[None])[0]
     jl, jh = robot.lower_limits, robot.upper_limits
+    outside = np.flatnonzero((joints < jl - 1e-9) | (joints > jh + 1e-9))
+    if not len(outside):
+        return words
     joint_edge = robot.to_degrees_or_mm(joints[None])[0]
-    jlo, jhi = robot.to_degrees_or_mm(jl[None])[0], robot.to_degrees_or_mm(jh[None])[0]
-    for j in np.flatnonzero((joints < jl - 1e-9) | (joints > jh + 1e-9)):
+    for j in outside:
         if j in listed:            # the same axis, already named
             continue
         words.append(f"URDF {robot.joints[j].name} = {joint_edge[j]:.2f} {unit[j]} is outside "
-                     f"its limits {jlo[j]:.2f}..{jhi[j]:.2f} {unit[j]}")
+                     f"its limits {limits.jlo[j]:.2f}..{limits.jhi[j]:.2f} {unit[j]}")
     return words
 
 
@@ -93,32 +116,48 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
         solution = decide(comp, _copy(solution), desired_flange, confdata)
     failed = np.flatnonzero(~solution.success)
     out: list[FailureReport | None] = [None] * len(solution.success)
-    for row in failed.tolist():
+    q_ctrl_of, config_of = _turned_and_configs(comp, solution.q[failed])
+    limits = _Ranges.of(robot)
+    on_asked = solution.on_asked[failed].tolist()
+    dist_m = solution.position_error_m[failed].tolist()
+    dist_rad = solution.rotation_error_rad[failed].tolist()
+    for k, row in enumerate(failed.tolist()):
         reason = str(solution.reason[row])
-        q = solution.q[row]
-        has_q = bool(np.all(np.isfinite(q)))
-        q_ctrl = (turn_toward_ranges(robot, robot.controller_from_joints(q[None]))[0]
-                  if has_q else np.full(robot.n_joints, np.nan))
-        config = (tuple(int(c) for c in comp.confdata(robot.joints_from_controller(
-            q_ctrl[None]))[0]) if has_q else None)
+        q_ctrl, config = q_ctrl_of[k], config_of[k]
+        has_q = config is not None
         if words is not None:
             asked = words(row, None) or None
             found = words(row, q_ctrl) if has_q else "none"
         else:
             asked = None if confdata is None else _config_words(confdata[row])
             found = _config_words(config) if config is not None else "none"
-        note = _note(robot, reason, q_ctrl, has_q, bool(solution.on_asked[row]), asked, found,
-                     float(solution.position_error_m[row]),
-                     float(solution.rotation_error_rad[row]))
+        note = _note(limits, reason, q_ctrl, has_q, bool(on_asked[k]), asked, found,
+                     float(dist_m[k]), float(dist_rad[k]))
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
     return out
 
 
-def _note(robot, reason: str, q_ctrl: np.ndarray, has_q: bool, on_asked: bool,
+def _turned_and_configs(comp: Compensator, q_urdf: np.ndarray):
+    """For joints ``q_urdf (k, n)`` (URDF axes; a row with NaN: none found) the controller
+    joints turned toward the ranges (k, n), NaN rows where none, and each row's confdata
+    as a tuple (None where none), in one batch."""
+    robot = comp.robot
+    has = np.all(np.isfinite(q_urdf), axis=1)
+    q_ctrl = np.full((len(q_urdf), robot.n_joints), np.nan)
+    configs: list = [None] * len(q_urdf)
+    if np.any(has):
+        q_ctrl[has] = turn_toward_ranges(robot, robot.controller_from_joints(q_urdf[has]))
+        found = comp.confdata(robot.joints_from_controller(q_ctrl[has])).tolist()
+        for k, conf in zip(np.flatnonzero(has).tolist(), found):
+            configs[k] = tuple(conf)
+    return q_ctrl, configs
+
+
+def _note(limits: _Ranges, reason: str, q_ctrl: np.ndarray, has_q: bool, on_asked: bool,
           asked: str | None, found: str, dist_m: float, dist_rad: float) -> str:
     """The report note of one failed row (see :func:`explain_failures`)."""
     if reason == "joint_limit":
-        note = "; ".join(_range_words(robot, q_ctrl) if has_q else []) or \
+        note = "; ".join(_range_words(limits, q_ctrl) if has_q else []) or \
             "outside the joint limits"
         if on_asked:
             note += f" (on the configuration asked for, {asked})" if asked else ""
