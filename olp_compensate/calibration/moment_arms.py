@@ -28,8 +28,11 @@ import numpy as np
 
 from ..kinematics.robot import Robot
 
-MIN_LEVER_M = 0.05
-"""Shortest RMS moment arm (m) of a joint that gets a band, whatever the others'."""
+MIN_LEVER_M = 0.03
+"""Shortest RMS moment arm (m) of a joint that gets a band, whatever the others'. 30 mm:
+at 50 mm, benchmarks/cyclic.py missed a joint-6 error whose tool sits 39 mm off the axis
+(18/20); at 30 mm it names it, and the four ASTL sessions name exactly the same effects
+(with time blocks, CURVE's 30-34 mm wrist arms no longer proxy the main joints)."""
 
 
 @dataclass(frozen=True)
