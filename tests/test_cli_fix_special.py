@@ -188,6 +188,8 @@ def test_krl_names_follow_the_output_files():
     long = "Cell_" + "x" * 30
     _, notes = match_krl_names([Path("Cell.src")], [Path(long + ".src")], [src])
     assert len(notes) == 2 and "no KRL name KSS accepts" in notes[1]
+    kept, notes = match_krl_names([Path("Cell.src")], [Path("Zelle\u20ac.src")], [src])
+    assert kept == [src] and len(notes) == 1 and "DEF kept" in notes[0]   # no traceback
 
 
 def test_a_seven_value_as_step_reports_the_robot_axes_under_its_header(tmp_path, capsys):

@@ -388,6 +388,31 @@ def test_pipe_program_text_with_characters_no_file_encoding_holds(pipe):
     assert [r["status"] for r in answer["rows"]] == [r["status"] for r in plain["rows"]]
 
 
+def test_pipe_vplus_text_with_characters_no_file_encoding_holds(pipe):
+    """The same for the object model's languages (V+ here; RAPID's joints output and a
+    task with an unreadable module take that path too): the property-based API test
+    found a V+ text answered with an internal error (its result encoded as latin-1)."""
+    plain_text = (ROOT / "samples" / "cell_b.pg").read_bytes().decode("latin-1")
+    text = plain_text.replace("; Cell B:", "; \u03b1\u03b2 \U00088798 Cell B:", 1)
+    assert text != plain_text
+    calls = [pipe.call("compensate_program", {"calibration": "calib.json", "dialect": "vplus",
+                                              "text": t, "file": "cell_b.pg"})
+             for t in (plain_text, text)]
+    plain, answer = (c["result"] for c in calls)
+    assert answer["text"] == plain["text"].replace("; Cell B:",
+                                                   "; \u03b1\u03b2 \U00088798 Cell B:", 1)
+    assert [r["status"] for r in answer["rows"]] == [r["status"] for r in plain["rows"]]
+
+
+def test_pipe_val3_text_with_characters_no_file_encoding_holds_is_refused_at_its_place(pipe):
+    """The property-based API test sent a VAL3 text holding a character no file byte holds:
+    the XML check encoded it as latin-1 and the service answered with an internal error.
+    It is now checked as UTF-8, and a fragment is refused at its line and column."""
+    _error(pipe.call("compensate_program", {"calibration": "calib.json", "dialect": "val3",
+                                            "text": "<a>\U00088798<b>", "file": "p.dtx"}),
+           -32002, "p.dtx:1:")
+
+
 def test_pipe_krl_configuration_as_olp_fix_reads_it(pipe):
     from scipy.spatial.transform import Rotation
 

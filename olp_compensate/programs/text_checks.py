@@ -89,12 +89,17 @@ def check_not_non_finite(text: str, lo: int, hi: int, file: str, what: str = "")
 def check_xml(text: str, file: str, what: str = "XML") -> None:
     """Refuse a text that is not one well-formed XML document (cut short inside an element,
     several top-level elements, stray bytes), at the place the XML parser stops. Bytes are
-    read as Latin-1 whatever the declaration says (the readers keep every byte)."""
+    read as Latin-1 whatever the declaration says (the readers keep every byte); a text with
+characters Latin-1 cannot hold (sent to the service as JSON) as UTF-8."""
     from xml.parsers import expat
 
-    parser = expat.ParserCreate(encoding="iso-8859-1")
     try:
-        parser.Parse(text.encode("latin-1"), True)
+        data, encoding = text.encode("latin-1"), "iso-8859-1"
+    except UnicodeEncodeError:   # a service request's text: characters no file byte holds
+        data, encoding = text.encode("utf-8"), "utf-8"
+    parser = expat.ParserCreate(encoding=encoding)
+    try:
+        parser.Parse(data, True)
     except expat.ExpatError as exc:
         reason = expat.ErrorString(exc.code)
         hint = {"junk after document element": "several top-level elements: a fragment, not "

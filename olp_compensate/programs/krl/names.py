@@ -24,15 +24,23 @@ def match_krl_names(paths, outputs, data: list[bytes]) -> tuple[list[bytes], lis
             new.append(text)
             continue
         word = "DEFDAT" if Path(path).suffix.lower() == ".dat" else "DEF"
+        try:
+            old_bytes, new_bytes = old_name.encode("latin-1"), new_name.encode("latin-1")
+        except UnicodeEncodeError:       # a file name no KRL text can hold: nothing renamed
+            new.append(text)
+            notes.append(f"{out}: {word} kept: {new_name!r} is no KRL name KSS accepts (a "
+                         f"letter or _ first, at most {KRL_NAME_LIMIT} letters, digits or "
+                         f"_): choose another output name with -o")
+            continue
         pattern = (rb"^([ \t]*DEFDAT[ \t]+)(%s)(?![\w$])" if word == "DEFDAT" else
                    rb"^([ \t]*(?:GLOBAL[ \t]+)?DEF(?:FCT[ \t]+[\w$]+(?:\[[^\]\r\n]*\])?)?"
                    rb"[ \t]+)(%s)(?=[ \t]*\()")
-        found = re.compile(pattern % re.escape(old_name.encode("latin-1")),
+        found = re.compile(pattern % re.escape(old_bytes),
                            re.IGNORECASE | re.MULTILINE).search(text)
         if found is None:
             new.append(text)
             continue
-        new.append(text[:found.start(2)] + new_name.encode("latin-1") + text[found.end(2):])
+        new.append(text[:found.start(2)] + new_bytes + text[found.end(2):])
         notes.append(f"{out}: {word} {found.group(2).decode('latin-1')} renamed {new_name} "
                      f"to match the file name (KSS loads a module only so); programs that "
                      f"call it by the old name need the new one")

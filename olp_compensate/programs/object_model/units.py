@@ -1,9 +1,10 @@
 """The files of one RAPID or V+/AS unit through the object model: parsed, compensated as
-one task, encoded back."""
+one task; the new texts kept as text until written (a service request may hold characters
+latin-1 cannot, given back as sent)."""
 
 from __future__ import annotations
 
-from ...compensation.files import ENCODING, CompensationRun, FilesResult, ProgramFiles
+from ...compensation.files import CompensationRun, FilesResult, ProgramFiles
 from .. import loads
 from .task import compensate_task
 
@@ -16,4 +17,4 @@ def object_model_result(files: ProgramFiles, texts: list[str],
     programs = [loads(t, files.dialect, n) for t, n in zip(texts, files.names)]
     new, report = compensate_task(programs, run.comp, emit=run.emit, unused=run.unused,
                                   taught_on=run.taught_on)
-    return FilesResult(new=tuple(t.encode(ENCODING) for t in new), report=report)
+    return FilesResult(new=tuple(new), report=report)    # text: encoded when written

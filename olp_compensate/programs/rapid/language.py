@@ -29,7 +29,7 @@ def compensate(files, texts: list[str], run):
     its row (:mod:`.unreadable`); one module alone as it is."""
     if len(texts) == 1:
         return _readable(files, texts, run)
-    from ...compensation.files import ENCODING, ProgramFiles
+    from ...compensation.files import ProgramFiles
     from .unreadable import compensate_readable
 
     def some(keep: list[int]):
@@ -37,7 +37,7 @@ def compensate(files, texts: list[str], run):
                               tuple(files.names[k] for k in keep))
         return _readable(subset, [texts[k] for k in keep], run)
 
-    return compensate_readable(texts, files.names, some, ENCODING)
+    return compensate_readable(texts, files.names, some)
 
 
 def _readable(files, texts: list[str], run):

@@ -37,11 +37,11 @@ class _Skipped:
 
 
 def compensate_readable(texts: Sequence[str], names: Sequence[str],
-                        run: Callable[[list[int]], object], encoding: str):
+                        run: Callable[[list[int]], object]):
     """``run(keep)`` (a :class:`~.files.FilesResult` of the modules ``keep``, indices into
     ``texts``), retried without each module whose :class:`ParseError` names it, until the
-    rest compensates; the result then holds every module (the unreadable ones byte for byte
-    as read) and their report rows. Raises the error when no module is left to read, or
+    rest compensates; the result then holds every module (the unreadable ones as read, as
+    text: encoded when written) and their report rows. Raises the error when no module is left to read, or
     when it names no module of the task."""
     skipped: list[_Skipped] = []
     while True:
@@ -58,7 +58,7 @@ def compensate_readable(texts: Sequence[str], names: Sequence[str],
         return result
     new = list(result.new)
     for s in sorted(skipped, key=lambda s: s.index):
-        new.insert(s.index, s.text.encode(encoding))
+        new.insert(s.index, s.text)
     return dataclasses.replace(result, new=tuple(new),
                                report=_with_unreadable(result.report, skipped))
 
