@@ -167,17 +167,24 @@ def test_views_too_alike_are_refused():
         calibrate(_views(pixels, points), 1280, 1024)
 
 
-def test_circle_centre_correction_removes_the_perspective_bias():
-    # big dots, little noise: the bias of the area centroids dominates
+def _big_dot_views(seed: int):
+    """Eight steep views (40-55 deg tilt, 0.35-0.45 m) of a 9x9 board of 12 mm dots at a
+    25 mm pitch, the dots' area centroids with 0.01 px of noise: (board, points, pixels)."""
     from olp_compensate.camera.board import Board
 
     board = Board(rows=9, cols=9, pitch_m=0.025, dot_diameter_m=0.012,
                   marker_diameter_m=0.016)
-    rng = np.random.default_rng(34)
+    rng = np.random.default_rng(seed)
     points = board.dot_positions()
     poses = random_poses(rng, 8, points, tilt_deg=(40, 55), distance=(0.35, 0.45))
     pixels = [area_centroid_pixels(TRUTH, T, board, rings=12, spokes=32)
               + rng.normal(0, 0.01, (81, 2)) for T in poses]
+    return board, points, pixels
+
+
+def test_circle_centre_correction_removes_the_perspective_bias():
+    # big dots, little noise: the bias of the area centroids dominates
+    board, points, pixels = _big_dot_views(seed=34)
     plain = calibrate(_views(pixels, points), 1280, 1024)
     corrected = calibrate(_views(pixels, points), 1280, 1024,
                           centre_bias=lambda k, T: circle_centre_bias(k, T, board))
@@ -194,15 +201,7 @@ def test_circle_centre_correction_passes_reach_their_fixed_point():
     """The correction's first bias is taken at the RAC's start (no refinement on the
     uncorrected centres first): three passes still land where many do, far inside the
     intrinsics' standard deviations, with the bias computed from big dots at steep tilts."""
-    from olp_compensate.camera.board import Board
-
-    board = Board(rows=9, cols=9, pitch_m=0.025, dot_diameter_m=0.012,
-                  marker_diameter_m=0.016)
-    rng = np.random.default_rng(35)
-    points = board.dot_positions()
-    poses = random_poses(rng, 8, points, tilt_deg=(40, 55), distance=(0.35, 0.45))
-    pixels = [area_centroid_pixels(TRUTH, T, board, rings=12, spokes=32)
-              + rng.normal(0, 0.01, (81, 2)) for T in poses]
+    board, points, pixels = _big_dot_views(seed=35)
     bias = lambda k, T: circle_centre_bias(k, T, board)   # noqa: E731
     three = calibrate(_views(pixels, points), 1280, 1024, centre_bias=bias)
     many = calibrate(_views(pixels, points), 1280, 1024, centre_bias=bias, bias_iterations=8)
