@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from .problem import IdentificationProblem
+from .seeded_permutation import permutation
 
 FOLD_SEED = 0
 """Seed of the random assignment of poses to folds."""
@@ -32,7 +33,7 @@ def pose_folds(pose_ids: np.ndarray, k: int) -> list[np.ndarray]:
     (seed ``FOLD_SEED``), every row of one pose in the same fold. Fold f holds the f-th of
     k near-equal consecutive parts of a random permutation of the sorted distinct ids."""
     codes, n_poses = pose_codes(pose_ids)
-    order = np.random.default_rng(FOLD_SEED).permutation(n_poses)
+    order = permutation(FOLD_SEED, n_poses)  # numpy's default_rng's, without numpy.random
     fold_of_pose = np.empty(n_poses, dtype=int)
     for fold, part in enumerate(np.array_split(order, k)):
         fold_of_pose[part] = fold
