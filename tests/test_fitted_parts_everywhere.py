@@ -25,13 +25,15 @@ from olp_compensate.calibration.remainder import ResidualMap
 from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.cli.cal import main
 from olp_compensate.compensation.pose import Compensator, compensate_pose, compensate_poses
-from olp_compensate.io.calibration_file import calibration_to_dict, read_calibration
+from olp_compensate.compensation.residual_map import EDGE
+from olp_compensate.io.calibration_file import calibration_to_dict
 from olp_compensate.kinematics.robot import load_robot
 from olp_compensate.service.calls import Service
 
 ROBOT = load_robot("abb_irb2400")
 SPLIT_Q2 = 0.1          # rad: the effect was fitted on q2 below this
 USED = "geometric model used"
+OUTSIDE = "where the named effects were fitted: geometric model used"
 APPLIED = "residual map applied"
 
 
@@ -108,7 +110,7 @@ def test_compensate_poses_takes_the_geometric_model_outside_and_the_map_inside(c
     # ... which is not the extended model's answer there (the test can tell them apart)
     assert np.abs(ext.poses[outside, :3, 3] - geo.poses[outside, :3, 3]).max() > 1e-5
     for i in np.flatnonzero(outside):
-        assert USED in notes[i] and "q2 = " in notes[i], notes[i]
+        assert OUTSIDE in notes[i] and "q2 = " in notes[i], notes[i]
         assert "residual map" not in notes[i] or "not applied" in notes[i]
     # inside the range, outside the map's region: the extended model's answer
     assert np.abs(full.poses[plain] - ext.poses[plain]).max() < 1e-9
@@ -151,31 +153,66 @@ def test_the_service_answers_what_the_library_does_with_the_notes(cell):
     assert sum(a["model_note"] == APPLIED for a in answers) >= 4
 
 
-def test_predict_and_compensate_poses_agree_on_the_rows_outside(cell, tmp_path, capsys):
+def _predict(cal, joints: np.ndarray, folder) -> tuple[set, np.ndarray]:
+    """olp-cal predict of controller joints (m, n) rad on ``cal`` (its tools left out):
+    the rows (0-based) it says lie outside the fitted ranges, and the flange points
+    (m, 3) m, device frame."""
+    import contextlib
+    import io
+
+    path = folder / "predict_calib.json"
+    path.write_text(json.dumps(calibration_to_dict(replace(cal, tools={}))))
+    lines = ["q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg"]
+    lines += [",".join(f"{v:.12f}" for v in row) for row in np.degrees(joints)]
+    (folder / "joints.csv").write_text("\n".join(lines) + "\n")
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert main(["predict", "--model", str(path), str(folder / "joints.csv"), "-o",
+                     str(folder / "out.csv")]) == 0
+    said = {int(ln.split("line ")[1].split(":")[0]) - 2 for ln in printed.getvalue().splitlines()
+            if ln.startswith("note: line") and OUTSIDE in ln}
+    rows = [ln.split(",") for ln in (folder / "out.csv").read_text().splitlines()[1:]]
+    return said, np.array([[float(v) for v in r[-3:]] for r in rows]) * 1e-3
+
+
+def test_predict_and_compensate_poses_agree_on_the_rows_outside(cell, tmp_path):
     """olp-cal predict at the joints compensate_poses gives: the same rows outside the
     fitted range (one test, ``Calibration.outside_fitted``), and the tool on its target."""
     full = cell.solve(cell.full)
-    cal = replace(cell.full, tools={})
-    path = tmp_path / "calib.json"
-    path.write_text(json.dumps(calibration_to_dict(cal)))
-    degrees = np.degrees(full.joints)
-    lines = ["q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg"]
-    lines += [",".join(f"{v:.12f}" for v in row) for row in degrees]
-    (tmp_path / "joints.csv").write_text("\n".join(lines) + "\n")
-    capsys.readouterr()
-    assert main(["predict", "--model", str(path), str(tmp_path / "joints.csv"), "-o",
-                 str(tmp_path / "out.csv")]) == 0
-    printed = capsys.readouterr().out
-    said = {int(ln.split("line ")[1].split(":")[0]) - 2 for ln in printed.splitlines()
-            if ln.startswith("note: line") and USED in ln}
-    compensated = {i for i, n in enumerate(full.model_notes) if USED in n}
+    said, flange = _predict(cell.full, full.joints, tmp_path)
+    compensated = {i for i, n in enumerate(full.model_notes) if OUTSIDE in n}
     assert said == compensated and len(said) >= 8
-    rows = [ln.split(",") for ln in (tmp_path / "out.csv").read_text().splitlines()[1:]]
-    flange = np.array([[float(v) for v in r[-3:]] for r in rows]) * 1e-3
     # predict's flange point at those joints is the flange the target needs (device frame
     # = base): exact where a single model holds, within the map pass's second order inside
     wanted = (cell.targets @ np.linalg.inv(cell.tool))[:, :3, 3]
     miss = np.linalg.norm(flange - wanted, axis=1) * 1e3
     in_map = np.array([n == APPLIED for n in full.model_notes])
     assert miss[~in_map].max() < 1e-5 and miss[in_map].max() < 0.05
-    assert read_calibration(path).residual_map is not None
+
+
+def test_a_target_on_the_edge_takes_the_geometric_model_and_says_so(cell, tmp_path):
+    """Targets the nominal arm reaches at q2 = SPLIT_Q2 (ten at 0.05 rad below): the extended model's solution lies
+    just outside the range, the geometric model's (mostly) just inside. There no answer
+    holds for both models; the geometric one is written with the edge note, and predict at
+    its joints (inside) names the same rows outside as compensate_poses does."""
+    rng = np.random.default_rng([28, 4])
+    joints = random_joints(ROBOT, 30, rng)
+    joints[:, 1] = SPLIT_Q2
+    joints[20:, 1] = SPLIT_Q2 - 0.05       # and some plainly inside (not in the map's box)
+    nominal = nominal_calibration(ROBOT)
+    targets = nominal.flange_poses(joints) @ cell.tool
+    conf = Compensator(nominal).confdata(ROBOT.joints_from_controller(joints))
+    full, geo, ext = (compensate_poses(c, targets, tool=cell.tool, confdata=conf)
+                      for c in (cell.full, cell.geometric, cell.extended))
+    assert full.success.all()
+    edge = (ext.joints[:, 1] > SPLIT_Q2) & (geo.joints[:, 1] <= SPLIT_Q2)
+    assert edge.sum() >= 10
+    for i in np.flatnonzero(edge):
+        assert full.model_notes[i].startswith(EDGE) and "q2 = " in full.model_notes[i]
+        assert OUTSIDE not in full.model_notes[i]
+    used = np.array([USED in n for n in full.model_notes])
+    assert np.array_equal(used, ext.joints[:, 1] > SPLIT_Q2)
+    assert np.abs(full.poses[used] - geo.poses[used]).max() < 1e-9
+    assert np.abs(full.poses[~used] - ext.poses[~used]).max() < 1e-9
+    said, _ = _predict(cell.full, full.joints, tmp_path)
+    assert said == {i for i, n in enumerate(full.model_notes) if OUTSIDE in n}

@@ -23,6 +23,10 @@ from ..calibration.validity import range_notes
 
 APPLIED = "residual map applied"
 NO_GEOMETRIC = "the geometric model reaches no solution here: the extended model's kept"
+EDGE = "on the edge of the joint ranges the named effects were fitted on"
+"""A target whose extended solution leaves the ranges and whose geometric one does not:
+no answer is consistent with both models there; the geometric one is written (predict,
+at its joints, uses the extended model)."""
 
 
 @dataclass(frozen=True)
@@ -89,16 +93,28 @@ def _fallback(comp, desired, q, flange, ok, notes, axes: bool = True):
     q[rows[good]], flange[rows[good]] = q2[good], flange2[good]
     fallback[rows[good]] = True
     # the note names the reported joints where they are outside, else (a target on the
-    # edge: the geometric solution just inside) the extended model's that were
+    # edge: the geometric solution just inside) the extended model's, and says so
     q_now = robot.controller_from_joints(q[rows])
-    shown = np.where(cal.outside_fitted(q_now)[:, None], q_now, q_ext)
-    for i, note, used in zip(rows, fallback_notes(cal.effects, shown, robot), good):
+    edge = good & ~cal.outside_fitted(q_now)
+    shown = np.where(edge[:, None], q_ext, q_now)
+    for i, note, used, on_edge in zip(rows, fallback_notes(cal.effects, shown, robot),
+                                      good, edge):
         if not used:
             _append(notes, i, note.replace("geometric model used", NO_GEOMETRIC)
                     if axes else NO_GEOMETRIC)
+        elif on_edge and axes:
+            _append(notes, i, _edge_note(note))
         elif axes:
             _append(notes, i, note)
     return q, flange, tried, fallback
+
+
+def _edge_note(note: str) -> str:
+    """The note of a target on the edge of the fitted ranges (``note``: the extended
+    solution's, from :func:`~..calibration.effect_ranges.fallback_notes`)."""
+    axes = note.split(" where the named effects were fitted")[0]
+    return (f"{EDGE}: the extended model's solution has {axes}, the geometric model's "
+            f"lies inside; geometric model used")
 
 
 def residual_map_pass(comp, desired: np.ndarray, q: np.ndarray, flange: np.ndarray,
