@@ -216,3 +216,26 @@ def test_a_target_on_the_edge_takes_the_geometric_model_and_says_so(cell, tmp_pa
     assert np.abs(full.poses[~used] - ext.poses[~used]).max() < 1e-9
     said, _ = _predict(cell.full, full.joints, tmp_path)
     assert said == {i for i, n in enumerate(full.model_notes) if OUTSIDE in n}
+
+
+def test_the_robodk_post_solves_its_targets_by_the_same_rule(cell):
+    """The post's batch (RoboDK's targets in mm, its joints in degrees choosing the
+    configuration) gives compensate_poses's targets and notes."""
+    from olp_compensate.robodk import _solve_targets, _Target
+
+    full = cell.solve(cell.full)
+    nominal = Compensator(nominal_calibration(ROBOT))
+    joints = np.degrees(ROBOT.controller_from_joints(nominal.solve_nominal(
+        cell.targets @ np.linalg.inv(cell.tool), cell.confdata)))
+    tool = cell.tool.copy()
+    tool[:3, 3] *= 1e3
+    targets = []
+    for k, (target, q) in enumerate(zip(cell.targets, joints)):
+        pose = target.copy()
+        pose[:3, 3] *= 1e3
+        targets.append(_Target(k, 0, 1, pose, q, np.eye(4), tool, ""))
+    results = _solve_targets(Compensator(cell.full), targets)
+    assert [r.model_note for r in results] == list(full.model_notes)
+    got = np.array([r.pose_mm for r in results])
+    assert np.abs(got[:, :3, 3] * 1e-3 - full.poses[:, :3, 3]).max() < 1e-9
+    assert sum(OUTSIDE in r.model_note for r in results) >= 8
