@@ -19,7 +19,7 @@ import numpy as np
 
 from ..calibration.calibration import Calibration
 from ..calibration.effect_ranges import fallback_notes
-from ..calibration.validity import range_notes
+from ..calibration.validity import has_range_parts, range_notes
 
 APPLIED = "residual map applied"
 NO_GEOMETRIC = "the geometric model reaches no solution here: the extended model's kept"
@@ -61,6 +61,9 @@ def apply_fitted_parts(comp, desired: np.ndarray, q: np.ndarray, flange: np.ndar
 
     ``notes`` (m strings, appended to in place) default to empty ones."""
     notes = [""] * len(q) if notes is None else notes
+    if not has_range_parts(comp.calibration):
+        return FittedParts(q=q, flange=flange, notes=notes,
+                           fallback=np.zeros(len(q), dtype=bool))
     q, flange, tried, fallback = _fallback(comp, desired, q, flange, ok, notes)
     q_ctrl = comp.robot.controller_from_joints(q)   # the cyclic errors' test: before the map
     q, flange = _map_pass(comp, desired, q, flange, ok, notes)
