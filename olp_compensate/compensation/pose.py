@@ -11,6 +11,10 @@ arm is the calibrated model. For a desired tool pose we therefore
    forward kinematics of ``q``, through the program's own tool and work object, with the
    configuration (ABB ``confdata``) of ``q``.
 
+Between the two, where the calibration holds parts fitted in a joint range (named effects
+beside their geometric fallback, a residual map), ``q`` follows the one rule on them
+(:meth:`Compensator.fitted_parts`), which every caller applies.
+
 All poses are 4x4 in metres; joints are controller axes in rad (m for prismatic axes).
 """
 
@@ -28,10 +32,10 @@ from ..kinematics.model import FixedChain, fixed_chain, forward
 from .config_rule import decide
 from .controller import Load, controller_model_chain, refine_on_controller
 from .failures import FailureReport, explain_failures
-from .residual_map import FittedParts, apply_fitted_parts
 from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, branch_of,
                  closed_form_inverse, fit_family, nominal_joints_on_branch, solve,
                  solve_with_nominal)
+from .residual_map import FittedParts, apply_fitted_parts
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
            "compensate_poses", "COMPENSATED"]
