@@ -33,7 +33,10 @@ A target that cannot be compensated (out of reach, outside the axis ranges...) i
 written silently: its status and note (olp-fix's words) go to the post's log (``addlog``,
 which RoboDK shows) and, where the post has ``RunMessage``, into the program as a comment
 before the target, which is then written as RoboDK gave it. With ``strict=True`` the
-program is refused instead (:class:`~olp_compensate.errors.UnreachableTarget`).
+program is refused instead (:class:`~olp_compensate.errors.UnreachableTarget`). A
+compensated target where a part of the calibration fitted in a joint range did not apply
+(the geometric model outside the named effects' ranges; the residual map) gets that note
+in the log (``addlog``) too.
 
 RoboDK's own "accurate kinematics" (its calibration option's ``FilterTarget``) must be off
 for this robot, or every target is compensated twice.
@@ -189,6 +192,8 @@ def _flush(post) -> None:
         if result.ok:
             args[target.pose_arg] = _like(args[target.pose_arg], result.pose_mm)
             args[target.joints_arg] = result.joints_deg
+            if result.model_note and callable(getattr(post, "addlog", None)):
+                post.addlog(f"olp-compensate: {name} target: {result.model_note}")
             continue                  # (a target not compensated: RoboDK's own objects)
         state.problems.append((name, target.call, result.status, result.note))
         text = (f"olp-compensate: {name} target NOT compensated ({result.status}"
@@ -215,6 +220,7 @@ class _Result:
     status: str
     note: str
     ok: bool
+    model_note: str = ""
 
 
 def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
@@ -259,7 +265,7 @@ def _solve_targets(comp, targets: list[_Target]) -> list[_Result]:
     new[:, :3, 3] *= 1e3
     real_joints = batch.joints_deg.tolist()
     return [_Result(new[i], real_joints[i] + [float(v) for v in joints[i][n:]],
-                    batch.status[i], batch.notes[i], ok)
+                    batch.status[i], batch.notes[i], ok, batch.model_notes[i])
             for i, ok in enumerate(batch.ok.tolist())]
 
 

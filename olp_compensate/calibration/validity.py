@@ -14,6 +14,13 @@ from .effect_ranges import fallback_notes
 from .effects import CyclicError
 
 
+def has_range_parts(cal: Calibration) -> bool:
+    """Whether ``cal`` holds a part fitted in a range (effects with a geometric fallback,
+    a cyclic error, a residual map): without one every row gets no note."""
+    return (cal.geometric_fallback is not None or cal.residual_map is not None
+            or any(isinstance(e, CyclicError) for e in cal.effects))
+
+
 def range_notes(cal: Calibration, q_ctrl: np.ndarray, residual_map: bool = False) -> list[str]:
     """One note per row of controller axis values (m, n), '' when everything the
     calibration holds applies there."""

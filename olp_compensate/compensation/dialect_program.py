@@ -30,7 +30,6 @@ from .frame_lookup import FrameLookup
 from .pose import COMPENSATED, Compensator
 from .regions import RegionalCompensator
 from .report import CompensationReport, TargetReport
-from .residual_map import add_range_notes, residual_map_pass
 
 @dataclass
 class _Job:
@@ -280,10 +279,8 @@ def _solve(comp: Compensator, teacher: Compensator | None, geometry: ArmGeometry
     q, flange, solution, _ = comp.compensate_flanges(desired, None, confdata, **options)
     failures = explain_failures(comp, solution, desired, confdata, on_rows(words, keep))
     notes = [""] * len(jobs)         # the residual map and the effects' fitted ranges
-    if not isinstance(comp, RegionalCompensator):
-        q, flange = residual_map_pass(comp, desired, q, flange, solution.success, notes)
-        add_range_notes(comp.calibration, robot.controller_from_joints(q), solution.success,
-                        notes)
+    parts = comp.fitted_parts(desired, q, flange, solution.success, notes)
+    q, flange = parts.q, parts.flange
     for i, job in enumerate(jobs):
         if not solution.success[i]:
             rows.append(_failure_row(job, rules, failures[i], robot))

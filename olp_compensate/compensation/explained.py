@@ -26,6 +26,8 @@ class ExplainedBatch:
     status : (m,) 'ok', 'singular' or why not; notes : m strings, olp-fix's note ('' when
         compensated).
     config : (m, 4) int, ABB confdata of the joints the real arm takes (where compensated).
+    model_notes : m strings, where compensated: which fitted-in-a-range parts of the
+        calibration did not apply or did (:meth:`~.pose.Compensator.fitted_parts`).
     """
 
     poses: np.ndarray
@@ -33,6 +35,7 @@ class ExplainedBatch:
     status: list[str]
     notes: list[str]
     config: np.ndarray
+    model_notes: tuple[str, ...] = ()
 
     @property
     def ok(self) -> np.ndarray:
@@ -64,6 +67,8 @@ def compensate_explained(comp: Compensator, wobj_T_target: np.ndarray, tool: np.
         q, flange, solution, _, regional = comp.solve_regions(desired, requested, confdata)
     else:
         q, flange, solution, _ = comp.compensate_flanges(desired, requested, confdata)
+    parts = comp.fitted_parts(desired, q, flange, solution.success)   # (not with regions)
+    q, flange = parts.q, parts.flange
     robot = comp.robot
     ok = np.isin(solution.reason, COMPENSATED)
     poses = invert_pose(wobj) @ flange @ tool
@@ -81,4 +86,4 @@ def compensate_explained(comp: Compensator, wobj_T_target: np.ndarray, tool: np.
                 joints[i] = robot.to_degrees_or_mm(failure.joints[None])[0]
     return ExplainedBatch(poses=poses, joints_deg=joints,
                           status=[str(s) for s in solution.reason], notes=notes,
-                          config=config)
+                          config=config, model_notes=tuple(parts.notes))

@@ -11,6 +11,10 @@ arm is the calibrated model. For a desired tool pose we therefore
    forward kinematics of ``q``, through the program's own tool and work object, with the
    configuration (ABB ``confdata``) of ``q``.
 
+Between the two, where the calibration holds parts fitted in a joint range (named effects
+beside their geometric fallback, a residual map), ``q`` follows the one rule on them
+(:meth:`Compensator.fitted_parts`), which every caller applies.
+
 All poses are 4x4 in metres; joints are controller axes in rad (m for prismatic axes).
 """
 
@@ -31,6 +35,7 @@ from .failures import FailureReport, explain_failures
 from .ik import (IKSolution, OPWParameters, ReachBound, URParameters, branch_of,
                  closed_form_inverse, fit_family, nominal_joints_on_branch, solve,
                  solve_with_nominal)
+from .residual_map import FittedParts, apply_fitted_parts
 
 __all__ = ["Compensator", "PoseCompensation", "BatchCompensation", "compensate_pose",
            "compensate_poses", "COMPENSATED"]
@@ -50,6 +55,9 @@ class BatchCompensation:
     config : (m, 4) int, ABB confdata (cf1, cf4, cf6, cfx) of ``joints``.
     status : (m,) str, the reasons of :data:`olp_compensate.compensation.ik.REASONS`.
     position_error_m, rotation_error_rad : (m,) how closely the calibrated model reaches.
+    model_notes : m strings, which of the calibration's fitted-in-a-range parts did not
+        apply or did (geometric model outside the named effects' fitted ranges, residual
+        map; :meth:`Compensator.fitted_parts`), '' where all of it applied.
     """
 
     poses: np.ndarray
@@ -59,6 +67,7 @@ class BatchCompensation:
     status: np.ndarray
     position_error_m: np.ndarray
     rotation_error_rad: np.ndarray
+    model_notes: tuple[str, ...] = ()
 
     @property
     def success(self) -> np.ndarray:
@@ -81,6 +90,9 @@ class PoseCompensation:
     note: str = ""
     """Why the target was not compensated (axis, value and range; configurations; distance
     out of reach), empty when it was."""
+    model_note: str = ""
+    """Where it was compensated: which fitted-in-a-range parts of the calibration did not
+    apply or did (:meth:`Compensator.fitted_parts`), empty when all of it applied."""
 
     @property
     def success(self) -> bool:
@@ -125,6 +137,37 @@ class Compensator:
         self.axis_ranges = self.robot.controller_ranges
         """(n, 2) the controller's axis ranges, rad, controller axes: checked after solving."""
         self.reach = _reach_bound(self._chain, calibration)
+        self._fallback: Compensator | None = None
+
+    # -- the parts of the calibration fitted in a range -----------------------------------
+
+    def fallback_compensator(self) -> Compensator | None:
+        """The compensator of the calibration's geometric fallback (same controller and
+        load; built on first use), None without one."""
+        if self.calibration.geometric_fallback is None:
+            return None
+        if self._fallback is None:
+            self._fallback = Compensator(self.calibration.geometric_fallback,
+                                         self.controller, self.load)
+        return self._fallback
+
+    def fitted_parts(self, desired_real_flange: np.ndarray, q_urdf: np.ndarray,
+                     flange: np.ndarray, ok: np.ndarray, notes: list | None = None
+                     ) -> FittedParts:
+        """The one rule on the fitted-in-a-range parts of the calibration, applied to
+        what :meth:`compensate_flanges` solved (``q_urdf`` (m, n), ``flange`` (m, 4, 4),
+        ``ok`` (m,) the rows compensated) for ``desired_real_flange`` (m, 4, 4): rows
+        outside the named effects' fitted ranges solved on the geometric fallback, the
+        residual map inside its region, a note on each row where a part did not apply
+        (:func:`~.residual_map.apply_fitted_parts`; ``notes`` appended to in place).
+        Every compensation goes through it; a compensator whose rows may come from
+        other calibrations (regions) leaves them as solved."""
+        if getattr(self, "region_names", ()):
+            return FittedParts(q=q_urdf, flange=flange,
+                               notes=[""] * len(q_urdf) if notes is None else notes,
+                               fallback=np.zeros(len(q_urdf), dtype=bool))
+        return apply_fitted_parts(self, desired_real_flange, q_urdf, flange,
+                                  np.asarray(ok, dtype=bool), notes)
 
     # -- kinematics, URDF axes ------------------------------------------------------------
 
@@ -332,6 +375,8 @@ def compensate_poses(calibration: Calibration | Compensator, wobj_T_target, tool
     desired = tcp @ invert_pose(real_tool)
     requested = tcp @ invert_pose(tool)
     q, flange, solution, nominal = comp.compensate_flanges(desired, requested, confdata)
+    parts = comp.fitted_parts(desired, q, flange, solution.success)
+    q, flange = parts.q, parts.flange
     poses = invert_pose(wobj) @ flange @ tool
     config = np.full((m, 4), -99, dtype=int)
     ok = solution.success
@@ -342,7 +387,8 @@ def compensate_poses(calibration: Calibration | Compensator, wobj_T_target, tool
                              nominal_joints=robot.controller_from_joints(nominal),
                              config=config, status=solution.reason.astype(str),
                              position_error_m=solution.position_error_m,
-                             rotation_error_rad=solution.rotation_error_rad)
+                             rotation_error_rad=solution.rotation_error_rad,
+                             model_notes=tuple(parts.notes))
 
 
 def compensate_pose(calibration: Calibration | Compensator, pose, tool=None, wobj=None,
@@ -373,7 +419,8 @@ def compensate_pose(calibration: Calibration | Compensator, pose, tool=None, wob
             conf = failure.config if failure.config is not None else conf
     return PoseCompensation(pose=new, joints=joints, config=conf,
                             status=str(batch.status[0]), correction_mm=correction_mm,
-                            correction_deg=correction_deg, note=note)
+                            correction_deg=correction_deg, note=note,
+                            model_note=batch.model_notes[0])
 
 
 def _explain_one(comp: Compensator, pose, tool, wobj, config, real_tool) -> FailureReport | None:

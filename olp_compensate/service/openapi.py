@@ -36,7 +36,12 @@ POSE_ANSWER = {
         "status": {"type": "string"}, "note": {"type": "string"},
         "config": {"type": "array", "items": CONFIG_ITEM, "nullable": True,
                    "description": "the dialect's configuration of joints_deg, to write "
-                                  "with the pose; null where not compensated"}}}
+                                  "with the pose; null where not compensated"},
+        "model_note": {"type": "string",
+                       "description": "where compensated: which parts of the calibration "
+                                      "fitted in a joint range did not apply or did (the "
+                                      "geometric model outside the named effects' fitted "
+                                      "ranges; the residual map); empty where all applied"}}}
 
 POSES_PARAMS = {
     "type": "object", "required": ["calibration", "poses"], "additionalProperties": False,

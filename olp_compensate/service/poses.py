@@ -7,8 +7,11 @@ in :mod:`.dialect_poses`), solved as olp-fix reads them in a program. The answer
 target to write (4x4, same frame and unit; the target as given where not compensated, with
 the status saying so), the controller axes the real arm takes (degrees; mm for a prismatic
 axis; None where no solution was found), the status ('ok', 'singular' or why not), the
-note olp-fix writes for it, and ``config``: the dialect's configuration of those joints,
-to write with the pose (None where not compensated).
+note olp-fix writes for it, ``config``: the dialect's configuration of those joints,
+to write with the pose (None where not compensated), and ``model_note``: where
+compensated, which fitted-in-a-range parts of the calibration did not apply or did (the
+geometric model outside the named effects' fitted ranges, the residual map; the note
+olp-fix adds to the row), '' where all of it applied.
 """
 
 from __future__ import annotations
@@ -155,7 +158,8 @@ def compensate_requests(comp: Compensator, req: PoseRequests, scale: float) -> l
         has_config[others] = True
         for row, (status, note) in chosen.failed.items():
             answers[row] = {"pose": _shown(req.targets[row], scale), "joints_deg": None,
-                            "status": status, "note": note, "config": None}
+                            "status": status, "note": note, "config": None,
+                            "model_note": ""}
     for with_config in (True, False):
         rows = np.flatnonzero((has_config == with_config)
                               & np.array([a is None for a in answers]))
@@ -199,7 +203,7 @@ def _solve(comp: Compensator, targets, tools, wobjs, confdata, scale: float) -> 
     shown[:, :3, 3] /= scale
     finite = np.all(np.isfinite(batch.joints_deg), axis=1).tolist()
     return [{"pose": pose, "joints_deg": joints if fine else None, "status": status,
-             "note": note, "config": config if ok else None}
-            for pose, joints, fine, status, note, config, ok in zip(
+             "note": note, "config": config if ok else None, "model_note": model_note}
+            for pose, joints, fine, status, note, config, ok, model_note in zip(
                 shown.tolist(), batch.joints_deg.tolist(), finite, batch.status,
-                batch.notes, batch.config.tolist(), batch.ok.tolist())]
+                batch.notes, batch.config.tolist(), batch.ok.tolist(), batch.model_notes)]

@@ -36,7 +36,6 @@ from ...compensation.pose import COMPENSATED, Compensator
 from ...compensation.program_tools import program_tool, program_tool_note
 from ...compensation.report import (KEPT, LINE_COLUMN, NOT_MOVED, CompensationReport, TargetReport,
                                     config_texts)
-from ...compensation.residual_map import add_range_notes, residual_map_pass
 from ...errors import DataError
 from ...kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                        pose_from_rotation_translation, rotation_angle_between)
@@ -278,12 +277,12 @@ def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
             failures[i] = failure
     reason = reason.tolist()
     ok = np.fromiter((r in COMPENSATED for r in reason), bool, n)
-    if regional is None:
-        q, flange = residual_map_pass(comp, desired, q, flange, ok, tool_note)
+    if regional is None:       # the effects' fitted ranges and the residual map
+        parts = comp.fitted_parts(desired, q, flange, ok, tool_note)
+        q, flange = parts.q, parts.flange
     new_targets = _written_targets(res, job, flange, ok)
     original = res.wobj_T_target[job]
     q_ctrl = robot.controller_from_joints(q)
-    add_range_notes(comp.calibration, q_ctrl, ok, tool_note)
     nominal_ctrl = robot.controller_from_joints(nominal)
     conf = np.full((n, 4), -99, int)
     if np.any(ok):
