@@ -163,7 +163,7 @@ def test_olp_fix_residual_map_pass_reaches_the_target_on_the_model_plus_map():
     from olp_compensate.calibration.calibration import nominal_calibration
     from olp_compensate.calibration.remainder import ResidualMap
     from olp_compensate.compensation.pose import Compensator
-    from olp_compensate.compensation.residual_map import APPLIED, residual_map_pass
+    from olp_compensate.compensation.residual_map import APPLIED
 
     rng = np.random.default_rng(5)
     cal = nominal_calibration(ROBOT)
@@ -181,7 +181,7 @@ def test_olp_fix_residual_map_pass_reaches_the_target_on_the_model_plus_map():
     q, flange, solution, _ = comp.compensate_flanges(desired, None, comp.confdata(
         ROBOT.joints_from_controller(joints)))
     notes = [""] * len(q)
-    q2, _ = residual_map_pass(comp, desired, q, flange, solution.success, notes)
+    q2 = comp.fitted_parts(desired, q, flange, solution.success, notes).q
     q2_ctrl = ROBOT.controller_from_joints(q2)
     reached = cal.flange_poses(q2_ctrl)[:, :3, 3] + rmap.predict(q2_ctrl)  # device = base
     before = cal.flange_poses(ROBOT.controller_from_joints(q))[:, :3, 3] + rmap.predict(

@@ -113,7 +113,6 @@ def test_file_round_trip_and_older_files_use_the_effects_everywhere():
 
 def test_olp_fix_pass_solves_outside_rows_on_the_geometric_model():
     from olp_compensate.compensation.pose import Compensator
-    from olp_compensate.compensation.residual_map import add_range_notes, residual_map_pass
 
     rng = np.random.default_rng(12)
     cal, geometric = _pair(rng)
@@ -124,9 +123,9 @@ def test_olp_fix_pass_solves_outside_rows_on_the_geometric_model():
         ROBOT.joints_from_controller(joints)))
     ok = solution.success
     notes = [""] * len(q)
-    q2, _ = residual_map_pass(comp, desired, q, flange, ok, notes)
+    parts = comp.fitted_parts(desired, q, flange, ok, notes)
+    q2 = parts.q
     q2_ctrl = ROBOT.controller_from_joints(q2)
-    add_range_notes(cal, q2_ctrl, ok, notes)
     outside = ok & cal.outside_fitted(ROBOT.controller_from_joints(q))
     inside = ok & ~outside
     assert outside.sum() >= 5 and inside.sum() >= 5
@@ -136,6 +135,7 @@ def test_olp_fix_pass_solves_outside_rows_on_the_geometric_model():
     reach_ext = replace(cal, geometric_fallback=None).flange_poses(q2_ctrl[inside])[:, :3, 3]
     assert np.abs(reach_ext - desired[inside, :3, 3]).max() < 1e-8
     assert np.array_equal(q2[inside], q[inside])
+    assert np.array_equal(parts.fallback, outside)   # every outside row reached geometrically
     for i in np.flatnonzero(ok):
-        assert ("geometric model used" in notes[i]) == bool(cal.outside_fitted(q2_ctrl[i:i + 1])[0])
+        assert ("geometric model used" in notes[i]) == parts.fallback[i]
     assert sum("geometric model used" in n for n in notes) >= 0.8 * outside.sum()

@@ -239,3 +239,20 @@ def test_the_robodk_post_solves_its_targets_by_the_same_rule(cell):
     got = np.array([r.pose_mm for r in results])
     assert np.abs(got[:, :3, 3] * 1e-3 - full.poses[:, :3, 3]).max() < 1e-9
     assert sum(OUTSIDE in r.model_note for r in results) >= 8
+
+
+def test_a_map_over_the_whole_range_is_not_applied_where_the_geometric_model_is(cell):
+    """The residual map corrects the extended model's residual: on a row solved on the
+    geometric fallback it is not applied, even inside its region, and the row's stated
+    accuracy is the geometric solve's."""
+    everywhere = replace(cell.map, q_range=np.column_stack([ROBOT.lower_limits - 1,
+                                                            ROBOT.upper_limits + 1]))
+    full = cell.solve(replace(cell.full, residual_map=everywhere))
+    geo = cell.solve(cell.geometric)
+    outside = cell.full.outside_fitted(full.joints)
+    assert outside.sum() >= 8 and full.success.all()
+    assert np.abs(full.poses[outside] - geo.poses[outside]).max() < 1e-9
+    assert np.array_equal(full.position_error_m[outside], geo.position_error_m[outside])
+    for i in np.flatnonzero(outside):
+        assert "residual map not applied" in full.model_notes[i], full.model_notes[i]
+    assert all(full.model_notes[i] == APPLIED for i in np.flatnonzero(~outside))

@@ -163,9 +163,7 @@ class Compensator:
         Every compensation goes through it; a compensator whose rows may come from
         other calibrations (regions) leaves them as solved."""
         if getattr(self, "region_names", ()):
-            return FittedParts(q=q_urdf, flange=flange,
-                               notes=[""] * len(q_urdf) if notes is None else notes,
-                               fallback=np.zeros(len(q_urdf), dtype=bool))
+            return FittedParts.unchanged(q_urdf, flange, notes)
         return apply_fitted_parts(self, desired_real_flange, q_urdf, flange,
                                   np.asarray(ok, dtype=bool), notes)
 
@@ -383,11 +381,11 @@ def compensate_poses(calibration: Calibration | Compensator, wobj_T_target, tool
     if np.any(ok):
         config[ok] = comp.confdata(q[ok])
     robot = comp.robot
+    position, rotation = parts.errors(solution.position_error_m, solution.rotation_error_rad)
     return BatchCompensation(poses=poses, joints=robot.controller_from_joints(q),
                              nominal_joints=robot.controller_from_joints(nominal),
                              config=config, status=solution.reason.astype(str),
-                             position_error_m=solution.position_error_m,
-                             rotation_error_rad=solution.rotation_error_rad,
+                             position_error_m=position, rotation_error_rad=rotation,
                              model_notes=tuple(parts.notes))
 
 
