@@ -54,6 +54,10 @@ or other bands (on a real arm's path data, high orders of joints 1 and 4 moved t
 by 0.8 mm against each other to explain 0.04 mm)."""
 RIDGE_GRID = np.logspace(-6, 3, 19)
 """Penalties tried, relative to the mean diagonal of the band's Gram matrix."""
+LIGHT_RIDGE = 30.0
+"""The dominant orders are read from the band refitted with its CV penalty divided by
+this: over a joint's span neighbouring orders are nearly collinear (20 and 21 over 189
+degrees), and the CV penalty, chosen for prediction, shares a peak between them."""
 
 
 def lowest_order(q: np.ndarray) -> int:
@@ -106,6 +110,13 @@ class BandOutcome:
     """Joints (0-based) whose axis passes too near the measured points for a band."""
     rounds: list[list[BandResult]] = field(default_factory=list)
     thresholds: list[float] = field(default_factory=list)
+    spectra: list[CyclicError] = field(default_factory=list)
+    """Per kept band (same order), the band refitted with its penalty divided by
+    ``LIGHT_RIDGE`` (the other bands at theirs): what its dominant orders and amplitude are
+    read from (:func:`dominant_orders`); the prediction keeps ``bands``."""
+    scan: "BandScan | None" = field(default=None, repr=False, compare=False)
+    """The band scan itself (its folds: time blocks when given), for the backward
+    elimination of :mod:`.backward_elimination`."""
 
 
 def _solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -184,10 +195,13 @@ class BandScan:
     def joints(self) -> list[int]:
         return list(self.columns)
 
-    def _layout(self, kept: list[tuple[int, float]], joint: int | None):
-        """(columns, penalty of the non-candidate columns, number of them)."""
-        cols = [np.arange(self.n_u)] + [self.columns[j] for j, _ in kept]
-        penalty = [np.zeros(self.n_u)] + [np.full(len(self.columns[j]), lam) for j, lam in kept]
+    def _layout(self, kept: list[tuple[int, float]], joint: int | None, drop=()):
+        """(columns, penalty of the non-candidate columns, number of them); ``drop``:
+        columns of the current unknowns left out (a named effect's, when it is
+        eliminated)."""
+        own = np.setdiff1d(np.arange(self.n_u), np.asarray(drop, dtype=int))
+        cols = [own] + [self.columns[j] for j, _ in kept]
+        penalty = [np.zeros(len(own))] + [np.full(len(self.columns[j]), lam) for j, lam in kept]
         n_u = sum(len(c) for c in cols)
         if joint is not None:
             cols.append(self.columns[joint])
@@ -263,12 +277,13 @@ class BandScan:
         return self._heldout(fits, cols, sigma2), lam_all, float(np.sqrt(3 * np.mean(move**2)))
 
     def gain_test(self, reference: Heldout, candidate: Heldout,
-                  kept: list[tuple[int, float]]) -> tuple[float, float, float]:
+                  kept: list[tuple[int, float]], drop=()) -> tuple[float, float, float]:
         """(gain, z, p) as :meth:`.effect_scan.EffectScan.gain_test`, with the leverage of
         the test rows under the current model's own fit (the geometry and the kept bands
         at their penalties: ``A_t (G_T + P)^-1 A_t'``), which the held-out residuals of a
-        model with bands carry."""
-        cols, penalty, _ = self._layout(kept, None)
+        model with bands carry; ``drop``: the reference's left-out columns (see
+        :meth:`current`)."""
+        cols, penalty, _ = self._layout(kept, None, drop)
         delta = (reference.residuals - candidate.residuals).ravel()
         gain = reference.sse - candidate.sse
         leverage = 0.0
@@ -282,10 +297,11 @@ class BandScan:
         z = gain / np.sqrt(variance)
         return float(gain), float(z), float(stats.norm.sf(z))
 
-    def current(self, kept: list[tuple[int, float]]) -> tuple[Heldout, np.ndarray]:
+    def current(self, kept: list[tuple[int, float]], drop=()) -> tuple[Heldout, np.ndarray]:
         """Held-out residuals of the current model with the kept bands at their penalties,
-        and its full-data solution (the columns of ``_layout(kept, None)``)."""
-        cols, penalty, n_u = self._layout(kept, None)
+        and its full-data solution (the columns of ``_layout(kept, None, drop)``);
+        ``drop``: columns of the current unknowns (``scan.scaled``) left out."""
+        cols, penalty, n_u = self._layout(kept, None, drop)
         fits = []
         for f in range(len(self.grams)):
             gram, rhs = self._training(frozenset({f}))
@@ -304,7 +320,7 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
     tested in the round); see the module docstring. ``folds``: row masks in place of the
     scan's (time blocks, :mod:`.time_blocks`)."""
     bands = BandScan(scan, robot, q_ctrl, folds)
-    outcome = BandOutcome(short_lever=list(bands.short_lever))
+    outcome = BandOutcome(short_lever=list(bands.short_lever), scan=bands)
     kept: list[tuple[int, float]] = []
     base, _ = bands.current(kept)
     held_of: dict[int, Heldout] = {}
@@ -344,14 +360,34 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
     # the non-linear model leaves the linearization (118 mm off on a real arm's data)
     cols = np.concatenate([bands.columns[j] for j, _ in kept])
     outcome.rhs = -(scan.residual + bands.a[:, cols] @ x[bands.n_u:])
-    at = bands.n_u
-    for j, lam in kept:
-        n = len(bands.columns[j])
-        outcome.bands.append(CyclicError(
-            joint=j, values=tuple(x[at:at + n]), max_order=bands.templates[j].max_order,
-            min_order=bands.templates[j].min_order, q_range=bands.templates[j].q_range, ridge=lam))
-        at += n
+    outcome.bands = band_effects(bands, kept, x)
+    outcome.spectra = light_spectra(bands, kept)
     return outcome
+
+
+def band_effects(bands: BandScan, kept: list[tuple[int, float]], x: np.ndarray
+                 ) -> list[CyclicError]:
+    """The kept bands with their values in the solution ``x`` of ``bands.current(kept)``
+    (band columns in rad, after the ``bands.n_u`` current unknowns)."""
+    out, at = [], bands.n_u
+    for j, lam in kept:
+        n, template = len(bands.columns[j]), bands.templates[j]
+        out.append(CyclicError(joint=j, values=tuple(x[at:at + n]),
+                               max_order=template.max_order, min_order=template.min_order,
+                               q_range=template.q_range, ridge=lam))
+        at += n
+    return out
+
+
+def light_spectra(bands: BandScan, kept: list[tuple[int, float]],
+                  factor: float = LIGHT_RIDGE) -> list[CyclicError]:
+    """Each kept band refitted on all rows with its penalty divided by ``factor``, the
+    other bands at their own (see :data:`LIGHT_RIDGE`); same order as ``kept``."""
+    out = []
+    for k, (j, lam) in enumerate(kept):
+        light = kept[:k] + [(j, lam / factor)] + kept[k + 1:]
+        out.append(band_effects(bands, light, bands.current(light)[1])[k])
+    return out
 
 
 STEP_RCONDS = (1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 1e-1)
@@ -416,11 +452,13 @@ def dominant_orders(effect: CyclicError, count: int = 2) -> list[int]:
     return [int(effect.orders[k]) for k in np.argsort(-effect.amplitudes())[:count]]
 
 
-def band_text(effect: CyclicError) -> str:
+def band_text(effect: CyclicError, spectrum: CyclicError | None = None) -> str:
     """'joint j: cyclic angle error, dominant orders k1, k2 (periods), amplitude' with the
-    orders' likely sources as hypotheses."""
-    orders = dominant_orders(effect)
-    amplitude = effect.amplitudes()
+    orders' likely sources as hypotheses; the dominant orders and their amplitude from
+    ``spectrum`` (the lightly penalised refit, :func:`light_spectra`) when given."""
+    spectrum = effect if spectrum is None else spectrum
+    orders = dominant_orders(spectrum)
+    amplitude = spectrum.amplitudes()
     periods = ", ".join(f"{k} ({360 / k:.1f} deg)" for k in orders)
     sources = "; ".join(SOURCES.get(k, f"order {k}: a gear stage turning {k} times per "
                                        f"turn of the joint, or the encoder's {k}-per-turn "

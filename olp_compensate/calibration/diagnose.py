@@ -39,11 +39,13 @@ import numpy as np
 from .effects import (CyclicError, Effect, EffectInputs, GearHarmonic, JointCompliance,
                       ThermalExpansion)
 from ..errors import DataError
-from .cross_validation import pose_folds, time_blocked_folds
-from .cyclic_scan import BandOutcome, apply_bands, band_text
+from .backward_elimination import (EliminationStep, band_stage, elimination_entry,
+                                   elimination_lines)
+from .cross_validation import pose_folds
+from .cyclic_scan import BandOutcome, band_text
 from .diagnose_account import account, account_lines, band_round_lines, band_rounds, cyclic_entry
 from .remainder import Predictability, predictability
-from .time_blocks import BlockedFigures, blocked_entry, blocked_line, scan_bands_blocked
+from .time_blocks import BlockedFigures, blocked_entry, blocked_line
 from .effect_scan import (CandidateResult, EffectScan, candidate_effects, choose_candidate,
                           drift_warning)
 from .identify import (IdentificationOptions, IdentificationResult, identify,
@@ -118,6 +120,9 @@ class KeptEffect:
     alternatives: list[str] = field(default_factory=list)
     displacement: np.ndarray | None = None
     """(m, 3) how the effect moves each measured point, device frame, m."""
+    spectrum: Effect | None = None
+    """A cyclic band refitted with a lighter penalty: its dominant orders and amplitude
+    (:func:`.cyclic_scan.light_spectra`)."""
 
 
 @dataclass(frozen=True)
@@ -157,6 +162,8 @@ class Diagnosis:
     """How much of the extended model's held-out residual a flexible model predicts."""
     blocked: BlockedFigures | None = None
     """Held-out figures by blocks of time (rows with time_s; :mod:`.time_blocks`)."""
+    elimination: list[EliminationStep] = field(default_factory=list)
+    """The named effects re-tested once the bands were in (:mod:`.backward_elimination`)."""
 
     @property
     def found(self) -> bool:
@@ -227,9 +234,12 @@ def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: fl
 
 
 def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
-                  kept: list[tuple[Effect, float, list[str]]]) -> list[KeptEffect]:
+                  kept: list[tuple[Effect, float, list[str]]],
+                  bands: BandOutcome | None) -> list[KeptEffect]:
     """Each kept effect with how far it alone moves the measured points: the extended
-    problem ``after`` at ``x_after`` with only that effect switched on, minus with none."""
+    problem ``after`` at ``x_after`` with only that effect switched on, minus with none;
+    the cyclic bands with their light refits (``bands.spectra``)."""
+    spectra = {} if bands is None else {s.joint: s for s in bands.spectra}
     x_plain = x_after.copy()  # the extended model with its effects switched off
     for cols in after.layout.effects:
         x_plain[cols] = 0.0
@@ -244,7 +254,9 @@ def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
         out.append(KeptEffect(effect=fitted, p_value=p_value,
                               point_rms_m=float(np.sqrt(np.mean(moved**2))),
                               point_max_m=float(moved.max()), alternatives=alternatives,
-                              displacement=displacement))
+                              displacement=displacement,
+                              spectrum=spectra.get(fitted.joint)
+                              if isinstance(fitted, CyclicError) else None))
     return out
 
 
@@ -285,16 +297,16 @@ def diagnose(robot: Robot, meas: Measurements,
         current = refit
         scan = EffectScan(current, meas, inputs, folds)
 
+    # the bands (with time_s chosen on blocks of time), then the named effects they make
+    # unneeded dropped (:mod:`.backward_elimination`)
+    stage = band_stage(robot, meas, inputs, scan, [e for e, _, _ in kept],
+                       [r.threshold for r in rounds[:len(kept)]], options, base_options)
+    gone = {e.key for e in stage.dropped}
+    kept = [k for k in kept if k[0].key not in gone]
+    scan, extended, bands, blocked = stage.scan, stage.extended, stage.bands, stage.blocked
     drift = drift_warning(scan, options.alpha)
-    extended = current
-    bands = blocked = None
-    if options.cyclic:  # with time_s, the bands chosen on blocks of time
-        blocks = (time_blocked_folds(meas.time_s, meas.pose_ids, folds_k)
-                  if options.time_blocks else None)
-        bands, blocked = scan_bands_blocked(scan, robot, inputs.q, options, blocks)
-        if bands.bands:
-            extended = apply_bands(current, scan, bands)
-            kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
+    if bands is not None:
+        kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
     target = bands.heldout if bands is not None and bands.bands else scan.base
     before, x_before = problem_at(geometric.calibration, meas, inputs)
     after, x_after = problem_at(extended.calibration, meas, inputs)
@@ -317,7 +329,8 @@ def diagnose(robot: Robot, meas: Measurements,
         source = "residual of the final model (an upper bound: measure some poses twice)"
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
-                     effects=_kept_effects(after, x_after, extended, kept), rounds=rounds,
+                     effects=_kept_effects(after, x_after, extended, kept, bands),
+                     rounds=rounds,
                      noise=noise_floor(meas, options.noise_m, residual_sigma, source),
                      untestable=untestable, drift=drift,
                      residual_before=before.measured - predicted_before,
@@ -325,7 +338,7 @@ def diagnose(robot: Robot, meas: Measurements,
                      predicted_change=predicted_after - predicted_before,
                      dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
                      alpha=options.alpha, candidates_tried=len(candidates), bands=bands,
-                     remainder=remainder, blocked=blocked)
+                     remainder=remainder, blocked=blocked, elimination=stage.steps)
 
 
 def _mm(value_m: float | None) -> float | None:
@@ -350,7 +363,7 @@ def effect_entry(kept: KeptEffect) -> dict:
     if isinstance(e, ThermalExpansion):
         entry["reference_temperature_c"] = e.reference_temperature_c
     if isinstance(e, CyclicError):
-        entry.update(cyclic_entry(e), text=band_text(e))
+        entry.update(cyclic_entry(e, kept.spectrum), text=band_text(e, kept.spectrum))
     return entry
 
 
@@ -396,6 +409,7 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
                              "alternatives": r.alternatives,
                              "candidates": [_candidate_entry(c) for c in r.candidates]}
                             for r in d.rounds]},
+        "backward_elimination": elimination_entry(d.elimination),
         "untestable": d.untestable,
         "drift": d.drift,
         "conclusion": summary(d).splitlines()[-1],
@@ -453,7 +467,7 @@ def summary(d: Diagnosis) -> str:
         else:
             lines.append(f"round {number}: no further term is significant (threshold "
                          f"{r.threshold:.1e})")
-    lines += band_round_lines(d.bands)
+    lines += band_round_lines(d.bands) + elimination_lines(d.elimination)
     if d.drift:
         lines.append(f"WARNING: {d.drift}")
     lines += account_lines(_account(d)) + ([blocked_line(d.blocked)] if d.blocked else [])
@@ -464,7 +478,7 @@ def summary(d: Diagnosis) -> str:
         return "\n".join(lines)
     lines.append(f"found {len(d.effects)} effect{'s' if len(d.effects) > 1 else ''}:")
     for k in d.effects:
-        text = (band_text(k.effect) if isinstance(k.effect, CyclicError)
+        text = (band_text(k.effect, k.spectrum) if isinstance(k.effect, CyclicError)
                 else f"{_value_text(k.effect)}; {k.effect.description}")
         lines.append(f"  {k.effect.label}: {text}; "
                      f"moves the measured point by {k.point_rms_m * 1e3:.3f} mm RMS, "

@@ -51,14 +51,20 @@ def account_lines(doc: dict) -> list[str]:
             f"{doc['noise_per_axis_mm']:.4f} mm per axis from {doc['noise_source']}"]
 
 
-def cyclic_entry(effect: CyclicError) -> dict:
-    """The JSON fields a cyclic error adds to its effect entry."""
-    amplitudes = effect.amplitudes()
-    orders = dominant_orders(effect)
+def cyclic_entry(effect: CyclicError, spectrum: CyclicError | None = None) -> dict:
+    """The JSON fields a cyclic error adds to its effect entry: ``amplitudes_rad`` and
+    ``ridge`` of the band as fitted (what predicts); ``dominant_orders`` and
+    ``dominant_amplitudes_rad`` from ``spectrum``, the band refitted with a lighter
+    penalty (``spectrum_ridge``), when given."""
+    spectrum = effect if spectrum is None else spectrum
+    orders = dominant_orders(spectrum)
+    light = spectrum.amplitudes()
     return {"max_order": effect.max_order, "min_order": effect.min_order,
             "dominant_orders": orders,
             "periods_deg": [360.0 / k for k in orders],
-            "amplitudes_rad": amplitudes.tolist(),
+            "dominant_amplitudes_rad": [float(light[k - spectrum.min_order]) for k in orders],
+            "spectrum_ridge": spectrum.ridge,
+            "amplitudes_rad": effect.amplitudes().tolist(),
             "q_range_deg": np.degrees(effect.q_range).tolist(), "ridge": effect.ridge}
 
 
