@@ -9,7 +9,8 @@ have). Once the bands are in, every effect the forward scan kept is tested again
 
 1. at the band scan's linearization (the current model's full-data solution, the bands'
    columns at the penalties they keep, the bands' folds: time blocks with ``time_s``),
-   each remaining effect's columns are left out in turn and the held-out residuals of
+   each remaining effect is set to zero (the residual moved by its columns times its
+   fitted values) and its columns left out in turn, and the held-out residuals of
    the model without it are compared with those of the model with it, by the z-test of
    :meth:`.cyclic_scan.BandScan.gain_test` (the forward scan's held-out criterion);
 2. an effect whose gain is not significant at the threshold of the forward round that
@@ -84,18 +85,28 @@ def eliminate(bands: BandScan, kept: list[tuple[int, float]], effects: list[Effe
     """The linear elimination (steps 1-2 of the module docstring) at the band scan
     ``bands`` with the kept bands ``kept`` ((joint, penalty)); ``effects``/``thresholds``:
     the scan model's effects in its layout's order and the threshold each must beat."""
-    columns = effect_columns(bands.scan)
+    scan = bands.scan
+    columns = effect_columns(scan)
     active = list(range(len(effects)))
     gone: list[int] = []
     steps: list[EliminationStep] = []
     number = first_round
+
+    def without(removed: list[int]) -> tuple[BandScan, np.ndarray]:
+        """The band scan of the model with the effects ``removed`` set to zero (the
+        linearization's residual moved accordingly) and their columns left out."""
+        step = np.zeros(bands.a.shape[1])
+        drop = np.concatenate([columns[i] for i in removed] + [np.zeros(0, int)])
+        step[drop] = -scan.x[scan.kept[drop]] * scan.norms[drop]
+        return bands.shifted(step), drop
+
     while active:
-        drop_all = np.concatenate([columns[i] for i in gone] + [np.zeros(0, int)])
-        full, _ = bands.current(kept, drop_all)
+        at_full, drop_all = without(gone)
+        full, _ = at_full.current(kept, drop_all)
         tested = []
         for i in active:
-            drop = np.concatenate([drop_all, columns[i]])
-            reduced, _ = bands.current(kept, drop)
+            at_reduced, drop = without(gone + [i])
+            reduced, _ = at_reduced.current(kept, drop)
             gain, z, p = bands.gain_test(reduced, full, kept, drop)
             tested.append((i, gain / max(reduced.sse, 1e-300), z, p))
         unneeded = [t for t in tested if not t[3] < thresholds[t[0]]]

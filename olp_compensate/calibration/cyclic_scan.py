@@ -28,6 +28,7 @@ all rows chooses.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass, field
 
@@ -54,10 +55,6 @@ or other bands (on a real arm's path data, high orders of joints 1 and 4 moved t
 by 0.8 mm against each other to explain 0.04 mm)."""
 RIDGE_GRID = np.logspace(-6, 3, 19)
 """Penalties tried, relative to the mean diagonal of the band's Gram matrix."""
-LIGHT_RIDGE = 30.0
-"""The dominant orders are read from the band refitted with its CV penalty divided by
-this: over a joint's span neighbouring orders are nearly collinear (20 and 21 over 189
-degrees), and the CV penalty, chosen for prediction, shares a peak between them."""
 
 
 def lowest_order(q: np.ndarray) -> int:
@@ -110,10 +107,6 @@ class BandOutcome:
     """Joints (0-based) whose axis passes too near the measured points for a band."""
     rounds: list[list[BandResult]] = field(default_factory=list)
     thresholds: list[float] = field(default_factory=list)
-    spectra: list[CyclicError] = field(default_factory=list)
-    """Per kept band (same order), the band refitted with its penalty divided by
-    ``LIGHT_RIDGE`` (the other bands at theirs): what its dominant orders and amplitude are
-    read from (:func:`dominant_orders`); the prediction keeps ``bands``."""
     scan: "BandScan | None" = field(default=None, repr=False, compare=False)
     """The band scan itself (its folds: time blocks when given), for the backward
     elimination of :mod:`.backward_elimination`."""
@@ -181,7 +174,7 @@ class BandScan:
         self.n_u = scan.scaled.shape[1]
         a = np.hstack([scan.scaled] + blocks)
         self.a = a
-        r = scan.residual
+        r = self.residual = scan.residual
         self.fold_eq = [np.repeat(test, 3) for test in (scan.folds if folds is None else folds)]
         self.grams = [a[eq].T @ a[eq] for eq in self.fold_eq]
         self.rhs = [a[eq].T @ r[eq] for eq in self.fold_eq]
@@ -194,6 +187,18 @@ class BandScan:
     @property
     def joints(self) -> list[int]:
         return list(self.columns)
+
+    def shifted(self, step: np.ndarray) -> "BandScan":
+        """This scan with the linearization's residual r moved to ``r + a @ step`` (a the
+        columns, current unknowns scaled, then bands): the model with those unknowns
+        changed by ``step``, e.g. a named effect set to zero. Shares the Gram matrices."""
+        out = copy.copy(self)
+        out.residual = self.residual + self.a @ step
+        out.rhs = [rhs + gram @ step for rhs, gram in zip(self.rhs, self.grams)]
+        out.rr = [rr + 2.0 * float(step @ rhs) + float(step @ gram @ step)
+                  for rr, rhs, gram in zip(self.rr, self.rhs, self.grams)]
+        out._cache, out._sums = {}, {}
+        return out
 
     def _layout(self, kept: list[tuple[int, float]], joint: int | None, drop=()):
         """(columns, penalty of the non-candidate columns, number of them); ``drop``:
@@ -235,7 +240,7 @@ class BandScan:
     def _heldout(self, fits: list[np.ndarray], cols, sigma2: float) -> Heldout:
         out = np.empty(len(self.scan.residual))
         for eq, x in zip(self.fold_eq, fits):
-            out[eq] = self.scan.residual[eq] + self.a[np.ix_(eq, cols)] @ x
+            out[eq] = self.residual[eq] + self.a[np.ix_(eq, cols)] @ x
         return Heldout(residuals=out.reshape(-1, 3), sigma2=sigma2)
 
     def _best_lambda(self, key, outer: frozenset, layout, joint: int) -> float:
@@ -361,7 +366,6 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
     cols = np.concatenate([bands.columns[j] for j, _ in kept])
     outcome.rhs = -(scan.residual + bands.a[:, cols] @ x[bands.n_u:])
     outcome.bands = band_effects(bands, kept, x)
-    outcome.spectra = light_spectra(bands, kept)
     return outcome
 
 
@@ -376,17 +380,6 @@ def band_effects(bands: BandScan, kept: list[tuple[int, float]], x: np.ndarray
                                max_order=template.max_order, min_order=template.min_order,
                                q_range=template.q_range, ridge=lam))
         at += n
-    return out
-
-
-def light_spectra(bands: BandScan, kept: list[tuple[int, float]],
-                  factor: float = LIGHT_RIDGE) -> list[CyclicError]:
-    """Each kept band refitted on all rows with its penalty divided by ``factor``, the
-    other bands at their own (see :data:`LIGHT_RIDGE`); same order as ``kept``."""
-    out = []
-    for k, (j, lam) in enumerate(kept):
-        light = kept[:k] + [(j, lam / factor)] + kept[k + 1:]
-        out.append(band_effects(bands, light, bands.current(light)[1])[k])
     return out
 
 
@@ -452,13 +445,19 @@ def dominant_orders(effect: CyclicError, count: int = 2) -> list[int]:
     return [int(effect.orders[k]) for k in np.argsort(-effect.amplitudes())[:count]]
 
 
-def band_text(effect: CyclicError, spectrum: CyclicError | None = None) -> str:
+def order_resolution(effect: CyclicError) -> float:
+    """How far apart (cycles per turn) two orders must be to be told apart over the span
+    the band was fitted on: 360 deg / span (over a half turn, orders k and k + 1 differ by
+    half a cycle: the fit can share one's amplitude with the other)."""
+    span = effect.q_range[1] - effect.q_range[0]
+    return float(2 * np.pi / span) if span > 0 else float("inf")
+
+
+def band_text(effect: CyclicError) -> str:
     """'joint j: cyclic angle error, dominant orders k1, k2 (periods), amplitude' with the
-    orders' likely sources as hypotheses; the dominant orders and their amplitude from
-    ``spectrum`` (the lightly penalised refit, :func:`light_spectra`) when given."""
-    spectrum = effect if spectrum is None else spectrum
-    orders = dominant_orders(spectrum)
-    amplitude = spectrum.amplitudes()
+    orders' likely sources as hypotheses and the order resolution of the span."""
+    orders = dominant_orders(effect)
+    amplitude = effect.amplitudes()
     periods = ", ".join(f"{k} ({360 / k:.1f} deg)" for k in orders)
     sources = "; ".join(SOURCES.get(k, f"order {k}: a gear stage turning {k} times per "
                                        f"turn of the joint, or the encoder's {k}-per-turn "
@@ -468,5 +467,6 @@ def band_text(effect: CyclicError, spectrum: CyclicError | None = None) -> str:
             f"amplitude {np.degrees(amplitude[orders[0] - effect.min_order]) * 1e3:.3g} mdeg "
             f"(orders {effect.min_order}-{effect.max_order}: "
             f"{np.degrees(effect.headline()[0]) * 1e3:.3g} "
-            f"mdeg); valid for q{effect.joint + 1} in [{lo:.1f}, {hi:.1f}] deg; "
+            f"mdeg); orders closer than {order_resolution(effect):.1f} are not resolved over "
+            f"the span; valid for q{effect.joint + 1} in [{lo:.1f}, {hi:.1f}] deg; "
             f"likely sources (hypotheses): {sources}")

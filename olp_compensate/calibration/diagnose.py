@@ -120,9 +120,6 @@ class KeptEffect:
     alternatives: list[str] = field(default_factory=list)
     displacement: np.ndarray | None = None
     """(m, 3) how the effect moves each measured point, device frame, m."""
-    spectrum: Effect | None = None
-    """A cyclic band refitted with a lighter penalty: its dominant orders and amplitude
-    (:func:`.cyclic_scan.light_spectra`)."""
 
 
 @dataclass(frozen=True)
@@ -234,12 +231,9 @@ def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: fl
 
 
 def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
-                  kept: list[tuple[Effect, float, list[str]]],
-                  bands: BandOutcome | None) -> list[KeptEffect]:
+                  kept: list[tuple[Effect, float, list[str]]]) -> list[KeptEffect]:
     """Each kept effect with how far it alone moves the measured points: the extended
-    problem ``after`` at ``x_after`` with only that effect switched on, minus with none;
-    the cyclic bands with their light refits (``bands.spectra``)."""
-    spectra = {} if bands is None else {s.joint: s for s in bands.spectra}
+    problem ``after`` at ``x_after`` with only that effect switched on, minus with none."""
     x_plain = x_after.copy()  # the extended model with its effects switched off
     for cols in after.layout.effects:
         x_plain[cols] = 0.0
@@ -254,9 +248,7 @@ def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
         out.append(KeptEffect(effect=fitted, p_value=p_value,
                               point_rms_m=float(np.sqrt(np.mean(moved**2))),
                               point_max_m=float(moved.max()), alternatives=alternatives,
-                              displacement=displacement,
-                              spectrum=spectra.get(fitted.joint)
-                              if isinstance(fitted, CyclicError) else None))
+                              displacement=displacement))
     return out
 
 
@@ -329,8 +321,7 @@ def diagnose(robot: Robot, meas: Measurements,
         source = "residual of the final model (an upper bound: measure some poses twice)"
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
-                     effects=_kept_effects(after, x_after, extended, kept, bands),
-                     rounds=rounds,
+                     effects=_kept_effects(after, x_after, extended, kept), rounds=rounds,
                      noise=noise_floor(meas, options.noise_m, residual_sigma, source),
                      untestable=untestable, drift=drift,
                      residual_before=before.measured - predicted_before,
@@ -363,7 +354,7 @@ def effect_entry(kept: KeptEffect) -> dict:
     if isinstance(e, ThermalExpansion):
         entry["reference_temperature_c"] = e.reference_temperature_c
     if isinstance(e, CyclicError):
-        entry.update(cyclic_entry(e, kept.spectrum), text=band_text(e, kept.spectrum))
+        entry.update(cyclic_entry(e), text=band_text(e))
     return entry
 
 
@@ -478,7 +469,7 @@ def summary(d: Diagnosis) -> str:
         return "\n".join(lines)
     lines.append(f"found {len(d.effects)} effect{'s' if len(d.effects) > 1 else ''}:")
     for k in d.effects:
-        text = (band_text(k.effect, k.spectrum) if isinstance(k.effect, CyclicError)
+        text = (band_text(k.effect) if isinstance(k.effect, CyclicError)
                 else f"{_value_text(k.effect)}; {k.effect.description}")
         lines.append(f"  {k.effect.label}: {text}; "
                      f"moves the measured point by {k.point_rms_m * 1e3:.3f} mm RMS, "
