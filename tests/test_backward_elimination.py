@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from olp_compensate.calibration.cross_validation import time_blocked_folds
 from olp_compensate.calibration.diagnose import diagnose, diagnosis_to_dict, summary
 from olp_compensate.calibration.simulate import (CYCLIC_KIND, HiddenEffect, make_virtual_robot,
                                                  random_joints, scaled_effect)
@@ -79,3 +80,14 @@ def test_a_real_backlash_and_a_band_are_both_kept():
     backlash = next(k.effect for k in result.effects if k.effect.kind == "backlash")
     true_gap = next(e.value for e in virtual.effects if e.kind == "backlash")
     assert abs(backlash.values[0] / true_gap - 1) < 0.2, (backlash.values, true_gap)
+
+
+def test_with_acquisition_times_the_elimination_runs_on_the_time_blocks():
+    virtual, joints, rng = case(2)
+    meas = virtual.measure(joints, NOISE, rng, time_s=np.arange(len(joints)) * 2.0)
+    result = diagnose(ROBOT, meas)
+    blocks = time_blocked_folds(meas.time_s, meas.pose_ids, 5)
+    assert all(np.array_equal(eq, np.repeat(block, 3))
+               for eq, block in zip(result.bands.scan.fold_eq, blocks))
+    assert [(k.effect.kind, k.effect.joint) for k in result.effects] == [(CYCLIC_KIND, 1)]
+    assert any(s.dropped for s in result.elimination)

@@ -27,6 +27,8 @@
    than it (the same z-test, 5 %); candidates the data cannot tell from the chosen one are
    reported as alternatives. The chosen effect is added, the model refitted (non-linear,
    geometry and effects together) and the scan repeated until no candidate is significant.
+6. The cyclic bands (:mod:`.cyclic_scan`), then every effect kept above tested again with
+   them in and dropped when no longer needed (:mod:`.backward_elimination`).
 """
 
 from __future__ import annotations
