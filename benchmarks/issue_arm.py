@@ -295,6 +295,14 @@ def diagnose_checks(replica: Replica, doc: dict, independent_mm: float,
                                   + (f" dominant {e['dominant_orders']}"
                                      if "dominant_orders" in e else "")
                                   for e in doc["effects"]))
+    bands = {e["joint"]: e["dominant_orders"][0] for e in doc["effects"]
+             if e["kind"] == "cyclic_error"}
+    right = sum(bands.get(e.joint + 1) == e.dominant_order for e in replica.hidden)
+    print("  dominant orders (named / truth): " + ", ".join(
+        f"j{e.joint + 1} {bands.get(e.joint + 1)} / {e.dominant_order}" for e in replica.hidden)
+        + f": {right}/{len(replica.hidden)} right")
+    dropped = [s["effect"] for s in doc.get("backward_elimination", []) if s["dropped"]]
+    print("  dropped after the bands: " + (", ".join(dropped) or "none"))
     return [
         check("named effects <= 0.16 mm", held["extended"] <= 0.16,
               f"geometric {held['geometric']:.4f} -> extended {held['extended']:.4f} mm"),

@@ -28,6 +28,7 @@ all rows chooses.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass, field
 
@@ -106,6 +107,9 @@ class BandOutcome:
     """Joints (0-based) whose axis passes too near the measured points for a band."""
     rounds: list[list[BandResult]] = field(default_factory=list)
     thresholds: list[float] = field(default_factory=list)
+    scan: "BandScan | None" = field(default=None, repr=False, compare=False)
+    """The band scan itself (its folds: time blocks when given), for the backward
+    elimination of :mod:`.backward_elimination`."""
 
 
 def _solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -170,7 +174,7 @@ class BandScan:
         self.n_u = scan.scaled.shape[1]
         a = np.hstack([scan.scaled] + blocks)
         self.a = a
-        r = scan.residual
+        r = self.residual = scan.residual
         self.fold_eq = [np.repeat(test, 3) for test in (scan.folds if folds is None else folds)]
         self.grams = [a[eq].T @ a[eq] for eq in self.fold_eq]
         self.rhs = [a[eq].T @ r[eq] for eq in self.fold_eq]
@@ -184,10 +188,25 @@ class BandScan:
     def joints(self) -> list[int]:
         return list(self.columns)
 
-    def _layout(self, kept: list[tuple[int, float]], joint: int | None):
-        """(columns, penalty of the non-candidate columns, number of them)."""
-        cols = [np.arange(self.n_u)] + [self.columns[j] for j, _ in kept]
-        penalty = [np.zeros(self.n_u)] + [np.full(len(self.columns[j]), lam) for j, lam in kept]
+    def shifted(self, step: np.ndarray) -> "BandScan":
+        """This scan with the linearization's residual r moved to ``r + a @ step`` (a the
+        columns, current unknowns scaled, then bands): the model with those unknowns
+        changed by ``step``, e.g. a named effect set to zero. Shares the Gram matrices."""
+        out = copy.copy(self)
+        out.residual = self.residual + self.a @ step
+        out.rhs = [rhs + gram @ step for rhs, gram in zip(self.rhs, self.grams)]
+        out.rr = [rr + 2.0 * float(step @ rhs) + float(step @ gram @ step)
+                  for rr, rhs, gram in zip(self.rr, self.rhs, self.grams)]
+        out._cache, out._sums = {}, {}
+        return out
+
+    def _layout(self, kept: list[tuple[int, float]], joint: int | None, drop=()):
+        """(columns, penalty of the non-candidate columns, number of them); ``drop``:
+        columns of the current unknowns left out (a named effect's, when it is
+        eliminated)."""
+        own = np.setdiff1d(np.arange(self.n_u), np.asarray(drop, dtype=int))
+        cols = [own] + [self.columns[j] for j, _ in kept]
+        penalty = [np.zeros(len(own))] + [np.full(len(self.columns[j]), lam) for j, lam in kept]
         n_u = sum(len(c) for c in cols)
         if joint is not None:
             cols.append(self.columns[joint])
@@ -221,7 +240,7 @@ class BandScan:
     def _heldout(self, fits: list[np.ndarray], cols, sigma2: float) -> Heldout:
         out = np.empty(len(self.scan.residual))
         for eq, x in zip(self.fold_eq, fits):
-            out[eq] = self.scan.residual[eq] + self.a[np.ix_(eq, cols)] @ x
+            out[eq] = self.residual[eq] + self.a[np.ix_(eq, cols)] @ x
         return Heldout(residuals=out.reshape(-1, 3), sigma2=sigma2)
 
     def _best_lambda(self, key, outer: frozenset, layout, joint: int) -> float:
@@ -263,12 +282,13 @@ class BandScan:
         return self._heldout(fits, cols, sigma2), lam_all, float(np.sqrt(3 * np.mean(move**2)))
 
     def gain_test(self, reference: Heldout, candidate: Heldout,
-                  kept: list[tuple[int, float]]) -> tuple[float, float, float]:
+                  kept: list[tuple[int, float]], drop=()) -> tuple[float, float, float]:
         """(gain, z, p) as :meth:`.effect_scan.EffectScan.gain_test`, with the leverage of
         the test rows under the current model's own fit (the geometry and the kept bands
         at their penalties: ``A_t (G_T + P)^-1 A_t'``), which the held-out residuals of a
-        model with bands carry."""
-        cols, penalty, _ = self._layout(kept, None)
+        model with bands carry; ``drop``: the reference's left-out columns (see
+        :meth:`current`)."""
+        cols, penalty, _ = self._layout(kept, None, drop)
         delta = (reference.residuals - candidate.residuals).ravel()
         gain = reference.sse - candidate.sse
         leverage = 0.0
@@ -282,10 +302,11 @@ class BandScan:
         z = gain / np.sqrt(variance)
         return float(gain), float(z), float(stats.norm.sf(z))
 
-    def current(self, kept: list[tuple[int, float]]) -> tuple[Heldout, np.ndarray]:
+    def current(self, kept: list[tuple[int, float]], drop=()) -> tuple[Heldout, np.ndarray]:
         """Held-out residuals of the current model with the kept bands at their penalties,
-        and its full-data solution (the columns of ``_layout(kept, None)``)."""
-        cols, penalty, n_u = self._layout(kept, None)
+        and its full-data solution (the columns of ``_layout(kept, None, drop)``);
+        ``drop``: columns of the current unknowns (``scan.scaled``) left out."""
+        cols, penalty, n_u = self._layout(kept, None, drop)
         fits = []
         for f in range(len(self.grams)):
             gram, rhs = self._training(frozenset({f}))
@@ -304,7 +325,7 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
     tested in the round); see the module docstring. ``folds``: row masks in place of the
     scan's (time blocks, :mod:`.time_blocks`)."""
     bands = BandScan(scan, robot, q_ctrl, folds)
-    outcome = BandOutcome(short_lever=list(bands.short_lever))
+    outcome = BandOutcome(short_lever=list(bands.short_lever), scan=bands)
     kept: list[tuple[int, float]] = []
     base, _ = bands.current(kept)
     held_of: dict[int, Heldout] = {}
@@ -344,14 +365,22 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
     # the non-linear model leaves the linearization (118 mm off on a real arm's data)
     cols = np.concatenate([bands.columns[j] for j, _ in kept])
     outcome.rhs = -(scan.residual + bands.a[:, cols] @ x[bands.n_u:])
-    at = bands.n_u
-    for j, lam in kept:
-        n = len(bands.columns[j])
-        outcome.bands.append(CyclicError(
-            joint=j, values=tuple(x[at:at + n]), max_order=bands.templates[j].max_order,
-            min_order=bands.templates[j].min_order, q_range=bands.templates[j].q_range, ridge=lam))
-        at += n
+    outcome.bands = band_effects(bands, kept, x)
     return outcome
+
+
+def band_effects(bands: BandScan, kept: list[tuple[int, float]], x: np.ndarray
+                 ) -> list[CyclicError]:
+    """The kept bands with their values in the solution ``x`` of ``bands.current(kept)``
+    (band columns in rad, after the ``bands.n_u`` current unknowns)."""
+    out, at = [], bands.n_u
+    for j, lam in kept:
+        n, template = len(bands.columns[j]), bands.templates[j]
+        out.append(CyclicError(joint=j, values=tuple(x[at:at + n]),
+                               max_order=template.max_order, min_order=template.min_order,
+                               q_range=template.q_range, ridge=lam))
+        at += n
+    return out
 
 
 STEP_RCONDS = (1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 1e-1)
@@ -416,9 +445,17 @@ def dominant_orders(effect: CyclicError, count: int = 2) -> list[int]:
     return [int(effect.orders[k]) for k in np.argsort(-effect.amplitudes())[:count]]
 
 
+def order_resolution(effect: CyclicError) -> float:
+    """How far apart (cycles per turn) two orders must be to be told apart over the span
+    the band was fitted on: 360 deg / span (over a half turn, orders k and k + 1 differ by
+    half a cycle: the fit can share one's amplitude with the other)."""
+    span = effect.q_range[1] - effect.q_range[0]
+    return float(2 * np.pi / span) if span > 0 else float("inf")
+
+
 def band_text(effect: CyclicError) -> str:
     """'joint j: cyclic angle error, dominant orders k1, k2 (periods), amplitude' with the
-    orders' likely sources as hypotheses."""
+    orders' likely sources as hypotheses and the order resolution of the span."""
     orders = dominant_orders(effect)
     amplitude = effect.amplitudes()
     periods = ", ".join(f"{k} ({360 / k:.1f} deg)" for k in orders)
@@ -430,5 +467,6 @@ def band_text(effect: CyclicError) -> str:
             f"amplitude {np.degrees(amplitude[orders[0] - effect.min_order]) * 1e3:.3g} mdeg "
             f"(orders {effect.min_order}-{effect.max_order}: "
             f"{np.degrees(effect.headline()[0]) * 1e3:.3g} "
-            f"mdeg); valid for q{effect.joint + 1} in [{lo:.1f}, {hi:.1f}] deg; "
+            f"mdeg); orders closer than {order_resolution(effect):.1f} are not resolved over "
+            f"the span; valid for q{effect.joint + 1} in [{lo:.1f}, {hi:.1f}] deg; "
             f"likely sources (hypotheses): {sources}")

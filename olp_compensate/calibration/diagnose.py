@@ -27,6 +27,8 @@
    than it (the same z-test, 5 %); candidates the data cannot tell from the chosen one are
    reported as alternatives. The chosen effect is added, the model refitted (non-linear,
    geometry and effects together) and the scan repeated until no candidate is significant.
+6. The cyclic bands (:mod:`.cyclic_scan`), then every effect kept above tested again with
+   them in and dropped when no longer needed (:mod:`.backward_elimination`).
 """
 
 from __future__ import annotations
@@ -39,11 +41,13 @@ import numpy as np
 from .effects import (CyclicError, Effect, EffectInputs, GearHarmonic, JointCompliance,
                       ThermalExpansion)
 from ..errors import DataError
-from .cross_validation import pose_folds, time_blocked_folds
-from .cyclic_scan import BandOutcome, apply_bands, band_text
+from .backward_elimination import (EliminationStep, band_stage, elimination_entry,
+                                   elimination_lines)
+from .cross_validation import pose_folds
+from .cyclic_scan import BandOutcome, band_text
 from .diagnose_account import account, account_lines, band_round_lines, band_rounds, cyclic_entry
 from .remainder import Predictability, predictability
-from .time_blocks import BlockedFigures, blocked_entry, blocked_line, scan_bands_blocked
+from .time_blocks import BlockedFigures, blocked_entry, blocked_line
 from .effect_scan import (CandidateResult, EffectScan, candidate_effects, choose_candidate,
                           drift_warning)
 from .identify import (IdentificationOptions, IdentificationResult, identify,
@@ -157,6 +161,8 @@ class Diagnosis:
     """How much of the extended model's held-out residual a flexible model predicts."""
     blocked: BlockedFigures | None = None
     """Held-out figures by blocks of time (rows with time_s; :mod:`.time_blocks`)."""
+    elimination: list[EliminationStep] = field(default_factory=list)
+    """The named effects re-tested once the bands were in (:mod:`.backward_elimination`)."""
 
     @property
     def found(self) -> bool:
@@ -285,16 +291,16 @@ def diagnose(robot: Robot, meas: Measurements,
         current = refit
         scan = EffectScan(current, meas, inputs, folds)
 
+    # the bands (with time_s chosen on blocks of time), then the named effects they make
+    # unneeded dropped (:mod:`.backward_elimination`)
+    stage = band_stage(robot, meas, inputs, scan, [e for e, _, _ in kept],
+                       [r.threshold for r in rounds[:len(kept)]], options, base_options)
+    gone = {e.key for e in stage.dropped}
+    kept = [k for k in kept if k[0].key not in gone]
+    scan, extended, bands, blocked = stage.scan, stage.extended, stage.bands, stage.blocked
     drift = drift_warning(scan, options.alpha)
-    extended = current
-    bands = blocked = None
-    if options.cyclic:  # with time_s, the bands chosen on blocks of time
-        blocks = (time_blocked_folds(meas.time_s, meas.pose_ids, folds_k)
-                  if options.time_blocks else None)
-        bands, blocked = scan_bands_blocked(scan, robot, inputs.q, options, blocks)
-        if bands.bands:
-            extended = apply_bands(current, scan, bands)
-            kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
+    if bands is not None:
+        kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
     target = bands.heldout if bands is not None and bands.bands else scan.base
     before, x_before = problem_at(geometric.calibration, meas, inputs)
     after, x_after = problem_at(extended.calibration, meas, inputs)
@@ -325,7 +331,7 @@ def diagnose(robot: Robot, meas: Measurements,
                      predicted_change=predicted_after - predicted_before,
                      dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
                      alpha=options.alpha, candidates_tried=len(candidates), bands=bands,
-                     remainder=remainder, blocked=blocked)
+                     remainder=remainder, blocked=blocked, elimination=stage.steps)
 
 
 def _mm(value_m: float | None) -> float | None:
@@ -396,6 +402,7 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
                              "alternatives": r.alternatives,
                              "candidates": [_candidate_entry(c) for c in r.candidates]}
                             for r in d.rounds]},
+        "backward_elimination": elimination_entry(d.elimination),
         "untestable": d.untestable,
         "drift": d.drift,
         "conclusion": summary(d).splitlines()[-1],
@@ -453,7 +460,7 @@ def summary(d: Diagnosis) -> str:
         else:
             lines.append(f"round {number}: no further term is significant (threshold "
                          f"{r.threshold:.1e})")
-    lines += band_round_lines(d.bands)
+    lines += band_round_lines(d.bands) + elimination_lines(d.elimination)
     if d.drift:
         lines.append(f"WARNING: {d.drift}")
     lines += account_lines(_account(d)) + ([blocked_line(d.blocked)] if d.blocked else [])

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders
+from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders, order_resolution
 from .effects import CyclicError
 from .remainder import Predictability
 
@@ -52,12 +52,15 @@ def account_lines(doc: dict) -> list[str]:
 
 
 def cyclic_entry(effect: CyclicError) -> dict:
-    """The JSON fields a cyclic error adds to its effect entry."""
+    """The JSON fields a cyclic error adds to its effect entry; ``order_resolution``:
+    orders closer than this (cycles per turn, 360 deg / the fitted span) are not told
+    apart, so a dominant order is known to about that."""
     amplitudes = effect.amplitudes()
     orders = dominant_orders(effect)
     return {"max_order": effect.max_order, "min_order": effect.min_order,
             "dominant_orders": orders,
             "periods_deg": [360.0 / k for k in orders],
+            "order_resolution": order_resolution(effect),
             "amplitudes_rad": amplitudes.tolist(),
             "q_range_deg": np.degrees(effect.q_range).tolist(), "ridge": effect.ridge}
 
