@@ -318,11 +318,15 @@ def compare_modules(n: int, folder: Path, model: Path, env: dict, repeat: int) -
 
 def lane_stages(module: Path, cal) -> dict[str, float]:
     """Seconds of each stage of olp-fix's column path on ``module`` (in this process, the
-    garbage collector off as in the command)."""
+    garbage collector off as in the command), as :func:`~olp_compensate.programs.rapid.
+    module_columns.compensate_rapid_task` runs them on one module: the table rows whose
+    meaning is not plain (Offs/RelTool, several pairs) made objects, the objects' rows
+    apart from the table's chunks; a module no table can hold goes whole to the objects."""
     import gc
 
-    from olp_compensate.programs.rapid import column_plans
     from olp_compensate.programs.rapid import module_columns as mc
+    from olp_compensate.programs.rapid.column_plans import task_plans
+    from olp_compensate.programs.rapid.columns import with_objects
     from olp_compensate.programs.rapid.reader import parse_rapid_columns
 
     gc.disable()
@@ -330,27 +334,39 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         stages = {}
         t0 = time.perf_counter()
         text = module.read_bytes().decode("latin-1")
-        program, columns = parse_rapid_columns(text, str(module))
+        parsed = mc._plain_parts([parse_rapid_columns(text, str(module))])
         stages["read and parse"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         comp = Compensator(cal)
-        plan = column_plans.plan(program, columns)
+        (plan,) = task_plans([parsed[0][0]], [parsed[0][1]])
+        program, columns = parsed[0]
+        if plan is None:
+            program = with_objects(program, columns)
         (res,) = mc.resolve_task([program])
-        rows, _, edits = mc.module_rows_and_edits(program, res, comp, emit="pose",
-                                                  unused="skip")
-        table = mc._TablePart(program, columns.targets, plan, comp, "skip", None)
         stages["resolve the rest, plan the columns"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        table.compensate_chunks(mc.CHUNK)
-        stages["chunks: values, IK, rows, edits"] = time.perf_counter() - t0
+        rows, _, edits = mc.module_rows_and_edits(program, res, comp, emit="pose",
+                                                  unused="skip")
+        stages[f"objects: {len(rows):,} rows and their edits"] = time.perf_counter() - t0
+        table = None
+        if plan is not None:
+            table = mc._TablePart(program, columns.targets, plan, comp, "skip", None)
+            del parsed, columns
+            t0 = time.perf_counter()
+            table.compensate_chunks(mc.CHUNK)
+            stages["chunks: values, IK, rows, edits"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            table.retry_failed()
+            stages["the targets not reached at once, again"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        table.retry_failed()
-        stages["the targets not reached at once, again"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        others = sorted(rows + table.others, key=mc.LINE_COLUMN)
-        report = mc.CompensationReport(file=str(module), rows=table.rows(others),
+        if table is None:
+            report_rows, table_edits = sorted(rows, key=mc.LINE_COLUMN), []
+        else:
+            report_rows = table.rows(sorted(rows + table.others, key=mc.LINE_COLUMN))
+            table_edits = table.edits
+        report = mc.CompensationReport(file=str(module), rows=report_rows,
                                        n_joints=comp.robot.n_joints)
-        new = sum(map(len, mc.SplicedText(text, [edits, *table.edits]).blocks("latin-1")))
+        new = sum(map(len, mc.SplicedText(text, [edits, *table_edits]).blocks("latin-1")))
         stages["splice and encode the program"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         csv_bytes = sum(len(piece.encode()) for piece in report.csv_chunks())
