@@ -14,8 +14,9 @@ analysis in the user cache folder and the package's bytecode written, as after a
 run of an installed tool: pip compiles bytecode on install, so the runs may write it, to a
 temporary folder, even where PYTHONDONTWRITEBYTECODE is set), then ``--repeat`` times;
 the best and the median run are printed (this machine's speed drifts by a third within
-minutes). Then the time of each stage of olp-fix's column path (compensation/
-module_columns.py), in this process.
+minutes). Then the time of each stage of olp-fix's column path (programs/rapid/
+module_columns.py), in this process (:func:`lane_stages`; it takes any RAPID module, a
+realistic one included, as olp-fix does).
 
 In the same run, interleaved with olp-fix's runs, the floor: a plain Python rewrite of the
 same module in a new process (read the file, replace the position of every robtarget
@@ -456,9 +457,14 @@ def main() -> int:
             compare_modules(args.targets, folder, model, env, args.repeat)
 
         # where the time goes, in-process, stage by stage as olp-fix runs them
-        stages = lane_stages(module, cal)
-        for name, seconds in stages.items():
-            print(f"  {name:<40} {seconds:6.2f} s  ({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
+        stages = {"plain module": module}
+        if args.realistic:
+            stages["realistic module"] = folder / "realistic.mod"
+        for title, path in stages.items():
+            print(f"{title}, stage by stage (in this process):")
+            for name, seconds in lane_stages(path, cal).items():
+                print(f"  {name:<40} {seconds:6.2f} s  "
+                      f"({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
     return 0
 
 
