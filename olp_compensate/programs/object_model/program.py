@@ -178,10 +178,10 @@ def _rows_solved(res, job: list[int], solved, robot, vplus: bool, rows: list
         file, line, column = t.source
         name = row_name(t)
         if not ok[i]:
-            rows[k] = failure_row(
-                solved.failures[i], robot, vplus, target=name, file=file, line=line,
-                column=column, status=reason[i], tool=pair.tool_name, wobj=pair.wobj_name,
-                config_before=before, note=note)
+            rows[k] = failure_row(TargetReport(
+                target=name, file=file, line=line, column=column, status=reason[i],
+                tool=pair.tool_name, wobj=pair.wobj_name, config_before=before, note=note),
+                solved.failures[i], robot, vplus)
         elif k in ambiguous:
             rows[k] = TargetReport(
                 target=name, file=file, line=line, column=column, status="ambiguous",

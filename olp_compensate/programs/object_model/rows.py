@@ -4,6 +4,8 @@ its best joints and configuration), and the note of one that was."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ...compensation.report import TargetReport, config_text
@@ -47,22 +49,18 @@ def motion_row(use, status: str, why: str) -> TargetReport:
                         status=status, tool=use.tool or "", wobj=use.wobj or "", note=why)
 
 
-def failure_row(failure, robot, configless: bool, **fields) -> TargetReport:
-    """The row of a target not compensated: the :class:`TargetReport` ``fields`` as solved
-    (``status`` and ``note`` among them) with why (in words and numbers), the best joints
-    found and their configuration; made once (a realistic module has thousands)."""
+def failure_row(row: TargetReport, failure, robot, configless: bool) -> TargetReport:
+    """``row`` of a target not compensated, with why (in words and numbers), the best
+    joints found and their configuration."""
     if failure is None:
-        return TargetReport(**fields)
-    note = fields["note"]
-    fields["note"] = failure.note if not note else f"{failure.note}; {note}"
-    if failure.status:
-        fields["status"] = failure.status
-    joints = failure.joints
-    fields["joints"] = (tuple(robot.to_degrees_or_mm(joints[None])[0].tolist())
-                        if np.all(np.isfinite(joints)) else ())
-    fields["config_after"] = (config_text(failure.config)
-                              if failure.config is not None and not configless else "")
-    return TargetReport(**fields)
+        return row
+    note = failure.note if not row.note else f"{failure.note}; {row.note}"
+    joints = ()
+    if np.all(np.isfinite(failure.joints)):
+        joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
+    config = config_text(failure.config) if failure.config is not None and not configless else ""
+    return dataclasses.replace(row, status=failure.status or row.status, note=note,
+                               joints=joints, config_after=config)
 
 
 def solved_note(notes: tuple[str, ...], tool_note: str) -> str:

@@ -383,11 +383,12 @@ class _TablePart:
         ok = solved.ok
         for i in np.flatnonzero(~ok).tolist() if failures else ():
             k, p = int(rows[i]), int(pair[i])
-            self.others.append(failure_row(
-                solved.failures[i], robot, False, target=table.names[k],
-                file=self.program.file, line=int(table.line[k]), column=int(table.column[k]),
-                status=solved.reason[i], tool=pairs[p].tool_name, wobj=pairs[p].wobj_name,
-                config_before=solved.config_before[i], note=notes[i]))
+            self.others.append(failure_row(TargetReport(
+                target=table.names[k], file=self.program.file, line=int(table.line[k]),
+                column=int(table.column[k]), status=solved.reason[i],
+                tool=pairs[p].tool_name, wobj=pairs[p].wobj_name,
+                config_before=solved.config_before[i], note=notes[i]),
+                solved.failures[i], robot, False))
         keep = np.flatnonzero(ok)
         if not len(keep):
             return
