@@ -14,8 +14,9 @@ analysis in the user cache folder and the package's bytecode written, as after a
 run of an installed tool: pip compiles bytecode on install, so the runs may write it, to a
 temporary folder, even where PYTHONDONTWRITEBYTECODE is set), then ``--repeat`` times;
 the best and the median run are printed (this machine's speed drifts by a third within
-minutes). Then the time of each stage of olp-fix's column path (compensation/
-module_columns.py), in this process.
+minutes). Then the time of each stage of olp-fix's column path (programs/rapid/
+module_columns.py), in this process (:func:`lane_stages`; it takes any RAPID module, a
+realistic one included, as olp-fix does).
 
 In the same run, interleaved with olp-fix's runs, the floor: a plain Python rewrite of the
 same module in a new process (read the file, replace the position of every robtarget
@@ -123,18 +124,27 @@ def _pose(xyz_mm, quat_wxyz) -> np.ndarray:
     return pose
 
 
+def _away_from_singularities(comp, q: np.ndarray) -> np.ndarray:
+    """The rows of URDF joints ``q (m, 6)`` rad whose Jacobian's smallest singular value
+    is above 2 cm/rad (the elbow not stretched), as :func:`generate_module` keeps them."""
+    _, jac = comp.real_flange_and_jacobian(q)
+    return q[np.linalg.svd(jac, compute_uv=False)[:, -1] > 0.02]
+
+
 def _realistic_joints(robot, n: int, rng, failing: float) -> tuple[np.ndarray, np.ndarray]:
-    """Controller joints (n, 6), rad, and a mask of the targets made unreachable: about
+    """URDF joints (n, 6), rad, and a mask of the targets made unreachable: about
     ``failing`` of them outside an axis range (inside the URDF limits), a fifth as many out
-    of reach (their position moved 2.5x away from the base), the rest in range."""
+    of reach (their position moved 2.5x away from the base), the rest in range; all away
+    from singularities as :func:`generate_module`'s (without that filter 3.5 % more of
+    the targets failed: stretched elbows the calibrated arm no longer reaches)."""
     comp = Compensator(nominal_calibration(robot))
     n_out = int(round(n * failing * 5 / 6))
     n_far = int(round(n * failing / 6))
     good = robot.joints_from_controller(random_joints(robot, 3 * n, rng, margin=0.3))
-    good = good[np.abs(np.sin(good[:, 4])) > 0.2]
+    good = _away_from_singularities(comp, good[np.abs(np.sin(good[:, 4])) > 0.2])
     out = random_joints(robot, 20 * max(n_out, 1), rng, margin=0.05, within_ranges=False)
     out = out[robot.outside_ranges(out).any(axis=1) & (np.abs(np.sin(out[:, 4])) > 0.2)]
-    out = robot.joints_from_controller(out)
+    out = _away_from_singularities(comp, robot.joints_from_controller(out))
     while len(good) < n:
         good = np.concatenate([good, good])
     while len(out) < n_out:
@@ -143,7 +153,6 @@ def _realistic_joints(robot, n: int, rng, failing: float) -> tuple[np.ndarray, n
     far = np.zeros(n, bool)
     far[n_out:n_out + n_far] = True
     order = rng.permutation(n)
-    del comp
     return q[order], far[order]
 
 
@@ -318,11 +327,15 @@ def compare_modules(n: int, folder: Path, model: Path, env: dict, repeat: int) -
 
 def lane_stages(module: Path, cal) -> dict[str, float]:
     """Seconds of each stage of olp-fix's column path on ``module`` (in this process, the
-    garbage collector off as in the command)."""
+    garbage collector off as in the command), as :func:`~olp_compensate.programs.rapid.
+    module_columns.compensate_rapid_task` runs them on one module: the table rows whose
+    meaning is not plain (Offs/RelTool, several pairs) made objects, the objects' rows
+    apart from the table's chunks; a module no table can hold goes whole to the objects."""
     import gc
 
-    from olp_compensate.programs.rapid import column_plans
     from olp_compensate.programs.rapid import module_columns as mc
+    from olp_compensate.programs.rapid.column_plans import task_plans
+    from olp_compensate.programs.rapid.columns import with_objects
     from olp_compensate.programs.rapid.reader import parse_rapid_columns
 
     gc.disable()
@@ -330,27 +343,39 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         stages = {}
         t0 = time.perf_counter()
         text = module.read_bytes().decode("latin-1")
-        program, columns = parse_rapid_columns(text, str(module))
+        parsed = mc._plain_parts([parse_rapid_columns(text, str(module))])
         stages["read and parse"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         comp = Compensator(cal)
-        plan = column_plans.plan(program, columns)
+        (plan,) = task_plans([parsed[0][0]], [parsed[0][1]])
+        program, columns = parsed[0]
+        if plan is None:
+            program = with_objects(program, columns)
         (res,) = mc.resolve_task([program])
-        rows, _, edits = mc.module_rows_and_edits(program, res, comp, emit="pose",
-                                                  unused="skip")
-        table = mc._TablePart(program, columns.targets, plan, comp, "skip", None)
         stages["resolve the rest, plan the columns"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        table.compensate_chunks(mc.CHUNK)
-        stages["chunks: values, IK, rows, edits"] = time.perf_counter() - t0
+        rows, _, edits = mc.module_rows_and_edits(program, res, comp, emit="pose",
+                                                  unused="skip")
+        stages[f"objects: {len(rows):,} rows and their edits"] = time.perf_counter() - t0
+        table = None
+        if plan is not None:
+            table = mc._TablePart(program, columns.targets, plan, comp, "skip", None)
+            del parsed, columns
+            t0 = time.perf_counter()
+            table.compensate_chunks(mc.CHUNK)
+            stages["chunks: values, IK, rows, edits"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            table.retry_failed()
+            stages["the targets not reached at once, again"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        table.retry_failed()
-        stages["the targets not reached at once, again"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        others = sorted(rows + table.others, key=mc.LINE_COLUMN)
-        report = mc.CompensationReport(file=str(module), rows=table.rows(others),
+        if table is None:
+            report_rows, table_edits = sorted(rows, key=mc.LINE_COLUMN), []
+        else:
+            report_rows = table.rows(sorted(rows + table.others, key=mc.LINE_COLUMN))
+            table_edits = table.edits
+        report = mc.CompensationReport(file=str(module), rows=report_rows,
                                        n_joints=comp.robot.n_joints)
-        new = sum(map(len, mc.SplicedText(text, [edits, *table.edits]).blocks("latin-1")))
+        new = sum(map(len, mc.SplicedText(text, [edits, *table_edits]).blocks("latin-1")))
         stages["splice and encode the program"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         csv_bytes = sum(len(piece.encode()) for piece in report.csv_chunks())
@@ -440,9 +465,14 @@ def main() -> int:
             compare_modules(args.targets, folder, model, env, args.repeat)
 
         # where the time goes, in-process, stage by stage as olp-fix runs them
-        stages = lane_stages(module, cal)
-        for name, seconds in stages.items():
-            print(f"  {name:<40} {seconds:6.2f} s  ({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
+        stages = {"plain module": module}
+        if args.realistic:
+            stages["realistic module"] = folder / "realistic.mod"
+        for title, path in stages.items():
+            print(f"{title}, stage by stage (in this process):")
+            for name, seconds in lane_stages(path, cal).items():
+                print(f"  {name:<40} {seconds:6.2f} s  "
+                      f"({args.targets / max(seconds, 1e-9):>10,.0f}/s)")
     return 0
 
 

@@ -159,7 +159,13 @@ class Robot:
         joints = np.asarray(joints, dtype=float)
         if self.urdf_from_controller is None:
             return joints
-        return joints @ np.linalg.inv(self.urdf_from_controller).T
+        return joints @ self._controller_from_urdf_t
+
+    @cached_property
+    def _controller_from_urdf_t(self) -> np.ndarray:
+        """The transpose of the inverse of :attr:`urdf_from_controller` (the robot is
+        immutable: inverted once, not on each call)."""
+        return np.linalg.inv(self.urdf_from_controller).T
 
     def to_radians_or_metres(self, readings: np.ndarray) -> np.ndarray:
         """Joint readings in edge units (deg, mm) -> SI (rad, m), shape (m, n)."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import re
+from sys import intern
 
 from lark import Token
 
@@ -378,15 +379,17 @@ def _displaced_move(sink: Sink, m: re.Match) -> None:
     the builder makes of the same call (build.py ``Builder.call``), without its records."""
     span = m.span(2)
     line, col = sink.index.line_col(span[0])
-    instruction, expression, function = m.group(1, 2, 3)
+    instruction, expression, function, tool, wobj = m.group(1, 2, 3, 5, 6)
+    # one string per distinct word (a module holds thousands of these motions)
+    instruction, tool = intern(instruction), intern(tool)
     runtime = RuntimeTarget(
         expression=expression, location=SourceLocation(sink.file, line, col),
-        reason=f"{RUNTIME_FUNCS[function.lower()]} ({instruction})", base_name=m.group(4),
-        routine=sink.routine, span=span)
+        reason=intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})"),
+        base_name=m.group(4), routine=sink.routine, span=span)
     sink.runtime.append(runtime)
     sink.motions.append(MotionUse(
         instruction=instruction, source=(sink.file, line, col), role="to", runtime=runtime,
-        tool=m.group(5), wobj=m.group(6), routine=sink.routine,
+        tool=tool, wobj=None if wobj is None else intern(wobj), routine=sink.routine,
         instruction_span=m.span(1), statement_span=(m.start(), m.start(7)),
         target_span=span))
 
