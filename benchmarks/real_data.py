@@ -19,6 +19,8 @@ geometric one, as olp-cal diagnose -o writes it: it must not be worse there); wi
 with replacement) and prints the spread of its error on the held-out range and of its
 predictions there against the fitted range: a held-out range the data do not determine
 shows a wide spread, and one figure from it says nothing about a rule or a model.
+Each report ends with the geometric model's residual by quartile of the distance from
+the device and of the stated ``sigma_mm``: flat, they carry no information for weights.
 ``--sigma-rule`` compares the per-row sigma rules (``sigma_mm`` column): ``quadrature``
 (the library's, :func:`row_sigma_scales`), ``none`` (no weights), ``stated`` (weights
 1/sigma^2 as stated), ``median-floor`` (the rule before it: each floored at the median).
@@ -141,6 +143,30 @@ def range_check(robot, meas, joint: int, folds: int, bootstrap: int = 0) -> None
         _bootstrap(robot, train, meas.subset(test), bootstrap)
 
 
+def _by_quartile(values: np.ndarray, residual: np.ndarray) -> str:
+    """RMS of ``residual`` (m) in each quartile of ``values``, mm, as 'a / b / c / d'."""
+    edges = np.quantile(values, [0.25, 0.5, 0.75])
+    group = np.searchsorted(edges, values)
+    return " / ".join(f"{np.sqrt(np.mean(residual[group == g] ** 2)) * 1e3:.4f}"
+                      for g in range(4))
+
+
+def sigma_check(meas, calibration) -> None:
+    """Do the stated sigmas (and the distance from the device) tell which rows are poor?
+    The geometric model's residual by quartile of each: flat means they do not."""
+    residual = np.linalg.norm(meas.points - calibration.predict_points(
+        meas.joints, meas.point_names), axis=1)
+    distance = np.linalg.norm(meas.points, axis=1)
+    print(f"  geometric residual by quartile of the distance from the device "
+          f"({distance.min():.2f}-{distance.max():.2f} m): "
+          f"{_by_quartile(distance, residual)} mm")
+    if "sigma_mm" in meas.extra:
+        stated = _stated_sigma_m(meas, np.nan)
+        ok = np.isfinite(stated)
+        print(f"  ... by quartile of the stated sigma_mm ({np.nanmin(stated) * 1e3:.4g}-"
+              f"{np.nanmax(stated) * 1e3:.4g} mm): {_by_quartile(stated[ok], residual[ok])} mm")
+
+
 def report(path: str, robot, folds: int) -> None:
     meas = read_measurements(path, robot)
     start = time.perf_counter()
@@ -161,6 +187,7 @@ def report(path: str, robot, folds: int) -> None:
           f"({d.noise.sigma_m * np.sqrt(3) * 1e3:.4f} mm 3-D), from {d.noise.source}")
     for k in d.effects:
         print(f"    {k.effect.label}: moves the point {k.point_rms_m * 1e3:.3f} mm RMS")
+    sigma_check(meas, d.geometric.calibration)
 
 
 def main() -> None:
