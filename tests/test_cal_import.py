@@ -86,7 +86,7 @@ def test_column_map_rotation_vectors_radians_sigmas_commanded_pose(tmp_path, row
     sigma = np.sqrt((1e-2**2 + 2e-2**2 + 2e-2**2) / 3)
     assert np.allclose(np.array(meas.extra["sigma_mm"], float), sigma, rtol=1e-5)
     position_scale, _ = row_sigma_scales(meas, 0.05e-3, np.radians(0.01))
-    assert np.allclose(position_scale, 0.05 / sigma, rtol=1e-5)
+    assert np.allclose(position_scale, 0.05 / np.hypot(sigma, 0.05), rtol=1e-5)  # quadrature
 
 
 def test_intrinsic_euler_sequence(tmp_path, rows):

@@ -53,8 +53,9 @@ def test_rows_with_large_sigma_count_less(seed):
 def test_scales_are_the_default_sigma_over_the_rows_and_bad_cells_are_refused():
     _, meas = _campaign(3)
     position, rotation = row_sigma_scales(meas, 0.05e-3, np.radians(0.01))
-    # stated sigmas are floored at their median (0.26 mm here): 0.05 / 0.26, 0.05 / 0.5
-    assert np.allclose(position[:30], 0.05 / 0.26) and np.allclose(position[30:], 0.1)
+    # stated sigmas combine with the default 0.05 mm in quadrature
+    assert np.allclose(position[:30], 0.05 / np.hypot(0.02, 0.05))
+    assert np.allclose(position[30:], 0.05 / np.hypot(0.5, 0.05))
     assert np.allclose(rotation, 1.0)                   # no sigma_deg column: the default
     assert row_sigma_scales(dataclasses.replace(meas, extra={}), 0.05e-3, 1e-4) is None
     bad = dataclasses.replace(meas, extra={"sigma_mm": ["0.02"] * 59 + ["-1"]})
@@ -62,18 +63,19 @@ def test_scales_are_the_default_sigma_over_the_rows_and_bad_cells_are_refused():
         row_sigma_scales(bad, 0.05e-3, 1e-4)
 
 
-def test_stated_sigmas_are_floored_at_their_median():
-    """A made-up tracker table: sigmas 0.0005-0.02 mm (a 1600-fold weight spread as
-    stated); floored at the median no row weighs more than the median row, the rows
-    above it keep their stated (median / sigma)^2, empty cells the default."""
+def test_stated_sigmas_add_to_the_default_in_quadrature():
+    """A made-up tracker table: sigmas 0.0005-0.2 mm (a 160000-fold weight spread as
+    stated). Each row's sigma is sqrt(stated^2 + 0.05^2) mm: rows stating far less than
+    the default weigh alike (within 1 %), rows stating more keep (0.05 / sigma)^2 nearly
+    as stated, an empty cell weighs as a row stating nothing extra."""
     _, meas = _campaign(4)
-    stated = np.geomspace(0.0005, 0.02, 59)
+    stated = np.geomspace(0.0005, 0.2, 59)
     cells = [f"{v:.6g}" for v in stated] + [""]
     meas = dataclasses.replace(meas, extra={"sigma_mm": cells})
     position, _ = row_sigma_scales(meas, 0.05e-3, 1e-4)
-    median = float(np.median([float(c) for c in cells[:59]]))
-    weight = position[:59] ** 2
-    assert np.isclose(weight.max() / weight.min(), (0.02 / median) ** 2)
-    assert weight.max() / weight.min() < 45 < (0.02 / 0.0005) ** 2
-    assert np.allclose(position[:59], 0.05 / np.maximum(stated, median), rtol=1e-5)
-    assert position[59] == 1.0
+    weight = position ** 2
+    low = stated < 0.005
+    assert np.all(weight[:59][low] > 0.99) and weight[59] == 1.0
+    assert np.all(np.diff(weight[:59]) < 0)                     # more stated, less weight
+    assert np.isclose(weight[58], 1 / (1 + (0.2 / 0.05) ** 2), rtol=1e-5)
+    assert np.allclose(position[:59], 0.05 / np.sqrt(stated ** 2 + 0.05 ** 2), rtol=1e-5)

@@ -29,7 +29,8 @@ def add_arguments(p) -> None:
     how.add_argument("--columns", metavar="MAP",
                      help="KEY=COLUMN,... with COLUMN a 0-based number or a header name; "
                           "keys q1..qN, x, y, z, rx, ry, rz (or qw, qx, qy, qz), cmd_x.. "
-                          "cmd_rz (commanded pose), sx, sy, sz (per-axis standard "
+                          "cmd_rz (commanded pose), dx, dy, dz (instead of x, y, z: "
+                          "measured = commanded + d), sx, sy, sz (per-axis standard "
                           "deviations), temperature, time, pose, point")
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
     p.add_argument("--pose-prefix", metavar="TEXT",

@@ -17,6 +17,9 @@ are 0-based column numbers or header names. Map keys:
 ``qw, qx, qy, qz``              measured orientation as a quaternion, w first
 ``cmd_x .. cmd_rz``             the commanded pose beside the measured one: kept as extra
                                 columns ``cmd_x_mm`` .. (reported, not fitted)
+``dx, dy, dz``                  instead of ``x, y, z``: the measured position as the
+                                commanded one plus this deviation (``x = cmd_x + dx``;
+                                tables that give the error, not the position)
 ``sx, sy, sz``                  per-axis standard deviations (length unit): the row's
                                 ``sigma_mm`` = their RMS, a weight in identification
 ``temperature, time``           deg C, s
@@ -79,7 +82,7 @@ SESSION_GAP_S = 3600.0
 have moved between them (each session has its own device frame)."""
 
 KEYS = ({f"q{k}" for k in range(1, 13)} | {"x", "y", "z", "rx", "ry", "rz", "qw", "qx", "qy",
-        "qz", "sx", "sy", "sz", "temperature", "time", "pose", "point"}
+        "qz", "sx", "sy", "sz", "temperature", "time", "pose", "point", "dx", "dy", "dz"}
         | {f"cmd_{a}" for a in ("x", "y", "z", "rx", "ry", "rz")})
 
 
@@ -93,8 +96,8 @@ def parse_column_map(text: str) -> dict[str, str]:
             raise DataError(f"--columns: '{item}' is not KEY=COLUMN")
         if key not in KEYS:
             raise DataError(f"--columns: unknown key '{key}' (known: q1..qN, x, y, z, rx, ry, "
-                            f"rz, qw..qz, cmd_x..cmd_rz, sx, sy, sz, temperature, time, pose, "
-                            f"point)")
+                            f"rz, qw..qz, cmd_x..cmd_rz, dx, dy, dz, sx, sy, sz, temperature, "
+                            f"time, pose, point)")
         out[key] = value.strip()
     return out
 
@@ -156,7 +159,12 @@ def _rotation(values: dict[str, float], spec: ImportSpec, prefix: str = "") -> n
 
 def check_spec(spec: ImportSpec, n_joints: int) -> None:
     """DataError for an incomplete map or an unknown unit or sequence."""
-    needed = [f"q{k + 1}" for k in range(n_joints)] + ["x", "y", "z"]
+    deviation = [k for k in ("dx", "dy", "dz") if k in spec.map]
+    if deviation and any(k in spec.map for k in ("x", "y", "z")):
+        raise DataError("--columns: give the measured position (x, y, z) or its deviation "
+                        "from the commanded one (dx, dy, dz with cmd_x, cmd_y, cmd_z), not both")
+    position = (["dx", "dy", "dz", "cmd_x", "cmd_y", "cmd_z"] if deviation else ["x", "y", "z"])
+    needed = [f"q{k + 1}" for k in range(n_joints)] + position
     missing = [k for k in needed if k not in spec.map]
     if missing:
         raise DataError(f"--columns: missing {', '.join(missing)}")
@@ -217,7 +225,7 @@ def convert(text: str, spec: ImportSpec, joint_units: list[str], source: str,
         row = [fields[index["pose"]] if "pose" in index else str(number + 1),
                fields[index["point"]] if "point" in index else "tcp"]
         row += [f"{values[f'q{k + 1}'] * joint[k]:.9g}" for k in range(len(joint_units))]
-        row += [f"{values[a] * length:.9g}" for a in ("x", "y", "z")]
+        row += [f"{_measured(values, a) * length:.9g}" for a in ("x", "y", "z")]
         row += [f"{values[k]:.15g}" for k in ("temperature", "time") if k in index]
         if has_sigma:
             sigma = math.sqrt(sum(values[k] ** 2 for k in ("sx", "sy", "sz")) / 3) * length
@@ -254,8 +262,16 @@ def sessions(time_s, gap_s: float = SESSION_GAP_S) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(starts, ends)]
 
 
+def _measured(values: dict[str, float], axis: str) -> float:
+    """The measured coordinate ``axis`` (x, y or z): its column, or commanded + deviation."""
+    return values[axis] if axis in values else values[f"cmd_{axis}"] + values[f"d{axis}"]
+
+
 def _conventions(spec: ImportSpec, has_rot: bool) -> list[str]:
     words = [f"joints read in {spec.joints_unit}, lengths in {spec.length_unit}"]
+    if "dx" in spec.map:
+        words.append("measured position = commanded (cmd_x, cmd_y, cmd_z) + deviation (dx, "
+                     "dy, dz)")
     if has_rot:
         kind = "intrinsic" if spec.euler.isupper() else "extrinsic"
         how = ("a rotation vector" if spec.euler == "rotvec" else
