@@ -382,14 +382,19 @@ def _displaced_move(sink: Sink, m: re.Match) -> None:
     instruction, expression, function, tool, wobj = m.group(1, 2, 3, 5, 6)
     # one string per distinct word (a module holds thousands of these motions)
     instruction, tool = intern(instruction), intern(tool)
+    reason = intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})")
+    wobj = None if wobj is None else intern(wobj)
+    if sink.displaced is not None:   # a row (displaced.py): the objects made on access
+        sink.displaced.append((line, col, *m.span(1), m.start(), m.start(7), *span,
+                               *m.span(4)), instruction, reason, tool, wobj, sink.routine)
+        return
     runtime = RuntimeTarget(
         expression=expression, location=SourceLocation(sink.file, line, col),
-        reason=intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})"),
-        base_name=m.group(4), routine=sink.routine, span=span)
+        reason=reason, base_name=m.group(4), routine=sink.routine, span=span)
     sink.runtime.append(runtime)
     sink.motions.append(MotionUse(
         instruction=instruction, source=(sink.file, line, col), role="to", runtime=runtime,
-        tool=tool, wobj=None if wobj is None else intern(wobj), routine=sink.routine,
+        tool=tool, wobj=wobj, routine=sink.routine,
         instruction_span=m.span(1), statement_span=(m.start(), m.start(7)),
         target_span=span))
 
