@@ -369,11 +369,16 @@ class ReportRows(RowSequence):
         out: dict[str, int] = {}
         for status in self.columns.status:
             out[status] = out.get(status, 0) + 1
-        for r in self.others:
-            out[r.status] = out.get(r.status, 0) + 1
+        others = self.others
+        statuses = others.statuses() if hasattr(others, "statuses") else \
+            (r.status for r in others)   # others made on access give their statuses
+        for status in statuses:
+            out[status] = out.get(status, 0) + 1
         return out
 
     def problem_rows(self) -> list[TargetReport]:
+        if hasattr(self.others, "problem_rows"):   # others made on access: a sequence
+            return self.others.problem_rows()
         return [r for r in self.others if not r.fine]   # others keep their text order
 
     def largest_correction(self) -> tuple[float, float, float] | None:
