@@ -131,6 +131,39 @@ class RowsWithDisplaced(Sequence):
         for j in self.order.tolist():
             yield objects[j] if j >= 0 else row(-1 - j, text, file)
 
+    def statuses(self):
+        """The status of each row, in order, without making the table's rows."""
+        objects = self.objects
+        for j in self.order.tolist():
+            yield objects[j].status if j >= 0 else "runtime"
+
+    def problem_rows(self) -> Sequence:
+        """The rows neither compensated nor needing none, in order, made on access (a
+        run-time motion is one of them)."""
+        objects = self.objects
+        fine = np.fromiter((r.fine for r in objects), bool, len(objects))
+        order = self.order
+        mine = order >= 0
+        picked = np.flatnonzero(~mine)
+        if len(objects):
+            picked = np.flatnonzero(~mine | ~fine[np.where(mine, order, 0)])
+        return _Picked(self, picked)
+
+
+class _Picked(Sequence):
+    """Rows ``positions`` of a sequence of rows, made on access."""
+
+    def __init__(self, rows: Sequence, positions: np.ndarray):
+        self.rows, self.positions = rows, positions
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        return self.rows[int(self.positions[k])]
+
 
 def with_displaced(program: Program, table: DisplacedMoves,
                    keep: np.ndarray | None = None) -> Program:

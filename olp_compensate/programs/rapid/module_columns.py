@@ -17,7 +17,7 @@ time (``MoveL Offs(p, ...)``, ``RelTool``: their own ``runtime`` rows, objects),
 routine parameter, copy, assignment, other run-time expression or routine call naming it,
 moved to by name without an index, from its own routine (a routine's target), and with
 one tool/work-object pair (tools and work objects may be declared in any module). A
-target that is not plain goes to the object path with its motions (:func:`_plain_rows`),
+target that is not plain goes to the object path with its motions (:func:`.column_plans.plain_rows`),
 and so does a table motion to a target outside the table; the module's other targets stay
 in columns. In a task whose modules declare or move to each other's table targets, such a
 module is compensated as objects whole.
@@ -46,8 +46,7 @@ from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
 from ..object_model.rows import failure_row, solved_note, written_row
-from .column_plans import (Plan, displaced_names, modules_sharing_names, named_elsewhere,
-                           outside_their_routine, task_plans)
+from .column_plans import Plan, modules_sharing_names, plain_rows, task_plans
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
 from ..targets import Program
@@ -146,7 +145,7 @@ def _plain_parts(parsed: list[tuple[Program, ModuleColumns]],
                  tables: list[DisplacedMoves | None] | None = None
                  ) -> list[tuple[Program, ModuleColumns]]:
     """Each module's column parse with the table rows whose meaning is not plain within the
-    module (:func:`_plain_rows`) made into objects: a run-time use, copy or routine
+    module (:func:`.column_plans.plain_rows`) made into objects: a run-time use, copy or routine
     argument of one target sends that target and its motions to the object path, not the
     whole module. Modules of a task whose tables share names are left whole (their plan
     is decided for the module, :func:`.column_plans.task_plans`). ``tables``: each
@@ -166,55 +165,15 @@ def _plain_parts(parsed: list[tuple[Program, ModuleColumns]],
                 program, tables[m] = with_displaced(program, table), None
             out.append((program, columns))
             continue
-        program, columns = split(program, columns, *_plain_rows(program, columns, bases))
-        if table is not None:
-            kept = {name if name.islower() else name.lower() for name in columns.targets.names}
-            keep = np.fromiter((name in kept for name in bases), bool, len(bases))
+        keep_targets, keep_moves, keep = plain_rows(program, columns, bases)
+        program, columns = split(program, columns, keep_targets, keep_moves)
+        if table is not None and not len(table):
+            tables[m] = None
+        elif table is not None:
             program = with_displaced(program, table, keep)
             tables[m] = table.subset(keep) if not keep.all() else table
         out.append((program, columns))
     return out
-
-
-def _plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = ()
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """(targets (n,) bool, motions (k,) bool): the table rows whose meaning is plain
-    within the module. A target is not plain when its name is declared twice, named by
-    any of the module's objects (a run-time expression, routine argument, copy,
-    assignment, another declaration), moved to with an index, or moved to with several
-    tool/work-object pairs, or (a routine's target) moved to from another routine, or
-    moved to only through Offs()/RelTool(); a motion is not plain when its target is not a
-    plain table target (a name the table does not declare). The rows that are not plain
-    go to the object path together with every table motion to them. ``displaced``: the
-    lower-case names Offs()/RelTool() motions held as rows displace."""
-    table, moves = columns.targets, columns.moves
-    lower = [name if name.islower() else name.lower() for name in table.names]
-    row_of: dict[str, int] = {}
-    twice = set()
-    for k, name in enumerate(lower):
-        if row_of.setdefault(name, k) != k:
-            twice.add(name)
-    named = (twice | named_elsewhere(program, displaced=False)) & row_of.keys()
-    keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
-    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
-                        for name in moves.target_names), np.intp, len(moves))
-    indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
-        np.zeros(0, bool)
-    keep_targets[rows[indexed & (rows >= 0)]] = False
-    for k in outside_their_routine(table.routines, moves.routines, rows):
-        keep_targets[rows[k]] = False   # a routine's target named in another routine
-    moved = np.zeros(len(lower), bool)
-    moved[rows[rows >= 0]] = True
-    for name in (displaced_names(program) | set(displaced)) & row_of.keys():
-        if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
-            keep_targets[row_of[name]] = False
-    pair_of = {}
-    for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
-        if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:
-            keep_targets[rows[k]] = False     # its first motion's pair is another
-    keep_moves = (rows >= 0) & ~indexed
-    keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
-    return keep_targets, keep_moves
 
 
 @dataclass(eq=False)
