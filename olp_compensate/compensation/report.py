@@ -382,8 +382,9 @@ class ReportRows(RowSequence):
         return [r for r in self.others if not r.fine]   # others keep their text order
 
     def largest_correction(self) -> tuple[float, float, float] | None:
-        c = self.columns
-        found = _largest(r for r in self.others if r.status in COMPENSATED)
+        c, others = self.columns, self.others
+        found = _largest(others.compensated_rows() if hasattr(others, "compensated_rows")
+                         else (r for r in others if r.status in COMPENSATED))
         if not len(c):
             return found
         change = c.joint_change[~np.isnan(c.joint_change)]
