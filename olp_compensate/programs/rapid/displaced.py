@@ -15,11 +15,13 @@ import dataclasses
 import heapq
 from array import array
 from collections.abc import Sequence
+from sys import intern
 
 import numpy as np
 
-from ...compensation.report import TargetReport
+from ...compensation.report import COMPENSATED, TargetReport
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
+from .instructions import RUNTIME_FUNCS
 
 _WIDTH = 10
 """Integers per row: line, column, instruction (start, end), statement (start, end),
@@ -29,7 +31,7 @@ target expression (start, end), the displaced target's name (start, end)."""
 class DisplacedMoves:
     """The plain Offs()/RelTool() motions of one module, in text order."""
 
-    __slots__ = ("numbers", "instructions", "reasons", "tools", "wobjs", "routines")
+    __slots__ = ("numbers", "instructions", "reasons", "tools", "wobjs", "routines", "_words")
 
     def __init__(self):
         self.numbers = array("q")            # _WIDTH per row
@@ -38,18 +40,28 @@ class DisplacedMoves:
         self.tools: list[str] = []
         self.wobjs: list[str | None] = []
         self.routines: list[str | None] = []
+        self._words: dict = {}   # one string per distinct word and reason
 
     def __len__(self) -> int:
         return len(self.reasons)
 
-    def append(self, numbers, instruction: str, reason: str, tool: str, wobj: str | None,
-               routine: str | None) -> None:
-        """Add a row: ``numbers`` as :data:`_WIDTH` says, the words interned by the caller."""
-        self.numbers.extend(numbers)
+    def add(self, line: int, column: int, regs: tuple, instruction: str, function: str,
+            tool: str, wobj: str | None, routine: str | None) -> None:
+        """Add a row: where the target expression starts (1-based ``line``, ``column``),
+        the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py: 1 instruction,
+        2 expression, 4 target name, 7 the arguments' end), its words as written."""
+        self.numbers.extend((line, column, *regs[1], regs[0][0], regs[7][0], *regs[2],
+                             *regs[4]))
+        words = self._words
+        instruction = words.setdefault(instruction, instruction)
+        key = (function, instruction)
+        reason = words.get(key)
+        if reason is None:
+            reason = words[key] = intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})")
         self.instructions.append(instruction)
         self.reasons.append(reason)
-        self.tools.append(tool)
-        self.wobjs.append(wobj)
+        self.tools.append(words.setdefault(tool, tool))
+        self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
         self.routines.append(routine)
 
     def _row(self, i: int) -> array:
@@ -136,6 +148,10 @@ class RowsWithDisplaced(Sequence):
         objects = self.objects
         for j in self.order.tolist():
             yield objects[j].status if j >= 0 else "runtime"
+
+    def compensated_rows(self):
+        """The compensated rows (objects all: a run-time motion is not one), any order."""
+        return (r for r in self.objects if r.status in COMPENSATED)
 
     def problem_rows(self) -> Sequence:
         """The rows neither compensated nor needing none, in order, made on access (a

@@ -379,15 +379,15 @@ def _displaced_move(sink: Sink, m: re.Match) -> None:
     the builder makes of the same call (build.py ``Builder.call``), without its records."""
     span = m.span(2)
     line, col = sink.index.line_col(span[0])
+    if sink.displaced is not None:   # a row (displaced.py): the objects made on access
+        regs = m.regs
+        sink.displaced.add(line, col, regs, *m.group(1, 3, 5, 6), sink.routine)
+        return
     instruction, expression, function, tool, wobj = m.group(1, 2, 3, 5, 6)
     # one string per distinct word (a module holds thousands of these motions)
     instruction, tool = intern(instruction), intern(tool)
     reason = intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})")
     wobj = None if wobj is None else intern(wobj)
-    if sink.displaced is not None:   # a row (displaced.py): the objects made on access
-        sink.displaced.append((line, col, *m.span(1), m.start(), m.start(7), *span,
-                               *m.span(4)), instruction, reason, tool, wobj, sink.routine)
-        return
     runtime = RuntimeTarget(
         expression=expression, location=SourceLocation(sink.file, line, col),
         reason=reason, base_name=m.group(4), routine=sink.routine, span=span)
