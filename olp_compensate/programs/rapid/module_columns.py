@@ -13,11 +13,14 @@ in the last digits of its joints, as numpy's vector and scalar loops round diffe
 The column path is taken target by target where a target's meaning is plain: declared
 once (at module level, or ``VAR``/``CONST`` in a routine: a row with its routine), named by
 no other statement than its module's table motions and motions that displace it at run
-time (``MoveL Offs(p, ...)``, ``RelTool``: their own ``runtime`` rows, objects), with no
+time (``MoveL Offs(p, ...)``, ``RelTool``: their own ``runtime`` report rows; in a module
+alone, rows of the column parse, :mod:`.displaced`, made objects only where their target
+leaves the table), with no
 routine parameter, copy, assignment, other run-time expression or routine call naming it,
 moved to by name without an index, from its own routine (a routine's target), and with
 one tool/work-object pair (tools and work objects may be declared in any module). A
-target that is not plain goes to the object path with its motions (:func:`.column_plans.plain_rows`),
+target that is not plain goes to the object path with its motions
+(:func:`.column_plans.plain_rows`),
 and so does a table motion to a target outside the table; the module's other targets stay
 in columns. In a task whose modules declare or move to each other's table targets, such a
 module is compensated as objects whole.
