@@ -57,3 +57,25 @@ def test_an_error_is_one_line_and_minus_v_adds_the_traceback_as_a_log_record():
     assert lines[0] == "olp-x: ERROR: details"
     assert "Traceback (most recent call last):" in lines
     assert lines[-1] == "olp-x: error: bad.csv: no rows"
+
+
+def test_a_run_in_another_thread_leaves_the_signal_handlers_alone():
+    import signal
+    import threading
+
+    from olp_compensate.cli.common import run_guarded
+    from olp_compensate.errors import DataError
+
+    before = signal.getsignal(signal.SIGTERM)
+    seen: dict = {}
+
+    def action():
+        seen["handler"] = signal.getsignal(signal.SIGTERM)
+        raise DataError("bad.csv: no rows")
+
+    thread = threading.Thread(target=lambda: seen.setdefault(
+        "code", run_guarded(action, 0, "olp-x")))
+    thread.start()
+    thread.join(60)
+    assert seen["code"] == 1
+    assert seen["handler"] is before and signal.getsignal(signal.SIGTERM) is before

@@ -63,6 +63,8 @@ def _signals_as_exceptions():
     try:
         previous = signal.signal(signal.SIGTERM, _raise_terminated)
     except ValueError:   # not the main thread
+        previous = ValueError
+    if previous is ValueError:   # (the run's own errors outside the handler above)
         yield
         return
     previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
