@@ -44,3 +44,21 @@ def test_numbers_too_large_or_not_finite_take_percent_and_empty_shapes_give_empt
     assert fixed_rows(values, 4) == percent(values, 4)
     assert fixed_rows(np.zeros((0, 3)), 4) == []
     assert fixed_rows(np.zeros((2, 0)), 4) == ["", ""]
+
+
+@pytest.mark.parametrize("separators, decimals", [
+    ((",", ",", "],[", ",", ",", ","), [3, 3, 3, 6, 6, 6, 6]),   # a robtarget's pose
+    ((", ", ",", ",", "%"), [3, 3, 4, 4, 4]),
+    ((",", ","), [4, 4, 4]),
+])
+def test_spans_of_one_template_are_written_as_its_percent_format_writes_them(separators,
+                                                                           decimals):
+    from olp_compensate.programs.emit_batch import _PlainRun
+
+    run = _PlainRun(list(range(len(decimals))), decimals, "")
+    rng = np.random.default_rng(len(decimals))
+    new = rng.normal(size=(500, len(decimals))) * 300
+    new[:4] = np.array([0.0005, -0.00049, 2.5e-7, -0.0])[:, None]   # round to zero: unsigned
+    new[:, 0] = np.round(new[:, 0], decimals[0] + 1)   # ties in the last decimal
+    expected = [run.template(separators) % tuple(row) for row in run.zero_small(new).tolist()]
+    assert run.written([separators] * len(new), new) == expected
