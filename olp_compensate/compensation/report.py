@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..programs.number_format import fixed_rows
 from .pose import COMPENSATED
 
 __all__ = ["TargetReport", "CompensationReport", "KEPT", "config_text", "config_texts"]
@@ -160,14 +161,17 @@ class _CsvRows:
         self.n_joints = n_joints
         self.row_format = ",".join(["%s,%s,%d,%d,%s,%s,%s"] + ["%.4f"] * 3 + ["%.5f"] * 2
                                    + ["%s,%s"] + ["%.6f"] * n_joints + ["%s"])
-        self.row_line = self.row_format + "\n"
-        self.width = 15 + n_joints    # fields of a row
+        # of column rows: each run of numbers written beforehand (fixed_rows), one field
+        self.row_line = ",".join(["%s,%s,%d,%d,%s,%s,%s,%s,%s,%s,%s"] + ["%s"] * bool(
+            n_joints) + ["%s"]) + "\n"
+        self.width = 12 + bool(n_joints)    # fields of a column row
         self.empty_joints = "," * (n_joints - 1)
         self.quoted = _Quoted()
 
     def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
-        """The fields of :attr:`row_format` for the complete rows ``rows`` of ``c``, row
-        after row in one flat list (each column converted in one pass)."""
+        """The fields of :attr:`row_line` for the complete rows ``rows`` of ``c``, row
+        after row in one flat list (each column converted in one pass, the numbers of a
+        row's runs of floats written together: :func:`fixed_rows`)."""
         if not len(rows):
             return []
         quoted = self.quoted.__getitem__
@@ -179,10 +183,11 @@ class _CsvRows:
         tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
         columns = [names, itertools.repeat(quoted(c.file)), c.line[rows].tolist(),
                    c.column[rows].tolist(), map(quoted, [c.status[i] for i in r]), tool, wobj,
-                   *c.correction_mm[rows].T.tolist(), c.correction_deg[rows].tolist(),
-                   c.joint_change[rows].tolist(),
+                   fixed_rows(c.correction_mm[rows], 4),
+                   fixed_rows(np.stack([c.correction_deg[rows], c.joint_change[rows]], 1), 5),
                    map(quoted, [c.config_before[i] for i in r]),
-                   map(quoted, [c.config_after[i] for i in r]), *c.joints[rows].T.tolist(),
+                   map(quoted, [c.config_after[i] for i in r]),
+                   *[fixed_rows(c.joints[rows], 6)] * bool(self.n_joints),
                    map(quoted, [c.note[i] for i in r])]
         return list(itertools.chain.from_iterable(zip(*columns)))
 
