@@ -61,6 +61,8 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     stale = np.zeros(len(act), int)      # steps in a row without real progress
     stuck = np.zeros(len(act), bool)
     resolved = None if accept is None else np.zeros(int(np.max(groups, initial=0)) + 1, bool)
+    raw = np.zeros((len(act), n))        # the Gauss-Newton step at each row's J and e
+    fresh = np.ones(len(act), bool)      # rows whose J and e changed since it was solved
     for iteration in range(max_iterations + 1):
         position, rotation = error_norms(e)
         done = (position <= position_tol) & (rotation <= rotation_tol)
@@ -82,13 +84,20 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
                 break
             act, q_a, target_a, J, e = act[keep], q_a[keep], target_a[keep], J[keep], e[keep]
             cost, fraction, stale = cost[keep], fraction[keep], stale[keep]
-        step = gauss_newton_steps(J, e, DAMPING)
-        biggest = np.max(np.abs(step), axis=1)
-        step *= (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300)) * fraction)[:, None]
-        trial = q_a + step
+            raw, fresh = raw[keep], fresh[keep]
+        # a row whose last trial was refused keeps its J and e, hence its step: only the
+        # share tried changes (the step is solved again only where J and e moved)
+        if np.all(fresh):
+            raw = gauss_newton_steps(J, e, DAMPING)
+        elif np.any(fresh):
+            raw[fresh] = gauss_newton_steps(J[fresh], e[fresh], DAMPING)
+        biggest = np.max(np.abs(raw), axis=1)
+        trial = q_a + raw * (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300))
+                             * fraction)[:, None]
         J_t, e_t = _evaluate(fk_jacobian, trial, target_a, n)
         cost_t = np.einsum("ij,ij->i", e_t, e_t)
         better = cost_t < cost
+        fresh = better
         if np.all(better):
             q_a, J, e = trial, J_t, e_t
         else:
