@@ -13,18 +13,19 @@ import numpy as np
 from ...errors import DataError, ModelError
 from .inputs import as_joints, as_limits, as_poses
 from .normal_equations import DAMPING, gauss_newton_steps, near_singular
-from .residuals import error_norms, pose_error
+from .residuals import error_norms, pose_error, rotations_batch_last
 from .solution import IKSolution
 
 
 _STALL_STEPS = 20      # Newton steps in a row without progress before a target is given up
 
 
-def _evaluate(fk_jacobian, q, target, n):
-    """The model's Jacobian ``(k, 6, n)`` (a copy) and pose errors ``(k, 6)`` at ``q (k, n)``."""
+def _evaluate(fk_jacobian, q, target, n, target_rotations=None):
+    """The model's Jacobian ``(k, 6, n)`` (a copy) and pose errors ``(k, 6)`` at ``q (k, n)``
+    (``target_rotations`` as :func:`pose_error` takes them)."""
     poses, jac = model_poses_and_jacobian(fk_jacobian, q, n)
     # the Jacobian is kept across calls: a copy, in case the model reuses its buffers
-    return np.array(jac, dtype=float), pose_error(target, poses)
+    return np.array(jac, dtype=float), pose_error(target, poses, target_rotations)
 
 
 def model_poses_and_jacobian(fk_jacobian, q, n):
@@ -55,7 +56,8 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     if len(act) == 0:
         return q, jac, err, iterations, converged, stalled
     q_a, target_a = q[act], target[act]
-    J, e = _evaluate(fk_jacobian, q_a, target_a, n)
+    turns_a = rotations_batch_last(target_a)     # the targets' rotations, batch last
+    J, e = _evaluate(fk_jacobian, q_a, target_a, n, turns_a)
     cost = np.einsum("ij,ij->i", e, e)
     fraction = np.ones(len(act))         # backtracking: share of the Newton step tried
     stale = np.zeros(len(act), int)      # steps in a row without real progress
@@ -84,7 +86,7 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
                 break
             act, q_a, target_a, J, e = act[keep], q_a[keep], target_a[keep], J[keep], e[keep]
             cost, fraction, stale = cost[keep], fraction[keep], stale[keep]
-            raw, fresh = raw[keep], fresh[keep]
+            raw, fresh, turns_a = raw[keep], fresh[keep], turns_a[:, :, keep]
         # a row whose last trial was refused keeps its J and e, hence its step: only the
         # share tried changes (the step is solved again only where J and e moved)
         if np.all(fresh):
@@ -94,7 +96,7 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
         biggest = np.max(np.abs(raw), axis=1)
         trial = q_a + raw * (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300))
                              * fraction)[:, None]
-        J_t, e_t = _evaluate(fk_jacobian, trial, target_a, n)
+        J_t, e_t = _evaluate(fk_jacobian, trial, target_a, n, turns_a)
         cost_t = np.einsum("ij,ij->i", e_t, e_t)
         better = cost_t < cost
         fresh = better
