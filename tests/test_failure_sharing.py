@@ -5,10 +5,8 @@
   fewer steps, and the rule's final statuses and joints are those without it;
 - the notes of a batch of joint_limit targets name each row's own axes (the words of all
   rows are converted at once);
-- the pose error with the targets' rotations given once equals the one computed afresh,
-  and the rotation between the poses;
-- turning joints toward the controller's ranges, all axes at once, is what an enumeration
-  of the turns of each axis gives.
+- turning joints toward the controller's ranges is what an enumeration of the turns of
+  each axis gives (the candidates of the search are turned so).
 """
 
 from __future__ import annotations
@@ -22,9 +20,7 @@ from olp_compensate.calibration.simulate import random_joints
 from olp_compensate.compensation.config_rule import decide, turn_toward_ranges
 from olp_compensate.compensation.failures import explain_failures
 from olp_compensate.compensation.ik import solve
-from olp_compensate.compensation.ik.residuals import pose_error, rotations_batch_last
 from olp_compensate.compensation.pose import Compensator
-from olp_compensate.kinematics.conventions import rotvec_from_rotation
 from olp_compensate.kinematics.robot import load_robot
 from virtual_world import identified_world
 
@@ -112,23 +108,6 @@ def test_notes_of_a_batch_name_each_rows_own_axes(world):
             side = "below" if joints_deg[a] < lo[a] else "above"
             assert f"axis {a + 1} = {joints_deg[a]:.2f} deg" in reports[k].note
             assert f"deg {side} the controller's range" in reports[k].note
-
-
-def test_pose_error_with_the_targets_rotations_given_once(world):
-    comp = world
-    robot = comp.robot
-    rng = np.random.default_rng(3)
-    q = robot.joints_from_controller(random_joints(robot, 50, rng))
-    target = comp.nominal_flange(q)
-    poses, _ = comp.real_flange_and_jacobian(q + rng.normal(0, 0.3, q.shape))
-    fresh = pose_error(target, poses)
-    cached = pose_error(target, poses, rotations_batch_last(target))
-    batch_first = pose_error(target, np.ascontiguousarray(poses))      # (m, 4, 4) C order
-    assert np.array_equal(fresh, cached)
-    assert np.array_equal(fresh, batch_first)
-    assert np.allclose(fresh[:, :3], target[:, :3, 3] - poses[:, :3, 3], atol=1e-15)
-    relative = target[:, :3, :3] @ np.swapaxes(poses[:, :3, :3], 1, 2)
-    assert np.allclose(fresh[:, 3:], rotvec_from_rotation(relative), atol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["abb_irb2400", "ur5e", "staubli_tx2_60"])

@@ -96,19 +96,19 @@ def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
     q = np.array(q_ctrl, dtype=float, copy=True)
     ranges = robot.controller_ranges
     turns = 2 * np.pi * np.arange(-3, 4)
-    revolute = np.array([joint.kind == "revolute" for joint in robot.joints])
-    finite = revolute & np.all(np.isfinite(ranges), axis=1)
-    free = np.flatnonzero(revolute & ~finite)
-    q[..., free] = (q[..., free] + np.pi) % (2 * np.pi) - np.pi
-    axes = np.flatnonzero(finite)                 # all finite revolute axes at once
-    if len(axes):
-        lo, hi = ranges[axes, 0, None], ranges[axes, 1, None]
-        values = q[..., axes, None] + turns                           # (..., a, 7)
+    for a, joint in enumerate(robot.joints):
+        if joint.kind != "revolute":
+            continue
+        lo, hi = ranges[a]
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            q[..., a] = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
+            continue
+        values = q[..., a, None] + turns                              # (..., 7)
         inside = (values >= lo - 1e-9) & (values <= hi + 1e-9)
         pick = np.argmin(np.where(inside, np.abs(values), np.inf), axis=-1)
         turned = np.take_along_axis(values, pick[..., None], axis=-1)[..., 0]
-        wrapped = (q[..., axes] + np.pi) % (2 * np.pi) - np.pi
-        q[..., axes] = np.where(np.any(inside, axis=-1), turned, wrapped)
+        wrapped = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
+        q[..., a] = np.where(np.any(inside, axis=-1), turned, wrapped)
     return q
 
 

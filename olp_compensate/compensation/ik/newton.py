@@ -13,19 +13,18 @@ import numpy as np
 from ...errors import DataError, ModelError
 from .inputs import as_joints, as_limits, as_poses
 from .normal_equations import DAMPING, gauss_newton_steps, near_singular
-from .residuals import error_norms, pose_error, rotations_batch_last
+from .residuals import error_norms, pose_error
 from .solution import IKSolution
 
 
 _STALL_STEPS = 20      # Newton steps in a row without progress before a target is given up
 
 
-def _evaluate(fk_jacobian, q, target, n, target_rotations=None):
-    """The model's Jacobian ``(k, 6, n)`` (a copy) and pose errors ``(k, 6)`` at ``q (k, n)``
-    (``target_rotations`` as :func:`pose_error` takes them)."""
+def _evaluate(fk_jacobian, q, target, n):
+    """The model's Jacobian ``(k, 6, n)`` (a copy) and pose errors ``(k, 6)`` at ``q (k, n)``."""
     poses, jac = model_poses_and_jacobian(fk_jacobian, q, n)
     # the Jacobian is kept across calls: a copy, in case the model reuses its buffers
-    return np.array(jac, dtype=float), pose_error(target, poses, target_rotations)
+    return np.array(jac, dtype=float), pose_error(target, poses)
 
 
 def model_poses_and_jacobian(fk_jacobian, q, n):
@@ -56,15 +55,12 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     if len(act) == 0:
         return q, jac, err, iterations, converged, stalled
     q_a, target_a = q[act], target[act]
-    turns_a = rotations_batch_last(target_a)     # the targets' rotations, batch last
-    J, e = _evaluate(fk_jacobian, q_a, target_a, n, turns_a)
+    J, e = _evaluate(fk_jacobian, q_a, target_a, n)
     cost = np.einsum("ij,ij->i", e, e)
     fraction = np.ones(len(act))         # backtracking: share of the Newton step tried
     stale = np.zeros(len(act), int)      # steps in a row without real progress
     stuck = np.zeros(len(act), bool)
     resolved = None if accept is None else np.zeros(int(np.max(groups, initial=0)) + 1, bool)
-    raw = np.zeros((len(act), n))        # the Gauss-Newton step at each row's J and e
-    fresh = np.ones(len(act), bool)      # rows whose J and e changed since it was solved
     for iteration in range(max_iterations + 1):
         position, rotation = error_norms(e)
         done = (position <= position_tol) & (rotation <= rotation_tol)
@@ -86,20 +82,13 @@ def damped_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
                 break
             act, q_a, target_a, J, e = act[keep], q_a[keep], target_a[keep], J[keep], e[keep]
             cost, fraction, stale = cost[keep], fraction[keep], stale[keep]
-            raw, fresh, turns_a = raw[keep], fresh[keep], turns_a[:, :, keep]
-        # a row whose last trial was refused keeps its J and e, hence its step: only the
-        # share tried changes (the step is solved again only where J and e moved)
-        if np.all(fresh):
-            raw = gauss_newton_steps(J, e, DAMPING)
-        elif np.any(fresh):
-            raw[fresh] = gauss_newton_steps(J[fresh], e[fresh], DAMPING)
-        biggest = np.max(np.abs(raw), axis=1)
-        trial = q_a + raw * (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300))
-                             * fraction)[:, None]
-        J_t, e_t = _evaluate(fk_jacobian, trial, target_a, n, turns_a)
+        step = gauss_newton_steps(J, e, DAMPING)
+        biggest = np.max(np.abs(step), axis=1)
+        step *= (np.minimum(1.0, max_step / np.maximum(biggest, 1e-300)) * fraction)[:, None]
+        trial = q_a + step
+        J_t, e_t = _evaluate(fk_jacobian, trial, target_a, n)
         cost_t = np.einsum("ij,ij->i", e_t, e_t)
         better = cost_t < cost
-        fresh = better
         if np.all(better):
             q_a, J, e = trial, J_t, e_t
         else:

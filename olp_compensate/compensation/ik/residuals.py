@@ -7,25 +7,16 @@ import numpy as np
 from ...kinematics.conventions import rotvec_from_rotation
 
 
-def rotations_batch_last(poses):
-    """The rotations of ``poses (m, 4, 4)`` as a contiguous ``(3, 3, m)`` array (batch
-    last), as :func:`pose_error` reads them."""
-    return np.ascontiguousarray(np.moveaxis(poses[:, :3, :3], 0, -1))
-
-
-def pose_error(target, poses, target_rotations=None):
+def pose_error(target, poses):
     """Errors ``(m, 6)``: position (m) and rotation vector (rad), both in the base frame,
-    taking ``poses`` to ``target``. ``target_rotations``: :func:`rotations_batch_last` of
-    ``target``, for a caller that compares the same targets again and again."""
+    taking ``poses`` to ``target``."""
     err = np.empty((len(poses), 6))
     np.subtract(target[:, :3, 3], poses[:, :3, 3], out=err[:, :3])
     # R = Rt Rp^T = sum_k t_k p_k^T over the columns k: sin(angle) * axis = (R - R^T)^v / 2
     # = sum_k p_k x t_k / 2 and cos(angle) = (trace(R) - 1) / 2 = (sum Rt * Rp - 1) / 2.
     # Exact, and cheaper than via a quaternion, up to 90 deg (beyond: the quaternion).
-    t = rotations_batch_last(target) if target_rotations is None else target_rotations
-    p = np.moveaxis(poses[:, :3, :3], 0, -1)                              # (3, 3, m)
-    if p.strides[-1] != p.itemsize:     # poses batch first: copied (else a view, batch last)
-        p = np.ascontiguousarray(p)
+    t = np.ascontiguousarray(np.moveaxis(target[:, :3, :3], 0, -1))      # (3, 3, m)
+    p = np.ascontiguousarray(np.moveaxis(poses[:, :3, :3], 0, -1))
     dr = np.empty((3, len(poses)))
     np.sum(p[1] * t[2] - p[2] * t[1], axis=0, out=dr[0])
     np.sum(p[2] * t[0] - p[0] * t[2], axis=0, out=dr[1])
