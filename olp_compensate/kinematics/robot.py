@@ -18,9 +18,9 @@ import numpy as np
 
 from ..data import data_folder
 from ..errors import ModelError
-from .record_urdf import urdf_from_record
+from .record_urdf import urdf_and_document
 from .records import RECORD_SUFFIX, RobotRecord, read_record
-from .urdf import read_urdf_chain
+from .urdf import UrdfDocument, read_urdf_chain
 
 FLANGE_LINK = "tool0"
 
@@ -200,7 +200,16 @@ def robot_from_urdf_text(text: str, name: str | None = None, source: str = "",
     holds joint kinds other than revolute, continuous, prismatic and fixed.
     """
     where = source or "<urdf>"
-    robot = read_urdf_chain(text, where)
+    return robot_from_document(read_urdf_chain(text, where), text, name, source, flange_link,
+                               urdf_from_controller, axis_ranges)
+
+
+def robot_from_document(robot: UrdfDocument, text: str, name: str | None = None,
+                        source: str = "", flange_link: str = FLANGE_LINK,
+                        urdf_from_controller: np.ndarray | None = None,
+                        axis_ranges: np.ndarray | None = None) -> Robot:
+    """:func:`robot_from_urdf_text` of the already read ``robot``, whose text is ``text``."""
+    where = source or "<urdf>"
     joints_by_child = {j.child: j for j in robot.joints}
     links = robot.links
     if flange_link not in links:
@@ -308,9 +317,11 @@ def ranges_from_edge_units(robot: Robot, ranges) -> np.ndarray:
 
 def robot_from_record(record: RobotRecord) -> Robot:
     """The robot of a record: its generated URDF, coupling and controller axis ranges."""
-    text = urdf_from_record(record)
-    robot = robot_from_urdf_text(text, name=record.name, source=record.source,
-                                 urdf_from_controller=record.coupling)
+    text, document = urdf_and_document(record)
+    if document is None:
+        document = read_urdf_chain(text, record.source or "<urdf>")
+    robot = robot_from_document(document, text, name=record.name, source=record.source,
+                                urdf_from_controller=record.coupling)
     return dataclasses.replace(robot, record=record,
                                axis_ranges=ranges_from_edge_units(robot, record.axis_ranges_deg))
 

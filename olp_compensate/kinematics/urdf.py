@@ -10,12 +10,15 @@ URDFs with yourdfpy.
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ModelError
+
+if TYPE_CHECKING:  # parsing imports it: a bundled robot is built without XML (robot.py)
+    import xml.etree.ElementTree as ET
 
 
 @dataclass(frozen=True)
@@ -93,6 +96,8 @@ def pose_from_xyz_rpy(xyz, rpy) -> np.ndarray:
 def read_urdf_chain(text: str, where: str = "<urdf>") -> UrdfDocument:
     """Parse URDF text; raises :class:`ModelError` naming ``where`` for text that is not
     XML, not a ``<robot>``, or has a joint without parent, child or with bad numbers."""
+    import xml.etree.ElementTree as ET
+
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
