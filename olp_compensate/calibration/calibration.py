@@ -10,16 +10,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..kinematics.conventions import matrix_from_quat_wxyz
-from .effects import (Conditions, Effect, EffectInputs, JointCompliance, effect_inputs,
-                      geometry_effects, joint_deflection, joint_deflection_dq, joint_effects,
-                      length_scale, needs_torque)
-from .effect_ranges import outside_fitted
 from ..errors import DataError
 from ..kinematics.model import KinematicModel, build_model, forward
 from ..kinematics.robot import Robot
 
 if TYPE_CHECKING:  # a field's type only: identify never makes one (2-4 ms of its start)
     from .remainder import ResidualMap
+# The effects' module loads when a calibration has effects: a geometric one (what identify
+# makes by default) needs none of it (5-9 ms of a command's start, issue 32).
+if TYPE_CHECKING:
+    from .effects import Conditions, Effect, EffectInputs
 
 
 @dataclass(frozen=True)
@@ -214,6 +214,11 @@ class Calibration:
         the controller axes (:mod:`olp_compensate.calibration.effects`); ``conditions`` default to no
         payload and gravity-closed backlash (what is known when compensating a program)."""
         q_urdf = np.asarray(q_urdf, dtype=float)
+        if not self.effects:
+            return (q_urdf, None) if jacobian else q_urdf
+        from .effects import (JointCompliance, effect_inputs, joint_deflection,
+                              joint_deflection_dq, joint_effects, needs_torque)
+
         effects = joint_effects(self.effects)
         if not effects:
             return (q_urdf, None) if jacobian else q_urdf
@@ -236,6 +241,10 @@ class Calibration:
     def length_scale(self, m: int, conditions: Conditions | None = None) -> np.ndarray:
         """Factor (m,) on the arm's link translations (thermal expansion; 1 at the reference
         temperature or without the effect)."""
+        if not self.effects:
+            return np.ones(m)
+        from .effects import EffectInputs, geometry_effects, length_scale
+
         effects = geometry_effects(self.effects)
         if not effects or conditions is None or conditions.temperature_c is None:
             return np.ones(m)
@@ -259,6 +268,8 @@ class Calibration:
         q = np.atleast_2d(np.asarray(q, float))
         if self.geometric_fallback is None:
             return np.zeros(len(q), dtype=bool)
+        from .effect_ranges import outside_fitted
+
         return outside_fitted(self.effects, q)
 
     def _split(self, method: str, q: np.ndarray, names, conditions, shape: tuple):
@@ -291,8 +302,11 @@ class Calibration:
             return split
         q_actual = self.actual_joints(self.robot.joints_from_controller(q), conditions=conditions)
         flange = forward(self.model, self.values, q_actual).flange
-        if geometry_effects(self.effects):
-            flange[:, :3, 3] *= self.length_scale(len(flange), conditions)[:, None]
+        if self.effects:
+            from .effects import geometry_effects
+
+            if geometry_effects(self.effects):
+                flange[:, :3, 3] *= self.length_scale(len(flange), conditions)[:, None]
         return flange
 
     def tool_points(self, names) -> np.ndarray:
@@ -342,6 +356,8 @@ def _rows_of(conditions: Conditions | None, rows: np.ndarray) -> Conditions | No
     """The conditions of the rows of a mask (per-row arrays cut, scalars kept)."""
     if conditions is None:
         return None
+    from .effects import Conditions
+
     return Conditions(**{f.name: _cut(getattr(conditions, f.name), rows)
                          for f in dataclasses.fields(conditions)})
 

@@ -23,11 +23,14 @@ cyclic error zero outside its own ``q_range``).
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..kinematics.robot import Robot
-from .effects import Effect
+
+if TYPE_CHECKING:  # a type only
+    from .effects import Effect
 
 
 def with_fitted_ranges(effects, q_ctrl: np.ndarray) -> tuple[Effect, ...]:

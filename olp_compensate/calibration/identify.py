@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -38,8 +38,6 @@ from ..kinematics.model import KinematicModel, build_model, forward
 from ..kinematics.robot import Robot
 from .calibration import Calibration, ToolPoint, Validation
 from .cross_validation import HeldOut, cross_validate, pose_folds
-from .effects import (Conditions, Effect, EffectInputs, ThermalExpansion, effect_inputs,
-                      needs_torque)
 from .identifiability import Identifiability, analyse_identifiability, structural_freeze
 from .lm import levenberg_marquardt
 from .measurements import Measurements, check_spread, row_sigma_scales
@@ -47,6 +45,9 @@ from .problem import IdentificationProblem, oriented_rows, point_index, tool_rot
 from .registration import register_device
 from .statistics import FitStatistics, fit_statistics, inlier_weight
 from .unknowns import UnknownLayout
+
+if TYPE_CHECKING:  # the effects' module loads when effects are fitted (5-9 ms, issue 32)
+    from .effects import Effect, EffectInputs
 
 STEP_TOLERANCE_SIGMA = 1e-4
 """The fit has converged when the remaining step is shorter than this many standard
@@ -461,6 +462,10 @@ def _check_data(robot: Robot, meas: Measurements) -> None:
 def _check_effects(robot: Robot, meas: Measurements, effects) -> tuple[Effect, ...]:
     """Validate the effects against the data; fix thermal expansion's reference temperature
     (the mean of the measurements) when it is not given."""
+    if not effects:
+        return ()
+    from .effects import ThermalExpansion
+
     out = []
     for effect in effects:
         if effect.joint is not None and not 0 <= effect.joint < robot.n_joints:
@@ -483,6 +488,8 @@ def measurement_inputs(robot: Robot, meas: Measurements, tools: dict[str, np.nda
     """The inputs of ``effects`` at the measured rows (``meas.joints`` in controller axes):
     gravity torque with ``payload_kg`` at the tool point 'tcp' (else at the row's own point,
     positions from ``tools``, flange frame), temperatures and approach directions."""
+    from .effects import Conditions, effect_inputs, needs_torque
+
     point = None
     if meas.payload_kg is not None:
         where = ["tcp"] * meas.n_rows if "tcp" in tools else list(meas.point_names)

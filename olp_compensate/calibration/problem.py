@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,9 +20,11 @@ from ..kinematics.conventions import (matrix_from_quat_wxyz, rotation_from_rotve
 from ..kinematics.buffers import reusable_array
 from ..kinematics.model import KinematicModel, forward
 from .calibration import Calibration
-from .effects import Effect, EffectInputs
 from .measurements import Measurements
 from .unknowns import UnknownLayout
+
+if TYPE_CHECKING:  # types only: the effects' module loads when effects are fitted
+    from .effects import Effect, EffectInputs
 
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):

@@ -49,7 +49,6 @@ import numpy as np
 from ..calibration.calibration import (Calibration, RegionBox, RegionCalibration, ToolPoint,
                                        Validation)
 from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
-from ..calibration.effects import effect_from_dict
 from ..errors import DataError, ModelError
 from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
@@ -301,10 +300,13 @@ def _model_from_dict(doc: dict, embedded: Robot, source: str) -> Calibration:
         orientation_max_deg=v.get("orientation_max_deg"),
         heldout_orientation_rms_deg=v.get("heldout_orientation_rms_deg"),
         heldout_orientation_max_deg=v.get("heldout_orientation_max_deg"))
+    effects = ()
+    if doc["effects"]:  # the effects' module loads only for a calibration that has some
+        from ..calibration.effects import effect_from_dict
+
+        effects = tuple(effect_from_dict(e, embedded.n_joints, source) for e in doc["effects"])
     return Calibration(robot=embedded, model=model, values=values, std=std, device_T_base=pose,
-                       frozen=frozen, tools=tools,
-                       effects=tuple(effect_from_dict(e, embedded.n_joints, source)
-                                     for e in doc["effects"]),
+                       frozen=frozen, tools=tools, effects=effects,
                        validation=validation)
 
 
