@@ -71,7 +71,7 @@ def record_doc(**changes) -> dict:
     return doc
 
 
-@pytest.mark.parametrize("model", ["IRB 2400---x", "IRB\x01 2400", "IRB ---- 2400"])
+@pytest.mark.parametrize("model", ["IRB 2400---x", "IRB\x01 2400", "IRB ---- 2400", "IRB \ufffe"])
 def test_a_record_no_xml_comment_can_hold_fails_as_before(model):
     """A maker or model the generated URDF cannot carry is the parser's error, as it was."""
     record = record_from_dict(record_doc(model=model), "odd.robot.json")

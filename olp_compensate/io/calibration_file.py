@@ -38,7 +38,6 @@ the key have none.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -415,5 +414,7 @@ def _valid_mark(data: bytes) -> str | None:
     folder = cache_folder()
     if folder is None:
         return None
-    digest = hashlib.sha256(schema_bytes(SCHEMA) + b"\0" + data).hexdigest()
+    from ..kinematics.robot import sha256  # hashlib costs 2-4 ms of a command's start
+
+    digest = sha256(schema_bytes(SCHEMA) + b"\0" + data).hexdigest()
     return os.path.join(folder, f"valid-calibration-{digest}")

@@ -11,7 +11,6 @@ hand-written URDF gives the same numbers, and so the same kinematic fingerprint.
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
@@ -171,10 +170,14 @@ def _well_formed_comment(comment: str) -> bool:
     """True when the XML comment parses: no ``--`` inside, only XML 1.0 characters (the
     record's name is checked when it is read; numbers are written by :func:`_num`)."""
     body = comment[4:-3]
-    return "--" not in body and not _NOT_XML_CHAR.search(body)
+    return "--" not in body and all(_xml_char(c) for c in body)
 
 
-_NOT_XML_CHAR = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+def _xml_char(c: str) -> bool:
+    """``c`` is an XML 1.0 ``Char`` (a regular expression of these ranges costs 5 ms to
+    compile)."""
+    return ("\x20" <= c <= "\ud7ff" or c in "\t\n\r" or "\ue000" <= c <= "\ufffd"
+            or c >= "\U00010000")
 
 
 def _parsed(value: float) -> float:

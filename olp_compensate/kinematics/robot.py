@@ -8,7 +8,6 @@ radians); the calibration model (:mod:`olp_compensate.kinematics.model`) is buil
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -23,6 +22,17 @@ from .records import RECORD_SUFFIX, RobotRecord, read_record
 from .urdf import UrdfDocument, read_urdf_chain
 
 FLANGE_LINK = "tool0"
+
+# SHA-256 from CPython's own module (3.11: _sha256, 3.12+: _sha2), the digest hashlib gives,
+# without importing hashlib (OpenSSL and every algorithm: 2-4 ms of a command's start, issue
+# 32); hashlib's on a Python built without it.
+try:
+    from _sha256 import sha256
+except ImportError:
+    try:
+        from _sha2 import sha256
+    except ImportError:
+        from hashlib import sha256
 
 
 @dataclass(frozen=True)
@@ -119,7 +129,7 @@ class Robot:
         Two URDFs that differ only in formatting, meshes or inertials share a fingerprint;
         any change of geometry changes it.
         """
-        h = hashlib.sha256()
+        h = sha256()
         for j in self.joints:
             h.update(j.kind.encode())
             h.update(np.round(j.parent_T_joint, 9).tobytes())
