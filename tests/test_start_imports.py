@@ -3,14 +3,20 @@ unloaded, and what replaced them gives the same answers (fingerprint, data folde
 
 from __future__ import annotations
 
+import argparse
 import hashlib
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
+from olp_compensate.cli import cal
+from olp_compensate.cli.cal import build_parser
+from olp_compensate.cli.common import terminal_columns
 from olp_compensate.data import data_folder
 from olp_compensate.io.measurements import write_measurements
 from olp_compensate.kinematics.robot import load_robot
@@ -79,3 +85,34 @@ def test_data_folders_of_a_wheel_are_what_importlib_resources_gives(tmp_path):
 def test_data_folder_of_this_install_holds_the_robots():
     folder = data_folder("robots")
     assert (folder / "abb_irb2400.robot.json").is_file()
+
+
+@pytest.mark.parametrize("columns", [None, "57", "200", "abc", "0", "-3"])
+def test_terminal_columns_are_shutils(monkeypatch, columns):
+    if columns is None:
+        monkeypatch.delenv("COLUMNS", raising=False)
+    else:
+        monkeypatch.setenv("COLUMNS", columns)
+    assert terminal_columns() == shutil.get_terminal_size().columns
+
+
+@pytest.mark.parametrize("command", [None, "identify", "simulate", "camera"])
+def test_help_is_argparses_own(monkeypatch, command):
+    """The commands' help, usage and errors read as argparse's default formatter writes
+    them (narrow terminal, so that the width matters)."""
+    monkeypatch.setenv("COLUMNS", "61")
+    argv = [] if command is None else [command]
+    ours = build_parser(argv)
+    monkeypatch.setattr(cal, "help_formatter", argparse.HelpFormatter)
+    theirs = build_parser(argv)
+    assert ours.format_help() == theirs.format_help()
+    if command is not None:
+        pick = [a for a in ours._actions if isinstance(a, argparse._SubParsersAction)]
+        mine = pick[0].choices[command]
+        pick = [a for a in theirs._actions if isinstance(a, argparse._SubParsersAction)]
+        other = pick[0].choices[command]
+        narrow = mine.format_help()
+        assert narrow == other.format_help()
+        assert mine.format_usage() == other.format_usage()
+        monkeypatch.setenv("COLUMNS", "200")  # the width is read: the test can fail
+        assert mine.format_help() != narrow

@@ -10,7 +10,7 @@ import sys
 from importlib import import_module
 
 from .. import __version__
-from .common import THREADS_HELP, exit_now, limit_threads, run_guarded
+from .common import THREADS_HELP, exit_now, help_formatter, limit_threads, run_guarded
 
 COMMANDS = {
     "plan": ("cal_plan", "plan the poses to measure (I- or D-optimal for the identification, "
@@ -80,7 +80,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     every command is listed (None: every command with its options)."""
     chosen = _chosen(argv) if argv is not None else None
     parser = argparse.ArgumentParser(prog="olp-cal", description=__doc__.splitlines()[0],
-                                     epilog=THREADS_HELP + ".")
+                                     epilog=THREADS_HELP + ".", formatter_class=help_formatter)
     parser.add_argument("--version", action="version", version=f"olp-cal {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
                         help="more logging; -v also shows tracebacks")
@@ -88,7 +88,8 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     for name, (_, summary) in COMMANDS.items():
         if chosen is not None and name != chosen:
             continue
-        command = sub.add_parser(name, help=summary, description=summary)
+        command = sub.add_parser(name, help=summary, description=summary,
+                                 formatter_class=help_formatter)
         if argv is None or name == chosen:
             command_module(name).add_arguments(command)
     return parser

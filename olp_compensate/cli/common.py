@@ -28,6 +28,33 @@ THREADS_HELP = ("BLAS and OpenMP run on one thread (measured fastest for these s
                 "core); set OMP_NUM_THREADS to choose otherwise")
 
 
+def terminal_columns() -> int:
+    """``shutil.get_terminal_size().columns`` (COLUMNS when it is a positive number, else
+    the width of the terminal on standard output, else 80), without importing shutil,
+    which imports zlib, bz2 and lzma for its archives: 1-2 ms of each command's start."""
+    try:
+        columns = int(os.environ["COLUMNS"])
+    except (KeyError, ValueError):
+        columns = 0
+    if columns > 0:
+        return columns
+    try:
+        columns = os.get_terminal_size(sys.__stdout__.fileno()).columns
+    except (AttributeError, ValueError, OSError):
+        columns = 0
+    return columns or 80
+
+
+def help_formatter(prog: str, indent_increment: int = 2, max_help_position: int = 24,
+                   width: int | None = None, **kwargs):
+    """argparse's own help formatter, its default width (the terminal's, less 2) found by
+    :func:`terminal_columns`: argparse imports shutil for it in every ``add_argument``."""
+    import argparse
+
+    return argparse.HelpFormatter(prog, indent_increment, max_help_position,
+                                  terminal_columns() - 2 if width is None else width, **kwargs)
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM, turned into an exception so that temporary files are removed."""
 

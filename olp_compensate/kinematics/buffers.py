@@ -13,11 +13,15 @@ within the noise). A whole ``olp-cal identify`` is dominated by its imports: no 
 from __future__ import annotations
 
 import sys
-import threading
 
 import numpy as np
 
-_SPARES = threading.local()
+try:  # threading.local is this class; importing threading for it costs 0.5-1 ms of a start
+    from _thread import _local as _thread_local
+except ImportError:
+    from threading import local as _thread_local
+
+_SPARES = _thread_local()
 SPARE_BYTES = 16 << 20
 """Arrays up to this size are kept by :func:`reusable_array` for reuse."""
 

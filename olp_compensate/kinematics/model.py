@@ -28,14 +28,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .buffers import reusable_array
 from .conventions import invert_pose
-from .fixed_chain import FixedChain  # re-exported: made by fixed_chain() below
 from .frame_assignment import dh_link, first_frame, hayati_link
 from .robot import Robot
+
+if TYPE_CHECKING:
+    from .fixed_chain import FixedChain
 
 PARALLEL_BELOW_DEG = 45.0
 """Consecutive axes closer than this angle get Hayati's parameterization, others D-H."""
@@ -407,6 +410,8 @@ def fixed_chain(model: KinematicModel, values: np.ndarray) -> FixedChain | None:
     flange = forward(model, values, np.zeros((1, 6))).flange[0]
     links = [invert_pose(frames[k]) @ frames[k + 1] for k in range(5)]
     links.append(invert_pose(frames[5]) @ flange)
+    from .fixed_chain import FixedChain
+
     chain = FixedChain(first=frames[0], links=np.array(links))
     q = spread_joints(8, 6)
     pose, jac = chain.flange_and_jacobian(q)
@@ -429,3 +434,13 @@ def spread_joints(m: int, n: int, seed: int = 0) -> np.ndarray:
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 """rad, about 2.39996."""
+
+
+def __getattr__(name: str):
+    """``FixedChain`` is still importable from here (PEP 562), loaded when first asked for:
+    identification never uses it (issue 32)."""
+    if name == "FixedChain":
+        from .fixed_chain import FixedChain
+
+        return FixedChain
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
