@@ -16,8 +16,9 @@ Prints, for noise 0.05 mm per axis on an ABB IRB 2400:
    processes run this interpreter, so both pay the same start-up, the editable install's
    finder included: ``pip install -e .`` of this flat layout with robots/ and grammars/
    mapped into the package makes setuptools install a meta-path finder rather than a path
-   entry; it costs under 1 ms, as the pathlib it imports is imported at start-up anyway, by
-   the ``cmeel.pth`` of the ``pin`` dependency, and by the command itself); then
+   entry: about 3 ms of a bare ``python -c pass``, nothing measurable in either process
+   here (against ``editable_mode=compat``'s path entry, interleaved: the pathlib it imports
+   is imported at start-up anyway by the ``cmeel.pth`` of the ``pin`` dependency)); then
    the time to identify from 100 and 1,000 poses next to scipy.optimize.least_squares with a
    finite-difference Jacobian on the same residuals (targets: < 50 ms at 1,000; >= 10x);
    also our LM against scipy's trust region with our analytic Jacobian; then the fits alone
