@@ -19,7 +19,7 @@ from sys import intern
 
 import numpy as np
 
-from ...compensation.report import COMPENSATED, TargetReport
+from ...compensation.report import COMPENSATED, MergedRows, RowSource, TargetReport
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
 from .instructions import RUNTIME_FUNCS
 
@@ -113,7 +113,7 @@ class DisplacedMoves:
         return out
 
 
-class RowsWithDisplaced(Sequence):
+class RowsWithDisplaced(RowSource, MergedRows):
     """Report rows held as objects (``objects``, in line/column order) and the rows of a
     :class:`DisplacedMoves` table of ``text`` (``file``), merged in line/column order
     (an object first where both are at the same place); a displaced row is made on
@@ -128,20 +128,14 @@ class RowsWithDisplaced(Sequence):
         self.sorted_keys = keys[order]
         self.order = np.where(order < len(objects), order, len(objects) - 1 - order)
 
-    def __len__(self) -> int:
-        return len(self.order)
+    def first_row(self, j: int) -> TargetReport:
+        return self.objects[j]
 
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        j = int(self.order[k])
-        return self.objects[j] if j >= 0 else self.table.report_row(-1 - j, self.text,
-                                                                     self.file)
+    def second_row(self, j: int) -> TargetReport:
+        return self.table.report_row(j, self.text, self.file)
 
-    def __iter__(self):
-        objects, row, text, file = self.objects, self.table.report_row, self.text, self.file
-        for j in self.order.tolist():
-            yield objects[j] if j >= 0 else row(-1 - j, text, file)
+    def keys(self) -> np.ndarray:
+        return self.sorted_keys
 
     def statuses(self):
         """The status of each row, in order, without making the table's rows."""
