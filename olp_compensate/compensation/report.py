@@ -316,6 +316,10 @@ class RowSource(Sequence):
         """The rows neither compensated nor needing none, in order."""
         return [r for r in self if not r.fine]
 
+    def csv_lines(self, rows: list[int], writer: CsvRows) -> list[str]:
+        """The CSV lines (each ending in a line break) of rows ``rows``, in that order."""
+        return [writer.line(self[j]) + "\n" for j in rows]
+
 
 class ListedRows(RowSource):
     """A list of :class:`TargetReport` (in text order) as a :class:`RowSource`."""
@@ -378,7 +382,7 @@ class ReportRows(RowSequence, MergedRows):
     def csv_chunks(self, writer: CsvRows):
         """The CSV lines of the rows, in pieces of :data:`CSV_CHUNK` rows: each run of
         complete column rows in one ``%`` format (:meth:`CsvRows.column_fields`), the
-        others row by row."""
+        others' lines from :meth:`RowSource.csv_lines`."""
         c, others = self.columns, self.others
         whole = np.isfinite(c.correction_mm.sum(axis=1) + c.correction_deg + c.joint_change
                             + c.joints.sum(axis=1)) if len(c) else np.zeros(0, bool)
@@ -390,16 +394,26 @@ class ReportRows(RowSequence, MergedRows):
             width = writer.width
             pieces = []
             bounds = [0, *(np.flatnonzero(fast[1:] != fast[:-1]) + 1).tolist(), len(order)]
+            slow = order[~fast]
+            theirs = slow < 0
+            lines = merged(theirs, others.csv_lines((-1 - slow[theirs]).tolist(), writer),
+                           [writer.line(c.row(j)) + "\n" for j in slow[~theirs].tolist()])
             done = 0    # fast rows written
             for a, b in zip(bounds, bounds[1:]):
                 if fast[a]:
                     pieces.append((writer.row_line * (b - a)) % tuple(
                         fields[done * width:(done + b - a) * width]))
                     done += b - a
-                    continue
-                for j in order[a:b].tolist():
-                    pieces.append(writer.line(others[-1 - j] if j < 0 else c.row(j)) + "\n")
+                else:
+                    pieces.append("".join(lines[a - done:b - done]))
             yield "".join(pieces)
+
+
+def merged(mask: np.ndarray, yes: list, no: list) -> list:
+    """One list of ``yes`` (at the places ``mask`` (n,) bool is true, in order) and
+    ``no`` (at the others)."""
+    take_yes, take_no = iter(yes).__next__, iter(no).__next__
+    return [take_yes() if m else take_no() for m in mask.tolist()]
 
 
 class ChainedRows(RowSequence):

@@ -25,6 +25,9 @@ class CsvRows:
             n_joints) + ["%s"]) + "\n"
         self.width = 12 + bool(n_joints)    # fields of a column row
         self.empty_joints = "," * (n_joints - 1)
+        # a row with no number (a run-time motion): target, file, line, column, status,
+        # tool, wobj, config before and after, note, each already a CSV field
+        self.bare_line = "%s,%s,%d,%d,%s,%s,%s,,,,,,%s,%s," + self.empty_joints + ",%s\n"
         self.quoted = Quoted()
 
     def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
@@ -37,7 +40,7 @@ class CsvRows:
         r = rows.tolist()
         names = [c.names[i] for i in r]
         if any(ch in "".join(names) for ch in ',"\n\r'):
-            names = list(map(_csv_field, names))
+            names = list(map(csv_field, names))
         tools = [(quoted(t), quoted(w)) for t, w in c.pair_names]
         tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
         columns = [names, itertools.repeat(quoted(c.file)), c.line[rows].tolist(),
@@ -60,12 +63,12 @@ class CsvRows:
             whole = False
         if whole:
             return self.row_format % (
-                _csv_field(r.target), quoted[r.file], r.line, r.column, quoted[r.status],
+                csv_field(r.target), quoted[r.file], r.line, r.column, quoted[r.status],
                 quoted[r.tool], quoted[r.wobj], *c, r.correction_deg, r.joint_change,
                 quoted[r.config_before], quoted[r.config_after], *q, quoted[r.note])
         joint_text = ",".join(_num(v, 6) for v in q) if q else self.empty_joints
         return ",".join((
-            _csv_field(r.target), quoted[r.file], str(r.line), str(r.column),
+            csv_field(r.target), quoted[r.file], str(r.line), str(r.column),
             quoted[r.status], quoted[r.tool], quoted[r.wobj],
             *(_num(v, 4) for v in r.correction_mm), _num(r.correction_deg, 5),
             _num(r.joint_change, 5), quoted[r.config_before], quoted[r.config_after],
@@ -76,11 +79,11 @@ class Quoted(dict):
     """text -> its CSV field, computed once per distinct text."""
 
     def __missing__(self, text: str) -> str:
-        value = self[text] = _csv_field(text)
+        value = self[text] = csv_field(text)
         return value
 
 
-def _csv_field(text: str) -> str:
+def csv_field(text: str) -> str:
     """One CSV field as csv.writer writes it (quoted only when it must be)."""
     if "," in text or '"' in text or "\n" in text or "\r" in text:
         return '"' + text.replace('"', '""') + '"'

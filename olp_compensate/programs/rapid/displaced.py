@@ -19,7 +19,8 @@ from sys import intern
 
 import numpy as np
 
-from ...compensation.report import COMPENSATED, MergedRows, RowSource, TargetReport
+from ...compensation.report import COMPENSATED, MergedRows, RowSource, TargetReport, merged
+from ...compensation.report_csv import CsvRows, csv_field
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
 from .instructions import RUNTIME_FUNCS
 
@@ -100,6 +101,20 @@ class DisplacedMoves:
                             status="runtime", tool=self.tools[i] or "",
                             wobj=self.wobjs[i] or "", note=self.reasons[i])
 
+    def csv_lines(self, rows: list[int], text: str, file: str, writer: CsvRows) -> list[str]:
+        """The report's CSV lines of rows ``rows``: those of :meth:`report_row`, written
+        without making the rows."""
+        s, tools, wobjs, reasons = self.numbers, self.tools, self.wobjs, self.reasons
+        line, quoted = writer.bare_line, writer.quoted
+        file, status = quoted[file], quoted["runtime"]
+        out = []
+        for i in rows:
+            k = _WIDTH * i
+            out.append(line % (csv_field(text[s[k + 6]:s[k + 7]]), file, s[k], s[k + 1],
+                               status, quoted[tools[i] or ""], quoted[wobjs[i] or ""], "",
+                               "", quoted[reasons[i]]))
+        return out
+
     def subset(self, keep: np.ndarray) -> DisplacedMoves:
         """A table of the rows where ``keep`` (n,) bool is true, in order."""
         out = DisplacedMoves()
@@ -136,6 +151,15 @@ class RowsWithDisplaced(RowSource, MergedRows):
 
     def keys(self) -> np.ndarray:
         return self.sorted_keys
+
+    def csv_lines(self, rows: list[int], writer: CsvRows) -> list[str]:
+        """The CSV lines of rows ``rows``: the table's written without making its rows."""
+        order = self.order[rows]
+        mine = order >= 0
+        objects, line = self.objects, writer.line
+        return merged(mine, [line(objects[j]) + "\n" for j in order[mine].tolist()],
+                      self.table.csv_lines((-1 - order[~mine]).tolist(), self.text,
+                                           self.file, writer))
 
     def statuses(self):
         """The status of each row, in order, without making the table's rows."""
