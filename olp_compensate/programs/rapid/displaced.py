@@ -22,6 +22,7 @@ import numpy as np
 from ...compensation.report import COMPENSATED, MergedRows, RowSource, TargetReport, merged
 from ...compensation.report_csv import CsvRows, csv_field
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
+from .columns import lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
 _WIDTH = 10
@@ -46,13 +47,12 @@ class DisplacedMoves:
     def __len__(self) -> int:
         return len(self.reasons)
 
-    def add(self, line: int, column: int, regs: tuple, instruction: str, function: str,
-            tool: str, wobj: str | None, routine: str | None) -> None:
-        """Add a row: where the target expression starts (1-based ``line``, ``column``),
-        the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py: 1 instruction,
-        2 expression, 4 target name, 7 the arguments' end), its words as written."""
-        self.numbers.extend((line, column, *regs[1], regs[0][0], regs[7][0], *regs[2],
-                             *regs[4]))
+    def add(self, regs: tuple, instruction: str, function: str, tool: str,
+            wobj: str | None, routine: str | None) -> None:
+        """Add a row: the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py:
+        1 instruction, 2 expression, 4 target name, 7 the arguments' end), its words as
+        written; its line and column are set by :meth:`place`."""
+        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[7][0], *regs[2], *regs[4]))
         words = self._words
         instruction = words.setdefault(instruction, instruction)
         key = (function, instruction)
@@ -64,6 +64,13 @@ class DisplacedMoves:
         self.tools.append(words.setdefault(tool, tool))
         self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
         self.routines.append(routine)
+
+    def place(self, line_starts: np.ndarray) -> None:
+        """Set each row's 1-based line and column, of where its target expression starts,
+        from the offsets where the text's lines start."""
+        if len(self):
+            s = np.frombuffer(self.numbers, np.int64).reshape(-1, _WIDTH)
+            s[:, 0], s[:, 1] = lines_and_columns(s[:, 6], line_starts)
 
     def _row(self, i: int) -> array:
         return self.numbers[_WIDTH * i:_WIDTH * i + _WIDTH]
