@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..programs.number_format import fixed_rows
 from .pose import COMPENSATED
+from .report_csv import CsvRows
 
 __all__ = ["TargetReport", "CompensationReport", "KEPT", "config_text", "config_texts"]
 
@@ -130,7 +130,7 @@ class CompensationReport:
              "dz_mm", "drot_deg", "dq_max_deg", "config_before", "config_after",
              *joint_columns, "note"])
         yield buf.getvalue()
-        writer = _CsvRows(self.n_joints)
+        writer = CsvRows(self.n_joints)
         if isinstance(self.rows, RowSequence):
             yield from self.rows.csv_chunks(writer)
             return
@@ -151,85 +151,6 @@ class CompensationReport:
         if isinstance(self.rows, RowSequence):
             return self.rows.problem_rows()
         return [r for r in self.rows if not r.fine]
-
-
-class _CsvRows:
-    """CSV lines of report rows: one %-format per complete row (100k-target programs); a
-    row with a missing number takes the per-field path. Repeated fields are quoted once."""
-
-    def __init__(self, n_joints: int):
-        self.n_joints = n_joints
-        self.row_format = ",".join(["%s,%s,%d,%d,%s,%s,%s"] + ["%.4f"] * 3 + ["%.5f"] * 2
-                                   + ["%s,%s"] + ["%.6f"] * n_joints + ["%s"])
-        # of column rows: each run of numbers written beforehand (fixed_rows), one field
-        self.row_line = ",".join(["%s,%s,%d,%d,%s,%s,%s,%s,%s,%s,%s"] + ["%s"] * bool(
-            n_joints) + ["%s"]) + "\n"
-        self.width = 12 + bool(n_joints)    # fields of a column row
-        self.empty_joints = "," * (n_joints - 1)
-        self.quoted = _Quoted()
-
-    def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
-        """The fields of :attr:`row_line` for the complete rows ``rows`` of ``c``, row
-        after row in one flat list (each column converted in one pass, the numbers of a
-        row's runs of floats written together: :func:`fixed_rows`)."""
-        if not len(rows):
-            return []
-        quoted = self.quoted.__getitem__
-        r = rows.tolist()
-        names = [c.names[i] for i in r]
-        if any(ch in "".join(names) for ch in ',"\n\r'):
-            names = list(map(_csv_field, names))
-        tools = [(quoted(t), quoted(w)) for t, w in c.pair_names]
-        tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
-        columns = [names, itertools.repeat(quoted(c.file)), c.line[rows].tolist(),
-                   c.column[rows].tolist(), map(quoted, [c.status[i] for i in r]), tool, wobj,
-                   fixed_rows(c.correction_mm[rows], 4),
-                   fixed_rows(np.stack([c.correction_deg[rows], c.joint_change[rows]], 1), 5),
-                   map(quoted, [c.config_before[i] for i in r]),
-                   map(quoted, [c.config_after[i] for i in r]),
-                   *[fixed_rows(c.joints[rows], 6)] * bool(self.n_joints),
-                   map(quoted, [c.note[i] for i in r])]
-        return list(itertools.chain.from_iterable(zip(*columns)))
-
-    def line(self, r: TargetReport) -> str:
-        quoted = self.quoted
-        c, q = r.correction_mm, r.joints
-        try:   # one sum: NaN or inf anywhere makes it non-finite
-            whole = (len(c) == 3 and len(q) == self.n_joints and math.isfinite(
-                c[0] + c[1] + c[2] + r.correction_deg + r.joint_change + sum(q)))
-        except TypeError:   # a None
-            whole = False
-        if whole:
-            return self.row_format % (
-                _csv_field(r.target), quoted[r.file], r.line, r.column, quoted[r.status],
-                quoted[r.tool], quoted[r.wobj], *c, r.correction_deg, r.joint_change,
-                quoted[r.config_before], quoted[r.config_after], *q, quoted[r.note])
-        joint_text = ",".join(_num(v, 6) for v in q) if q else self.empty_joints
-        return ",".join((
-            _csv_field(r.target), quoted[r.file], str(r.line), str(r.column),
-            quoted[r.status], quoted[r.tool], quoted[r.wobj],
-            *(_num(v, 4) for v in r.correction_mm), _num(r.correction_deg, 5),
-            _num(r.joint_change, 5), quoted[r.config_before], quoted[r.config_after],
-            joint_text, quoted[r.note]))
-
-
-class _Quoted(dict):
-    """text -> its CSV field, computed once per distinct text."""
-
-    def __missing__(self, text: str) -> str:
-        value = self[text] = _csv_field(text)
-        return value
-
-
-def _csv_field(text: str) -> str:
-    """One CSV field as csv.writer writes it (quoted only when it must be)."""
-    if "," in text or '"' in text or "\n" in text or "\r" in text:
-        return '"' + text.replace('"', '""') + '"'
-    return text
-
-
-def _num(value: float, decimals: int) -> str:
-    return "" if value is None or not math.isfinite(value) else f"{value:.{decimals}f}"
 
 
 # ---- confdata as text ---------------------------------------------------------------
@@ -343,18 +264,22 @@ class RowSequence(Sequence):
     def largest_correction(self) -> tuple[float, float, float] | None:
         raise NotImplementedError
 
-    def csv_chunks(self, writer: _CsvRows):
+    def csv_chunks(self, writer: CsvRows):
         raise NotImplementedError
 
 
-class ReportRows(RowSequence):
-    """The rows of a report as a sequence of :class:`TargetReport`, made on access from
-    ``columns`` (compensated targets) and ``others`` (rows held as objects), in the
-    ``order`` given: ``order[k] >= 0`` is column row ``order[k]``, ``-1 - j`` is
-    ``others[j]``."""
+class MergedRows(Sequence):
+    """Rows of two sources merged in the order ``order`` (n,) int: ``order[k] >= 0`` is
+    the first source's row ``order[k]``, ``-1 - j`` the second's row ``j``; each made on
+    access by :meth:`first_row` and :meth:`second_row`."""
 
-    def __init__(self, columns: RowColumns, others: list, order: np.ndarray):
-        self.columns, self.others, self.order = columns, others, order
+    order: np.ndarray
+
+    def first_row(self, j: int) -> TargetReport:
+        raise NotImplementedError
+
+    def second_row(self, j: int) -> TargetReport:
+        raise NotImplementedError
 
     def __len__(self) -> int:
         return len(self.order)
@@ -363,33 +288,88 @@ class ReportRows(RowSequence):
         if isinstance(k, slice):
             return [self[i] for i in range(*k.indices(len(self)))]
         j = int(self.order[k])
-        return self.columns.row(j) if j >= 0 else self.others[-1 - j]
+        return self.first_row(j) if j >= 0 else self.second_row(-1 - j)
 
     def __iter__(self):
-        row, others = self.columns.row, self.others
+        first, second = self.first_row, self.second_row
         for j in self.order.tolist():
-            yield row(j) if j >= 0 else others[-1 - j]
+            yield first(j) if j >= 0 else second(-1 - j)
+
+
+class RowSource(Sequence):
+    """Report rows held beside a report's columns (the ``others`` of
+    :class:`ReportRows`), in text order, with the summaries the report asks of them."""
+
+    def keys(self) -> np.ndarray:
+        """(n,) int64: ``line << 32 | column`` of each row, in order."""
+        return np.fromiter(((r.line << 32) | r.column for r in self), np.int64, len(self))
+
+    def statuses(self):
+        """The status of each row, in order."""
+        return (r.status for r in self)
+
+    def compensated_rows(self):
+        """The compensated rows, any order."""
+        return (r for r in self if r.status in COMPENSATED)
+
+    def problem_rows(self) -> Sequence:
+        """The rows neither compensated nor needing none, in order."""
+        return [r for r in self if not r.fine]
+
+    def csv_lines(self, rows: list[int], writer: CsvRows) -> list[str]:
+        """The CSV lines (each ending in a line break) of rows ``rows``, in that order."""
+        return [writer.line(self[j]) + "\n" for j in rows]
+
+
+class ListedRows(RowSource):
+    """A list of :class:`TargetReport` (in text order) as a :class:`RowSource`."""
+
+    def __init__(self, rows: list):
+        self.rows = rows
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, k):
+        return self.rows[k]
+
+    def __iter__(self):
+        return iter(self.rows)
+
+
+def row_source(rows) -> RowSource:
+    """``rows`` as a :class:`RowSource`: itself if one, else a list of rows in text order."""
+    return rows if isinstance(rows, RowSource) else ListedRows(list(rows))
+
+
+class ReportRows(RowSequence, MergedRows):
+    """The rows of a report as a sequence of :class:`TargetReport`, made on access from
+    ``columns`` (compensated targets) and ``others`` (a :class:`RowSource`, or a list of
+    rows in text order), in the ``order`` given: ``order[k] >= 0`` is column row
+    ``order[k]``, ``-1 - j`` is ``others[j]``."""
+
+    def __init__(self, columns: RowColumns, others, order: np.ndarray):
+        self.columns, self.order = columns, order
+        self.others = row_source(others)
+
+    def first_row(self, j: int) -> TargetReport:
+        return self.columns.row(j)
+
+    def second_row(self, j: int) -> TargetReport:
+        return self.others[j]
 
     def counts(self) -> dict[str, int]:
         out: dict[str, int] = {}
-        for status in self.columns.status:
-            out[status] = out.get(status, 0) + 1
-        others = self.others
-        statuses = others.statuses() if hasattr(others, "statuses") else \
-            (r.status for r in others)   # others made on access give their statuses
-        for status in statuses:
+        for status in itertools.chain(self.columns.status, self.others.statuses()):
             out[status] = out.get(status, 0) + 1
         return out
 
-    def problem_rows(self) -> list[TargetReport]:
-        if hasattr(self.others, "problem_rows"):   # others made on access: a sequence
-            return self.others.problem_rows()
-        return [r for r in self.others if not r.fine]   # others keep their text order
+    def problem_rows(self) -> Sequence:
+        return self.others.problem_rows()   # column rows are all compensated
 
     def largest_correction(self) -> tuple[float, float, float] | None:
-        c, others = self.columns, self.others
-        found = _largest(others.compensated_rows() if hasattr(others, "compensated_rows")
-                         else (r for r in others if r.status in COMPENSATED))
+        c = self.columns
+        found = _largest(self.others.compensated_rows())
         if not len(c):
             return found
         change = c.joint_change[~np.isnan(c.joint_change)]
@@ -399,10 +379,10 @@ class ReportRows(RowSequence):
             return ours
         return tuple(max(a, b) for a, b in zip(ours, found))
 
-    def csv_chunks(self, writer: _CsvRows):
+    def csv_chunks(self, writer: CsvRows):
         """The CSV lines of the rows, in pieces of :data:`CSV_CHUNK` rows: each run of
-        complete column rows in one ``%`` format (:meth:`_CsvRows.column_fields`), the
-        others row by row."""
+        complete column rows in one ``%`` format (:meth:`CsvRows.column_fields`), the
+        others' lines from :meth:`RowSource.csv_lines`."""
         c, others = self.columns, self.others
         whole = np.isfinite(c.correction_mm.sum(axis=1) + c.correction_deg + c.joint_change
                             + c.joints.sum(axis=1)) if len(c) else np.zeros(0, bool)
@@ -414,16 +394,26 @@ class ReportRows(RowSequence):
             width = writer.width
             pieces = []
             bounds = [0, *(np.flatnonzero(fast[1:] != fast[:-1]) + 1).tolist(), len(order)]
+            slow = order[~fast]
+            theirs = slow < 0
+            lines = merged(theirs, others.csv_lines((-1 - slow[theirs]).tolist(), writer),
+                           [writer.line(c.row(j)) + "\n" for j in slow[~theirs].tolist()])
             done = 0    # fast rows written
             for a, b in zip(bounds, bounds[1:]):
                 if fast[a]:
                     pieces.append((writer.row_line * (b - a)) % tuple(
                         fields[done * width:(done + b - a) * width]))
                     done += b - a
-                    continue
-                for j in order[a:b].tolist():
-                    pieces.append(writer.line(others[-1 - j] if j < 0 else c.row(j)) + "\n")
+                else:
+                    pieces.append("".join(lines[a - done:b - done]))
             yield "".join(pieces)
+
+
+def merged(mask: np.ndarray, yes: list, no: list) -> list:
+    """One list of ``yes`` (at the places ``mask`` (n,) bool is true, in order) and
+    ``no`` (at the others)."""
+    take_yes, take_no = iter(yes).__next__, iter(no).__next__
+    return [take_yes() if m else take_no() for m in mask.tolist()]
 
 
 class ChainedRows(RowSequence):
@@ -472,7 +462,7 @@ class ChainedRows(RowSequence):
         found = [f for f in found if f is not None]
         return tuple(max(values) for values in zip(*found)) if found else None
 
-    def csv_chunks(self, writer: _CsvRows):
+    def csv_chunks(self, writer: CsvRows):
         for part in self.parts:
             if isinstance(part, RowSequence):
                 yield from part.csv_chunks(writer)

@@ -161,16 +161,15 @@ def outside_their_routine(routines: list, move_routines: list, rows: np.ndarray)
 def plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = ()
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(targets (n,) bool, motions (k,) bool, displaced (d,) bool): the table rows whose
-    meaning is plain
-    within the module. A target is not plain when its name is declared twice, named by
-    any of the module's objects (a run-time expression, routine argument, copy,
-    assignment, another declaration), moved to with an index, or moved to with several
-    tool/work-object pairs, or (a routine's target) moved to from another routine, or
-    moved to only through Offs()/RelTool(); a motion is not plain when its target is not a
-    plain table target (a name the table does not declare). The rows that are not plain
-    go to the object path together with every table motion to them. ``displaced``: the
-    lower-case names Offs()/RelTool() motions held as rows displace; such a motion stays a
-    row where its target is a plain table target."""
+    meaning is plain within the module. A target is not plain when its name is declared
+    twice, named by any of the module's objects (a run-time expression, routine argument,
+    copy, assignment, another declaration), moved to with an index, or moved to with
+    several tool/work-object pairs, or (a routine's target) moved to from another
+    routine, or moved to only through Offs()/RelTool(); a motion is not plain when its
+    target is not a plain table target (a name the table does not declare). The rows that
+    are not plain go to the object path together with every table motion to them.
+    ``displaced``: the lower-case names Offs()/RelTool() motions held as rows displace;
+    such a motion stays a row where its target is a plain table target."""
     table, moves = columns.targets, columns.moves
     lower = [name if name.islower() else name.lower() for name in table.names]
     row_of: dict[str, int] = {}

@@ -74,7 +74,7 @@ class TargetTable:
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
-        self.line, self.column = _lines_and_columns(self.offsets, line_starts)
+        self.line, self.column = lines_and_columns(self.offsets, line_starts)
 
     def span_columns(self) -> np.ndarray:
         """(n, 6) int: literal start, end, type word start, end, first number start,
@@ -173,7 +173,7 @@ class MoveTable:
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
-        self.line, self.column = _lines_and_columns(self.spans[4::6], line_starts)
+        self.line, self.column = lines_and_columns(self.spans[4::6], line_starts)
 
     def subset(self, keep: np.ndarray) -> MoveTable:
         """A table of the rows where ``keep`` (n,) bool is true, in order."""
@@ -224,14 +224,17 @@ class ModuleColumns:
     targets: TargetTable
     moves: MoveTable
 
-    def place(self, line_starts) -> None:
-        """Give every row its line and column (``line_starts``: where the lines start)."""
+    def place(self, line_starts, displaced=None) -> None:
+        """Give every row its line and column (``line_starts``: where the lines start),
+        those of ``displaced`` (a :class:`~.displaced.DisplacedMoves`, or None) too."""
         starts = np.asarray(line_starts, np.int64)
         self.targets.place(starts)
         self.moves.place(starts)
+        if displaced is not None:
+            displaced.place(starts)
 
 
-def _lines_and_columns(offsets, line_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def lines_and_columns(offsets, line_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """1-based (line, column) arrays of character ``offsets``."""
     at = np.asarray(offsets, np.int64)
     line = np.searchsorted(line_starts, at, side="right")

@@ -19,8 +19,10 @@ from sys import intern
 
 import numpy as np
 
-from ...compensation.report import COMPENSATED, TargetReport
+from ...compensation.report import COMPENSATED, MergedRows, RowSource, TargetReport, merged
+from ...compensation.report_csv import CsvRows, csv_field
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
+from .columns import lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
 _WIDTH = 10
@@ -45,13 +47,12 @@ class DisplacedMoves:
     def __len__(self) -> int:
         return len(self.reasons)
 
-    def add(self, line: int, column: int, regs: tuple, instruction: str, function: str,
-            tool: str, wobj: str | None, routine: str | None) -> None:
-        """Add a row: where the target expression starts (1-based ``line``, ``column``),
-        the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py: 1 instruction,
-        2 expression, 4 target name, 7 the arguments' end), its words as written."""
-        self.numbers.extend((line, column, *regs[1], regs[0][0], regs[7][0], *regs[2],
-                             *regs[4]))
+    def add(self, regs: tuple, instruction: str, function: str, tool: str,
+            wobj: str | None, routine: str | None) -> None:
+        """Add a row: the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py:
+        1 instruction, 2 expression, 4 target name, 7 the arguments' end), its words as
+        written; its line and column are set by :meth:`place`."""
+        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[7][0], *regs[2], *regs[4]))
         words = self._words
         instruction = words.setdefault(instruction, instruction)
         key = (function, instruction)
@@ -63,6 +64,13 @@ class DisplacedMoves:
         self.tools.append(words.setdefault(tool, tool))
         self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
         self.routines.append(routine)
+
+    def place(self, line_starts: np.ndarray) -> None:
+        """Set each row's 1-based line and column, of where its target expression starts,
+        from the offsets where the text's lines start."""
+        if len(self):
+            s = np.frombuffer(self.numbers, np.int64).reshape(-1, _WIDTH)
+            s[:, 0], s[:, 1] = lines_and_columns(s[:, 6], line_starts)
 
     def _row(self, i: int) -> array:
         return self.numbers[_WIDTH * i:_WIDTH * i + _WIDTH]
@@ -100,6 +108,20 @@ class DisplacedMoves:
                             status="runtime", tool=self.tools[i] or "",
                             wobj=self.wobjs[i] or "", note=self.reasons[i])
 
+    def csv_lines(self, rows: list[int], text: str, file: str, writer: CsvRows) -> list[str]:
+        """The report's CSV lines of rows ``rows``: those of :meth:`report_row`, written
+        without making the rows."""
+        s, tools, wobjs, reasons = self.numbers, self.tools, self.wobjs, self.reasons
+        line, quoted = writer.bare_line, writer.quoted
+        file, status = quoted[file], quoted["runtime"]
+        out = []
+        for i in rows:
+            k = _WIDTH * i
+            out.append(line % (csv_field(text[s[k + 6]:s[k + 7]]), file, s[k], s[k + 1],
+                               status, quoted[tools[i] or ""], quoted[wobjs[i] or ""], "",
+                               "", quoted[reasons[i]]))
+        return out
+
     def subset(self, keep: np.ndarray) -> DisplacedMoves:
         """A table of the rows where ``keep`` (n,) bool is true, in order."""
         out = DisplacedMoves()
@@ -113,7 +135,7 @@ class DisplacedMoves:
         return out
 
 
-class RowsWithDisplaced(Sequence):
+class RowsWithDisplaced(RowSource, MergedRows):
     """Report rows held as objects (``objects``, in line/column order) and the rows of a
     :class:`DisplacedMoves` table of ``text`` (``file``), merged in line/column order
     (an object first where both are at the same place); a displaced row is made on
@@ -128,20 +150,23 @@ class RowsWithDisplaced(Sequence):
         self.sorted_keys = keys[order]
         self.order = np.where(order < len(objects), order, len(objects) - 1 - order)
 
-    def __len__(self) -> int:
-        return len(self.order)
+    def first_row(self, j: int) -> TargetReport:
+        return self.objects[j]
 
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        j = int(self.order[k])
-        return self.objects[j] if j >= 0 else self.table.report_row(-1 - j, self.text,
-                                                                     self.file)
+    def second_row(self, j: int) -> TargetReport:
+        return self.table.report_row(j, self.text, self.file)
 
-    def __iter__(self):
-        objects, row, text, file = self.objects, self.table.report_row, self.text, self.file
-        for j in self.order.tolist():
-            yield objects[j] if j >= 0 else row(-1 - j, text, file)
+    def keys(self) -> np.ndarray:
+        return self.sorted_keys
+
+    def csv_lines(self, rows: list[int], writer: CsvRows) -> list[str]:
+        """The CSV lines of rows ``rows``: the table's written without making its rows."""
+        order = self.order[rows]
+        mine = order >= 0
+        objects, line = self.objects, writer.line
+        return merged(mine, [line(objects[j]) + "\n" for j in order[mine].tolist()],
+                      self.table.csv_lines((-1 - order[~mine]).tolist(), self.text,
+                                           self.file, writer))
 
     def statuses(self):
         """The status of each row, in order, without making the table's rows."""

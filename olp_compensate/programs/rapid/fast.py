@@ -263,6 +263,7 @@ _INLINE_NUMBERS = range(3, 20)
 _DISPLACED_MOVE = re.compile(
     r"((?i:MoveL|MoveJ))[ \t]+(((?i:Offs|RelTool))\([ \t]*([A-Za-z_][A-Za-z0-9_]*)"
     r"(?:[ \t]*,[ \t]*-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?){3}[ \t]*\))" + _MOVE_TAIL)
+_NO_MATCH = re.compile(r"(?!)")
 
 
 def _on_fast_calls(tok: Token) -> Token:
@@ -274,13 +275,12 @@ def _on_fast_calls(tok: Token) -> Token:
 def _split_fast_calls(tok: Token, sink: Sink) -> None:
     """Record the calls of a FAST_CALLS run (anchored, in order).
 
-    MoveL/MoveJ of the plainest form become MotionUse, or rows of the motions' table, at
-    once (one regex match each);
-    other argument lists are split by one regex (plain values and optional arguments) or
-    item by item. A motion instruction whose arguments none of these reads is parsed
-    again by the grammar (start symbol ``call``), which records it or raises the error;
-    so is any other call whose arguments they do not read.
-    """
+    MoveL/MoveJ of the plainest form (and of Offs()/RelTool(): :func:`_plain_moves`)
+    become MotionUse, or table rows, at once (one regex match each); other argument
+    lists are split by one regex (plain values and optional arguments) or item by item.
+    A motion instruction whose arguments none of these reads is parsed again by the
+    grammar (start symbol ``call``), which records it or raises the error; so is any
+    other call whose arguments they do not read."""
     text, pos, end = sink.text, tok.start_pos, tok.end_pos
     out, inline, displaced = sink.calls, _INLINE_MOVE.match, _DISPLACED_MOVE.match
     name_match, skip = _NAME_RE.match, _SEP_RE.match
@@ -318,13 +318,18 @@ def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
     (a column parse, placed in lines afterwards), else as MotionUse objects in
     ``sink.motions``. Returns the offset after them."""
     match, routine = _SIMPLE_MOVE.match, sink.routine
-    if sink.columns is not None:
-        add = sink.columns.moves.append
-        while (m := match(text, pos, end)) is not None:
-            regs = m.regs
-            add(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
+    if sink.columns is not None:   # and the plain Offs()/RelTool() ones, where held as rows
+        add, table = sink.columns.moves.append, sink.displaced
+        displaced = (_NO_MATCH if table is None else _DISPLACED_MOVE).match
+        while True:
+            if (m := match(text, pos, end)) is not None:
+                regs = m.regs
+                add(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
+            elif (m := displaced(text, pos, end)) is not None:
+                table.add(m.regs, *m.group(1, 3, 5, 6), routine)   # (lines: table.place)
+            else:
+                return pos
             pos = m.end()
-        return pos
     append, file = sink.motions.append, sink.file
     count, rfind = text.count, text.rfind
     index = sink.index
@@ -379,10 +384,6 @@ def _displaced_move(sink: Sink, m: re.Match) -> None:
     the builder makes of the same call (build.py ``Builder.call``), without its records."""
     span = m.span(2)
     line, col = sink.index.line_col(span[0])
-    if sink.displaced is not None:   # a row (displaced.py): the objects made on access
-        regs = m.regs
-        sink.displaced.add(line, col, regs, *m.group(1, 3, 5, 6), sink.routine)
-        return
     instruction, expression, function, tool, wobj = m.group(1, 2, 3, 5, 6)
     # one string per distinct word (a module holds thousands of these motions)
     instruction, tool = intern(instruction), intern(tool)
@@ -494,7 +495,6 @@ def _items_regex(text: str, pos: int, end: int):
 
 LEXER_CALLBACKS = {
     "FAST_DECLS": _on_fast_decls, "FAST_CALLS": _on_fast_calls, "NAME": _on_name,
-
     "PROC": _enter_routine, "FUNC": _enter_routine, "TRAP": _enter_routine,
     "ENDPROC": _leave_routine, "ENDFUNC": _leave_routine, "ENDTRAP": _leave_routine}
 """Token callbacks (lark ``lexer_callbacks``): they run in text order, as tokens are read."""

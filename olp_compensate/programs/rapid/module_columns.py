@@ -42,7 +42,8 @@ import numpy as np
 
 from ...compensation.pose import Compensator
 from ...compensation.report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport,
-                                    ReportRows, RowColumns, TargetReport, config_texts)
+                                    ReportRows, RowColumns, TargetReport, config_texts,
+                                    row_source)
 from ...kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                        pose_from_rotation_translation, quat_wxyz_from_matrix)
 from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
@@ -415,24 +416,20 @@ class _TablePart:
             edits.sort(key=_START)
         return edits
 
-    def rows(self, others: list[TargetReport]) -> ReportRows:
+    def rows(self, others) -> ReportRows:
         """All rows of the module in text order: the table's compensated rows and
-        ``others`` (in text order)."""
+        ``others`` (a :class:`RowSource` or a list of rows, in text order)."""
         if self.parts:
             columns = RowColumns.concatenate(self.parts)
             self.parts = []
         else:
             columns = RowColumns.concatenate([_empty_columns(self.program.file,
                                                              self.comp.robot.n_joints)])
+        others = row_source(others)
         key_columns = (columns.line << 32) | columns.column
-        if isinstance(others, RowsWithDisplaced):
-            key_others = others.sorted_keys
-        else:
-            key_others = np.fromiter(((r.line << 32) | r.column for r in others), np.int64,
-                                     len(others))
         order = np.concatenate([np.arange(len(columns)), -1 - np.arange(len(others))])
         return ReportRows(columns, others, order[np.argsort(
-            np.concatenate([key_columns, key_others]), kind="stable")])
+            np.concatenate([key_columns, others.keys()]), kind="stable")])
 
 
 class _Targets:

@@ -227,7 +227,7 @@ def parse_rapid_columns(text: str, file: str = "<string>", displaced=None
     the caller's to restore), else they are objects."""
     columns = ModuleColumns(TargetTable(), MoveTable())
     program = _parse(text, file, columns, displaced)
-    columns.place(LineIndex(text).starts)
+    columns.place(LineIndex(text).starts, displaced)
     return program, columns
 
 
