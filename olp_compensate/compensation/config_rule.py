@@ -46,7 +46,7 @@ __all__ = ["Candidates", "search", "decide", "confdata_asked", "turn_toward_rang
 
 SEARCH_STEPS = 60
 """Newton steps of each start of the search (a start that stalls stops after 20, or
-after 8 where another start of its target is already closer: :mod:`.ik.stalls`)."""
+after 5 where another start of its target is already closer: :mod:`.ik.stalls`)."""
 SEARCH_BLOCK = 512
 """Failed targets whose starts and candidates are made together (nine starts each)."""
 SEARCH_SPAN = 4096

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-STALL_WINDOW = 8
+STALL_WINDOW = 5
 """Newton steps over which a stalled start's error has not fallen by :data:`STALL_RELATIVE`."""
 STALL_RELATIVE = 1e-6
 """Relative fall of the squared error (m^2 + rad^2) over :data:`STALL_WINDOW` steps below
