@@ -31,7 +31,7 @@ search results.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
@@ -139,12 +139,13 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
 
 
 def searched_blocks(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
-                    ) -> list[tuple[int, int, Candidates]]:
+                    ) -> Iterator[tuple[int, int, Candidates]]:
     """:func:`search` of ``desired (k, 4, 4)`` (and ``own``) as ``(a, b, candidates of
     rows a:b)`` for blocks of :data:`SEARCH_BLOCK` rows: the starts and candidates are
     made block by block (arrays that stay in the processor's cache), the Newton of every
     start of every block runs :data:`SEARCH_POOL` at a time (a finished start's place
-    taken by the next, a start stalled behind another of its target stopped)."""
+    taken by the next, a start stalled behind another of its target stopped); a block's
+    candidates are made when the caller asks for them."""
     k = len(desired)
     blocks = [(a, min(a + SEARCH_BLOCK, k)) for a in range(0, k, SEARCH_BLOCK)]
     starts = []
@@ -154,7 +155,7 @@ def searched_blocks(comp: Compensator, desired: np.ndarray, own: np.ndarray | No
             block = np.concatenate([block, np.asarray(own[a:b], dtype=float)[:, None]], 1)
         starts.append(block)
     if not blocks:
-        return []
+        return
     width, n = starts[0].shape[1], starts[0].shape[2]
     flat = np.concatenate([block.reshape(-1, n) for block in starts])
     first = np.concatenate([_first_copies(block) + a * width
@@ -162,8 +163,9 @@ def searched_blocks(comp: Compensator, desired: np.ndarray, own: np.ndarray | No
     given = np.all(np.isfinite(flat), axis=1)
     target = np.repeat(np.arange(k), width)
     ends = _newton_once(comp, flat, desired, given, first, target)
-    return [(a, b, _candidates(comp, ends, given, slice(a * width, b * width), b - a, width,
-                               own is not None)) for a, b in blocks]
+    for a, b in blocks:
+        yield a, b, _candidates(comp, ends, given, slice(a * width, b * width), b - a, width,
+                                own is not None)
 
 
 def _candidates(comp: Compensator, ends: _Ends, given: np.ndarray, part: slice, k: int,
