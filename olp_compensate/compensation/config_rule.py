@@ -20,8 +20,9 @@ asks for, inside every controller axis range and URDF joint limit) gets exactly 
 :func:`decide` applies the rule to the failed rows of an :class:`~.ik.IKSolution`;
 :func:`search` is the shared work: damped Newton of the calibrated arm from the nominal
 closed form of every branch (stretched where out of reach) and from the solver's own last
-iterate, :data:`SEARCH_BLOCK` rows with all their starts in one batch, at most
-:data:`SEARCH_STEPS` steps each. What
+iterate, at most :data:`SEARCH_STEPS` steps each, the starts of :data:`SEARCH_SPAN` rows
+iterating :data:`SEARCH_POOL` at a time (a start stalled behind another of its row stops:
+:mod:`.ik.stalls`). What
 "the configuration asked for" means is a predicate (:data:`Asked`): ABB confdata here
 (:func:`confdata_asked`), a dialect's written configuration in
 :mod:`.dialect_program`. Joints: URDF axes in IK solutions, controller axes (rad/m) in the
