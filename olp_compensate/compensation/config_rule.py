@@ -20,8 +20,9 @@ asks for, inside every controller axis range and URDF joint limit) gets exactly 
 :func:`decide` applies the rule to the failed rows of an :class:`~.ik.IKSolution`;
 :func:`search` is the shared work: damped Newton of the calibrated arm from the nominal
 closed form of every branch (stretched where out of reach) and from the solver's own last
-iterate, :data:`SEARCH_BLOCK` rows with all their starts in one batch, at most
-:data:`SEARCH_STEPS` steps each. What
+iterate, at most :data:`SEARCH_STEPS` steps each, the starts of :data:`SEARCH_SPAN` rows
+iterating :data:`SEARCH_POOL` at a time (a start stalled behind another of its row stops:
+:mod:`.ik.stalls`). What
 "the configuration asked for" means is a predicate (:data:`Asked`): ABB confdata here
 (:func:`confdata_asked`), a dialect's written configuration in
 :mod:`.dialect_program`. Joints: URDF axes in IK solutions, controller axes (rad/m) in the
@@ -31,11 +32,12 @@ search results.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
 from .ik import IKSolution, closed_form_inverse, refine
+from .ik.stalls import BehindAndStalled
 
 if TYPE_CHECKING:
     from .pose import Compensator
@@ -44,10 +46,19 @@ __all__ = ["Candidates", "search", "decide", "confdata_asked", "turn_toward_rang
            "QUADRANT_TOLERANCE", "SEARCH_STEPS"]
 
 SEARCH_STEPS = 60
-"""Newton steps of each start of the search (a start that stalls stops after 20)."""
+"""Newton steps of each start of the search (a start that stalls stops after 20, or
+after 5 where another start of its target is already closer: :mod:`.ik.stalls`)."""
 SEARCH_BLOCK = 512
-"""Failed targets searched together (nine starts each): bounds the search's memory (2,048
-held 45 MB at once, 512 holds 13 MB, for the same CPU time)."""
+"""Failed targets whose starts and candidates are made together (nine starts each)."""
+SEARCH_SPAN = 4096
+"""Failed targets decided together: their starts' Newton runs in one pool (about 1.5 KB a
+target held at once, the pool aside)."""
+SEARCH_POOL = 4608
+"""Starts of the search's Newton iterating at once, a finished start's place taken by the
+next (:func:`~.ik.newton.pooled_newton`): bounds the Newton's memory as 512 targets of nine
+starts did in one batch (13 MB; 2,048 targets held 45 MB), with far fewer passes: the
+benchmark's 20,000 all-failing targets took 2,400 passes of about 0.6 ms each beyond their
+rows' cost in blocks of 512 targets."""
 QUADRANT_TOLERANCE = np.pi / 4
 """An axis 1, 4 or 6 this far (rad) outside the asked quadrant is still on the asked
 configuration (as the solver's ``quadrant_tolerance``); the quadrant written is then the
@@ -117,24 +128,62 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
     """The calibrated arm's solutions of ``desired (k, 4, 4)`` (flange, base frame, m):
     damped Newton from the nominal closed form of every branch (stretched where the
     nominal arm falls short) and from ``own (k, n)`` (URDF rad: the solver's last iterate,
-    NaN where none), at most :data:`SEARCH_STEPS` steps each, all in one batch."""
-    robot = comp.robot
+    NaN where none), at most :data:`SEARCH_STEPS` steps each, all in one batch
+    (:func:`searched_blocks`, joined)."""
+    parts = [found for _, _, found in searched_blocks(comp, desired, own)]
+    if len(parts) == 1:
+        return parts[0]
+    fields = ("q", "reached", "inside", "reason", "position_error_m", "rotation_error_rad",
+              "excess", "cfx")
+    return Candidates(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in fields},
+                      cfx_of=parts[0].cfx_of, own=parts[0].own)
+
+
+def searched_blocks(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
+                    ) -> Iterator[tuple[int, int, Candidates]]:
+    """:func:`search` of ``desired (k, 4, 4)`` (and ``own``) as ``(a, b, candidates of
+    rows a:b)`` for blocks of :data:`SEARCH_BLOCK` rows: the starts and candidates are
+    made block by block (arrays that stay in the processor's cache), the Newton of every
+    start of every block runs :data:`SEARCH_POOL` at a time (a finished start's place
+    taken by the next, a start stalled behind another of its target stopped); a block's
+    candidates are made when the caller asks for them."""
     k = len(desired)
-    starts = closed_form_inverse(comp.family, desired, clip=True)             # (k, 8, n)
-    if own is not None:
-        starts = np.concatenate([starts, np.asarray(own, dtype=float)[:, None]], 1)
-    b, n = starts.shape[1], starts.shape[2]
-    flat = starts.reshape(-1, n)
+    blocks = [(a, min(a + SEARCH_BLOCK, k)) for a in range(0, k, SEARCH_BLOCK)]
+    starts = []
+    for a, b in blocks:
+        block = closed_form_inverse(comp.family, desired[a:b], clip=True)      # (r, 8, n)
+        if own is not None:
+            block = np.concatenate([block, np.asarray(own[a:b], dtype=float)[:, None]], 1)
+        starts.append(block)
+    if not blocks:
+        return
+    width, n = starts[0].shape[1], starts[0].shape[2]
+    flat = np.concatenate([block.reshape(-1, n) for block in starts])
+    first = np.concatenate([_first_copies(block) + a * width
+                            for block, (a, _) in zip(starts, blocks)])
     given = np.all(np.isfinite(flat), axis=1)
-    result = _newton_once(comp, flat, np.repeat(desired, b, axis=0), given,
-                          _first_copies(starts))
-    reason = np.where(given, result.reason, "unreachable")
+    target = np.repeat(np.arange(k), width)
+    ends = _newton_once(comp, flat, desired, given, first, target)
+    for a, b in blocks:
+        yield a, b, _candidates(comp, ends, given, slice(a * width, b * width), b - a, width,
+                                own is not None)
+
+
+def _candidates(comp: Compensator, ends: _Ends, given: np.ndarray, part: slice, k: int,
+                b: int, own: bool) -> Candidates:
+    """The :class:`Candidates` of the k targets (b starts each) whose starts are the flat
+    rows ``part`` of the search's Newton ``ends`` (``given``: the starts that are some)."""
+    robot = comp.robot
+    given = given[part]
+    n = ends.q.shape[1]
+    reason = np.where(given, ends.reason[part], "unreachable")
     reached = np.isin(reason, ("ok", "singular"))
+    end_q = ends.q[part]
     q = np.full((k * b, n), np.nan)
     if np.any(reached):
-        q[reached] = turn_toward_ranges(robot, robot.controller_from_joints(result.q[reached]))
+        q[reached] = turn_toward_ranges(robot, robot.controller_from_joints(end_q[reached]))
     q[~reached & given] = turn_toward_ranges(
-        robot, robot.controller_from_joints(result.q[~reached & given]))
+        robot, robot.controller_from_joints(end_q[~reached & given]))
     inside = reached.copy()
     excess = np.full(k * b, np.inf)
     cfx = np.full(k * b, -1)
@@ -145,13 +194,13 @@ def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
 
     def cfx_of(q_ctrl: np.ndarray) -> int:
         return int(comp.confdata(robot.joints_from_controller(q_ctrl[None]))[0, 3])
-    position = np.where(given, result.position_error_m, np.inf)
-    rotation = np.where(given, result.rotation_error_rad, np.inf)
+    position = np.where(given, ends.position_error_m[part], np.inf)
+    rotation = np.where(given, ends.rotation_error_rad[part], np.inf)
     return Candidates(q=q.reshape(k, b, n), reached=reached.reshape(k, b),
                       inside=inside.reshape(k, b), reason=reason.reshape(k, b),
                       position_error_m=position.reshape(k, b),
                       rotation_error_rad=rotation.reshape(k, b), excess=excess.reshape(k, b),
-                      cfx=cfx.reshape(k, b), cfx_of=cfx_of, own=own is not None)
+                      cfx=cfx.reshape(k, b), cfx_of=cfx_of, own=own)
 
 
 @dataclass(frozen=True)
@@ -177,17 +226,21 @@ def _first_copies(starts: np.ndarray) -> np.ndarray:
 
 
 def _newton_once(comp: Compensator, flat: np.ndarray, desired: np.ndarray,
-                 given: np.ndarray, first: np.ndarray) -> _Ends:
+                 given: np.ndarray, first: np.ndarray, target: np.ndarray) -> _Ends:
     """Damped Newton of the calibrated arm from each given start of ``flat (r, n)`` (URDF
-    rad) to ``desired (r, 4, 4)``, run once per ``first`` copy (:func:`_first_copies`; a
-    copy's iterates are its first's) and not at all where not given ('unreachable')."""
+    rad) to ``desired[target] ((r,) indices into desired (k, 4, 4), non-decreasing)``,
+    run once per ``first`` copy (:func:`_first_copies`; a copy's iterates are its first's)
+    and not at all where not given ('unreachable'); :data:`SEARCH_POOL` starts iterate at
+    once, and a start that has stalled behind another of its target stops early
+    (:class:`~.ik.stalls.BehindAndStalled`: it cannot be the one kept)."""
     r, n = flat.shape
     solve = given & (first == np.arange(r))
     ends = _Ends(q=np.full((r, n), np.nan), reason=np.full(r, "unreachable", dtype="<U14"),
                  position_error_m=np.full(r, np.inf), rotation_error_rad=np.full(r, np.inf))
     if np.any(solve):
-        result = refine(comp.real_flange_and_jacobian, flat[solve], desired[solve], None,
-                        1e-9, 1e-9, SEARCH_STEPS)
+        result = refine(comp.real_flange_and_jacobian, flat[solve], desired[target[solve]],
+                        None, 1e-9, 1e-9, SEARCH_STEPS, pool=SEARCH_POOL,
+                        drop=BehindAndStalled(target[solve]))
         ends.q[solve], ends.reason[solve] = result.q, result.reason
         ends.position_error_m[solve] = result.position_error_m
         ends.rotation_error_rad[solve] = result.rotation_error_rad
@@ -261,18 +314,20 @@ def decide(comp: Compensator, solution: IKSolution, desired: np.ndarray,
         return solution
     conf = None if confdata is None else np.asarray(confdata, dtype=int).reshape(m, 4)
     predicate = asked if asked is not None else confdata_asked(comp, conf)
-    for start in range(0, len(failed), SEARCH_BLOCK):
-        _decide_rows(comp, solution, desired, failed[start:start + SEARCH_BLOCK], predicate)
+    for start in range(0, len(failed), SEARCH_SPAN):
+        span = failed[start:start + SEARCH_SPAN]
+        own = solution.q[span].copy()
+        own[solution.reason[span] == "unreachable"] = np.nan
+        for a, b, found in searched_blocks(comp, desired[span], own):
+            _decide_rows(comp, solution, span[a:b], found, predicate)
     return solution
 
 
-def _decide_rows(comp: Compensator, solution: IKSolution, desired: np.ndarray,
-                 failed: np.ndarray, predicate: Asked) -> None:
-    """:func:`decide` of the rows ``failed`` of ``solution`` (changed in place)."""
+def _decide_rows(comp: Compensator, solution: IKSolution, failed: np.ndarray,
+                 found: Candidates, predicate: Asked) -> None:
+    """:func:`decide` of the rows ``failed`` of ``solution`` (changed in place), searched:
+    ``found``."""
     robot = comp.robot
-    own = solution.q[failed].copy()
-    own[solution.reason[failed] == "unreachable"] = np.nan
-    found = search(comp, desired[failed], own)
     on_asked_q = predicate(failed, found.q, found.inside)
     picked = np.all(np.isfinite(on_asked_q), axis=1)
     if np.any(picked):       # a predicate turns axes as its controller does: still inside?
