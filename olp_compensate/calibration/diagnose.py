@@ -41,15 +41,19 @@ import numpy as np
 from .effects import (CyclicError, Effect, EffectInputs, GearHarmonic, JointCompliance,
                       ThermalExpansion)
 from ..errors import DataError
+from .after_bands import AfterBandsRound, after_bands_entry, after_bands_lines
 from .backward_elimination import (EliminationStep, band_stage, elimination_entry,
                                    elimination_lines)
 from .cross_validation import pose_folds
 from .cyclic_scan import BandOutcome, band_text
-from .diagnose_account import account, account_lines, band_round_lines, band_rounds, cyclic_entry
+from .diagnose_entries import candidate_entry, effect_entry, value_text
+from .diagnose_account import (account, account_lines, band_round_lines, band_rounds,
+                               refusals_with_bands)
 from .remainder import Predictability, predictability
+from .separability import Refusal, refusal_entries, refusal_lines, separable
 from .time_blocks import BlockedFigures, blocked_entry, blocked_line
-from .effect_scan import (CandidateResult, EffectScan, candidate_effects, choose_candidate,
-                          drift_warning)
+from .effect_scan import (CandidateResult, EffectScan, candidate_effects, drift_warning,
+                          unconfounded_choice)
 from .identify import (IdentificationOptions, IdentificationResult, identify,
                        measurement_inputs)
 from .problem import problem_at
@@ -107,6 +111,8 @@ class Round:
     chosen: Effect | None
     alternatives: list[str] = field(default_factory=list)
     heldout_sse: float = float("nan")
+    refused: list[Refusal] = field(default_factory=list)
+    """Candidates significant by the test but not separable from the geometry."""
 
 
 @dataclass(frozen=True)
@@ -163,6 +169,11 @@ class Diagnosis:
     """Held-out figures by blocks of time (rows with time_s; :mod:`.time_blocks`)."""
     elimination: list[EliminationStep] = field(default_factory=list)
     """The named effects re-tested once the bands were in (:mod:`.backward_elimination`)."""
+    refused: list[Refusal] = field(default_factory=list)
+    """Effects significant by the test but not named: not separable from the geometry
+    (:mod:`.separability`), first refusal of each effect at each stage."""
+    after_bands: list[AfterBandsRound] = field(default_factory=list)
+    """The classic candidates scanned again once the bands were in (:mod:`.after_bands`)."""
 
     @property
     def found(self) -> bool:
@@ -207,9 +218,12 @@ def _checked_folds(meas: Measurements, options: DiagnoseOptions) -> int:
 
 
 def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: float,
-                prefer_simpler_alpha: float) -> tuple[Round, CandidateResult | None, dict]:
+                prefer_simpler_alpha: float, stage: str = "effect scan"
+                ) -> tuple[Round, CandidateResult | None, dict]:
     """One round: every candidate not in ``skip`` (keys) tested at the scan's model;
-    (the round, the chosen candidate or None, label -> reason of the untestable ones)."""
+    (the round, the chosen candidate or None, label -> reason of the untestable ones).
+    Significant: p below alpha / K and separable from the geometry (:mod:`.separability`;
+    the refused ones are listed in the round)."""
     results, tested, untestable = [], [], {}
     for candidate in candidates:
         if candidate.key in skip:
@@ -221,14 +235,22 @@ def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: fl
         else:
             untestable[candidate.label] = result.reason
     threshold = alpha / max(len(tested), 1)
-    marked = {id(r): dataclasses.replace(r, significant=r.p_value < threshold)
-              for r, _ in tested}
+    marked = {id(r): dataclasses.replace(r, significant=bool(
+        r.p_value < threshold and separable(r.separability))) for r, _ in tested}
+    refused = [Refusal(label=r.effect.label, kind=r.effect.kind, joint=r.effect.joint,
+                       stage=stage, p_value=r.p_value, separability=r.separability,
+                       moves_m=r.moves_m)
+               for r, _ in tested if r.p_value < threshold and not separable(r.separability)]
     results = [marked.get(id(r), r) for r in results]
     tested = [(marked[id(r)], held) for r, held in tested]
-    chosen, alternatives = choose_candidate(scan, tested, threshold, prefer_simpler_alpha)
+    chosen, alternatives = unconfounded_choice(scan, tested, threshold, prefer_simpler_alpha,
+                                                refused, stage)
+    results = [dataclasses.replace(r, significant=False)
+               if r.significant and any(f.label == r.effect.label for f in refused) else r
+               for r in results]
     round_ = Round(threshold=threshold, candidates=results,
                    chosen=None if chosen is None else chosen.effect,
-                   alternatives=alternatives, heldout_sse=scan.base.sse)
+                   alternatives=alternatives, heldout_sse=scan.base.sse, refused=refused)
     return round_, chosen, untestable
 
 
@@ -254,6 +276,15 @@ def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
     return out
 
 
+def _candidates(robot: Robot, meas: Measurements, options: DiagnoseOptions) -> list[Effect]:
+    """The classic candidates of the options' kinds (thermal expansion referred to the
+    mean measured temperature)."""
+    candidates = [c for c in candidate_effects(robot, meas.temperature_c is not None)
+                  if options.kinds is None or c.kind in options.kinds]
+    return [dataclasses.replace(c, reference_temperature_c=float(np.mean(meas.temperature_c)))
+            if isinstance(c, ThermalExpansion) else c for c in candidates]
+
+
 def diagnose(robot: Robot, meas: Measurements,
              options: DiagnoseOptions = DiagnoseOptions()) -> Diagnosis:
     """Diagnose the measurements of ``robot`` (see the module docstring)."""
@@ -263,10 +294,7 @@ def diagnose(robot: Robot, meas: Measurements,
     tools = {n: t.xyz_m for n, t in geometric.calibration.tools.items()}
     inputs = measurement_inputs(robot, meas, tools, [JointCompliance(joint=0)])
     folds = pose_folds(meas.pose_ids, folds_k)
-    candidates = [c for c in candidate_effects(robot, meas.temperature_c is not None)
-                  if options.kinds is None or c.kind in options.kinds]
-    candidates = [dataclasses.replace(c, reference_temperature_c=float(np.mean(meas.temperature_c)))
-                  if isinstance(c, ThermalExpansion) else c for c in candidates]
+    candidates = _candidates(robot, meas, options)
 
     current = geometric
     kept: list[tuple[Effect, float, list[str]]] = []
@@ -294,9 +322,10 @@ def diagnose(robot: Robot, meas: Measurements,
     # the bands (with time_s chosen on blocks of time), then the named effects they make
     # unneeded dropped (:mod:`.backward_elimination`)
     stage = band_stage(robot, meas, inputs, scan, [e for e, _, _ in kept],
-                       [r.threshold for r in rounds[:len(kept)]], options, base_options)
+                       [r.threshold for r in rounds[:len(kept)]], options, base_options,
+                       candidates)
     gone = {e.key for e in stage.dropped}
-    kept = [k for k in kept if k[0].key not in gone]
+    kept = [k for k in kept + [(e, p, []) for e, p in stage.added] if k[0].key not in gone]
     scan, extended, bands, blocked = stage.scan, stage.extended, stage.bands, stage.blocked
     drift = drift_warning(scan, options.alpha)
     if bands is not None:
@@ -331,44 +360,14 @@ def diagnose(robot: Robot, meas: Measurements,
                      predicted_change=predicted_after - predicted_before,
                      dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
                      alpha=options.alpha, candidates_tried=len(candidates), bands=bands,
-                     remainder=remainder, blocked=blocked, elimination=stage.steps)
+                     remainder=remainder, blocked=blocked, elimination=stage.steps,
+                     after_bands=stage.after_bands,
+                     refused=refusals_with_bands([r for round_ in rounds for r in round_.refused]
+                                       + stage.refused, bands))
 
 
 def _mm(value_m: float | None) -> float | None:
     return None if value_m is None else value_m * 1e3
-
-
-def effect_entry(kept: KeptEffect) -> dict:
-    """The JSON entry of a kept effect (SI values; see :func:`diagnosis_to_dict`)."""
-    e = kept.effect
-    value, std, unit = e.headline()
-    entry = {"kind": e.kind, "joint": None if e.joint is None else e.joint + 1,
-             "value": value, "std": None if not np.isfinite(std) else std, "unit": unit,
-             "parameters": dict(zip(e.parameter_names, e.values)),
-             "parameter_std": {k: (None if not np.isfinite(v) else v)
-                               for k, v in zip(e.parameter_names, e.std)},
-             "units": dict(zip(e.parameter_names, e.units)),
-             "p_value": kept.p_value, "point_rms_mm": kept.point_rms_m * 1e3,
-             "point_max_mm": kept.point_max_m * 1e3, "alternatives": kept.alternatives}
-    if isinstance(e, GearHarmonic):
-        entry["order"] = e.order
-        entry["phase_rad"] = e.phase_rad
-    if isinstance(e, ThermalExpansion):
-        entry["reference_temperature_c"] = e.reference_temperature_c
-    if isinstance(e, CyclicError):
-        entry.update(cyclic_entry(e), text=band_text(e))
-    return entry
-
-
-def _finite(value: float) -> float | None:
-    return None if not np.isfinite(value) else float(value)
-
-
-def _candidate_entry(c: CandidateResult) -> dict:
-    return {"effect": c.effect.label, "kind": c.effect.kind,
-            "joint": None if c.effect.joint is None else c.effect.joint + 1,
-            "status": c.status, "reason": c.reason or None, "heldout_gain": _finite(c.gain),
-            "z": _finite(c.t), "p_value": _finite(c.p_value), "significant": c.significant}
 
 
 def diagnosis_to_dict(d: Diagnosis) -> dict:
@@ -400,9 +399,11 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
                  "rounds": [{"threshold": r.threshold,
                              "chosen": None if r.chosen is None else r.chosen.label,
                              "alternatives": r.alternatives,
-                             "candidates": [_candidate_entry(c) for c in r.candidates]}
+                             "candidates": [candidate_entry(c) for c in r.candidates]}
                             for r in d.rounds]},
         "backward_elimination": elimination_entry(d.elimination),
+        "not_named": refusal_entries(d.refused),
+        "effect_scan_after_bands": after_bands_entry(d.after_bands),
         "untestable": d.untestable,
         "drift": d.drift,
         "conclusion": summary(d).splitlines()[-1],
@@ -412,19 +413,6 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
 def _account(d: Diagnosis) -> dict:
     return account(d.geometric.heldout_rms, d.extended.heldout_rms, d.remainder,
                    d.noise.sigma_m, d.noise.source)
-
-
-def _value_text(effect: Effect) -> str:
-    value, std, unit = effect.headline()
-    name = "amplitude" if isinstance(effect, GearHarmonic) else effect.parameter_names[0]
-    text = f"{name} = {value:.3g} +- {std:.2g} {unit}"
-    if unit == "rad":
-        text += f" ({np.degrees(value) * 1e3:.3g} mdeg)"
-    if isinstance(effect, GearHarmonic):
-        text += f", phase {np.degrees(effect.phase_rad):.0f} deg"
-    if isinstance(effect, ThermalExpansion):
-        text += f", reference {effect.reference_temperature_c:.1f} C"
-    return text
 
 
 def summary(d: Diagnosis) -> str:
@@ -443,7 +431,8 @@ def summary(d: Diagnosis) -> str:
     lines.append(f"residual structure: {len(tested)} candidate terms tested, share of the "
                  f"geometric model's held-out squared error each removes (best first):")
     for c in tested[:5]:
-        mark = "significant" if c.significant else "not significant"
+        mark = ("significant" if c.significant else "significant, not named (below)"
+                if c.p_value < first.threshold else "not significant")
         lines.append(f"  {c.effect.label:<24} {100 * c.gain:6.1f} %   z = {c.t:6.2f}, "
                      f"p = {c.p_value:.1e} ({mark})")
     if d.untestable:
@@ -460,7 +449,8 @@ def summary(d: Diagnosis) -> str:
         else:
             lines.append(f"round {number}: no further term is significant (threshold "
                          f"{r.threshold:.1e})")
-    lines += band_round_lines(d.bands) + elimination_lines(d.elimination)
+    lines += (band_round_lines(d.bands) + after_bands_lines(d.after_bands)
+              + elimination_lines(d.elimination) + refusal_lines(d.refused))
     if d.drift:
         lines.append(f"WARNING: {d.drift}")
     lines += account_lines(_account(d)) + ([blocked_line(d.blocked)] if d.blocked else [])
@@ -472,7 +462,7 @@ def summary(d: Diagnosis) -> str:
     lines.append(f"found {len(d.effects)} effect{'s' if len(d.effects) > 1 else ''}:")
     for k in d.effects:
         text = (band_text(k.effect) if isinstance(k.effect, CyclicError)
-                else f"{_value_text(k.effect)}; {k.effect.description}")
+                else f"{value_text(k.effect)}; {k.effect.description}")
         lines.append(f"  {k.effect.label}: {text}; "
                      f"moves the measured point by {k.point_rms_m * 1e3:.3f} mm RMS, "
                      f"{k.point_max_m * 1e3:.3f} mm max")

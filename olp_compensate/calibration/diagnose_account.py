@@ -14,6 +14,7 @@ import numpy as np
 from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders, order_resolution
 from .effects import CyclicError
 from .remainder import Predictability
+from .separability import MIN_SEPARABILITY, Refusal, separable
 
 
 def _quadrature(big: float, small: float) -> float:
@@ -74,6 +75,8 @@ def band_rounds(bands: BandOutcome | None) -> list[dict]:
                         "min_order": r.effect.min_order,
                         "heldout_gain": r.gain, "z": r.z, "p_value": r.p_value,
                         "ridge": r.ridge, "moves_over_heldout_rms": r.moves,
+                        "separability": None if not np.isfinite(r.separability)
+                        else r.separability,
                         "significant": r.significant} for r in results]}
             for threshold, results in zip(bands.thresholds, bands.rounds)]
 
@@ -91,7 +94,10 @@ def band_round_lines(bands: BandOutcome | None) -> list[str]:
         tested = ", ".join(f"j{r.effect.joint + 1} (orders {r.effect.min_order}-"
                            f"{r.effect.max_order}: {100 * r.gain:.1f} %, p = {r.p_value:.1e}"
                            + (f", moves the points {r.moves:.1f}x the held-out RMS: cancels "
-                              f"against other terms" if r.moves > MAX_MOVES else "") + ")"
+                              f"against other terms" if r.moves > MAX_MOVES else "")
+                           + (f", separability {r.separability:.3f} < {MIN_SEPARABILITY}: not "
+                              f"separable from the geometry over these poses"
+                              if not separable(r.separability) else "") + ")"
                            for r in results)
         kept = [r for r in results if r.significant]
         verdict = (f"kept the band of joint {min(kept, key=lambda r: -r.gain).effect.joint + 1}"
@@ -99,3 +105,18 @@ def band_round_lines(bands: BandOutcome | None) -> list[str]:
         lines.append(f"cyclic band round {number} (threshold {threshold:.1e}): {tested}; "
                      f"{verdict}")
     return lines
+
+
+def refusals_with_bands(refused: list[Refusal], bands: BandOutcome | None) -> list[Refusal]:
+    """The refusals of the effect scans and the bands' (a band passing the test and the
+    move rule but not separable), the first of each effect at each stage."""
+    for threshold, results in zip(bands.thresholds if bands else [], bands.rounds if bands else []):
+        refused += [Refusal(label=r.effect.label, kind=r.effect.kind, joint=r.effect.joint,
+                            stage="cyclic bands", p_value=r.p_value,
+                            separability=r.separability, moves_m=r.moves_m)
+                    for r in results if r.p_value < threshold and r.moves <= MAX_MOVES
+                    and not separable(r.separability)]
+    out: dict[tuple, Refusal] = {}
+    for r in refused:
+        out.setdefault((r.label, r.stage), r)
+    return list(out.values())
