@@ -55,10 +55,12 @@ class AfterBandsRound:
     threshold: float
     candidates: list[AfterBandsCandidate] = field(default_factory=list)
     chosen: Effect | None = None
+    confounded: list[Refusal] = field(default_factory=list)
+    """Separable significant candidates refused as confounded with an inseparable one."""
 
     @property
     def refused(self) -> list[Refusal]:
-        return [Refusal(label=c.effect.label, kind=c.effect.kind, joint=c.effect.joint,
+        return self.confounded + [Refusal(label=c.effect.label, kind=c.effect.kind, joint=c.effect.joint,
                         stage="effect scan after the bands", p_value=c.p_value,
                         separability=c.separability, moves_m=c.moves_m)
                 for c in self.candidates
@@ -76,9 +78,12 @@ def _with_candidates(scan: EffectScan, effects: list[Effect]) -> EffectScan:
 
 
 def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effect],
-                     robot, alpha: float) -> AfterBandsRound | None:
+                     robot, alpha: float, prefer_simpler_alpha: float = 0.05
+                     ) -> AfterBandsRound | None:
     """One round of the module docstring at the scan's model with the kept ``bands``;
-    None when no candidate can be tested."""
+    None when no candidate can be tested. As in the forward scan, a significant
+    separable candidate the data cannot tell from a significant inseparable one (not
+    significantly better than it at ``prefer_simpler_alpha``) is refused too."""
     named = {e.key for e in scan.problem.effects}
     testable = [c for c in candidates if c.key not in named
                 and effect_separation(scan.jac, scan.columns(c), scan.names) is None]
@@ -112,10 +117,27 @@ def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effe
         candidate = dataclasses.replace(candidate, significant=bool(
             p < out.threshold and separable(share)))
         out.candidates.append(candidate)
-        held_of[effect.key] = held.sse
-    significant = [c for c in out.candidates if c.significant]
-    if significant:
-        out.chosen = min(significant, key=lambda c: held_of[c.effect.key]).effect
+        held_of[effect.key] = (held, drop)
+    inseparable = [c for c in out.candidates
+                   if c.p_value < out.threshold and not separable(c.separability)]
+    for c in sorted((c for c in out.candidates if c.significant),
+                    key=lambda c: held_of[c.effect.key][0].sse):
+        # refused when not significantly better than an inseparable significant one
+        held, drop = held_of[c.effect.key]
+        confounded = [r for r in inseparable if band_scan.gain_test(
+            held_of[r.effect.key][0], held, kept, held_of[r.effect.key][1])[2]
+            >= prefer_simpler_alpha]
+        if not confounded:
+            out.chosen = c.effect
+            break
+        out.confounded.append(Refusal(
+            label=c.effect.label, kind=c.effect.kind, joint=c.effect.joint,
+            stage="effect scan after the bands", p_value=c.p_value,
+            separability=c.separability, moves_m=c.moves_m,
+            confounded_with=confounded[0].effect.label))
+    gone = {r.label for r in out.confounded}
+    out.candidates = [dataclasses.replace(c, significant=False) if c.effect.label in gone
+                      else c for c in out.candidates]
     return out
 
 

@@ -161,7 +161,7 @@ def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
         if not bands.bands or not candidates or len(effects) >= options.max_effects:
             break
         round_ = scan_after_bands(scan, bands, [c for c in candidates if c.key not in tried],
-                                  robot, options.alpha)
+                                  robot, options.alpha, options.prefer_simpler_alpha)
         if round_ is None:
             break
         stage.after_bands.append(round_)
