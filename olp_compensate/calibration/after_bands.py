@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cyclic_scan import BandOutcome, BandScan
+from .cyclic_scan import BandOutcome, BandScan, band_effects
 from .effect_scan import EffectScan
 from .effects import Effect
 from .identifiability import effect_separation
@@ -138,6 +138,59 @@ def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effe
     gone = {r.label for r in out.confounded}
     out.candidates = [dataclasses.replace(c, significant=False) if c.effect.label in gone
                       else c for c in out.candidates]
+    return out
+
+
+def confounded_bands(scan: EffectScan, bands: BandOutcome, inseparable: list[Effect], robot,
+                     prefer_simpler_alpha: float = 0.05) -> list[Refusal]:
+    """The kept bands the data cannot tell from a significant effect the forward scan
+    refused as inseparable (``inseparable``): the model with the band is not
+    significantly better (``prefer_simpler_alpha``) than the same model with that effect,
+    unpenalized, in its place (on a joint-by-joint sweep the geometry absorbs a
+    compliance of joint 3, and bands of joints 2 and 3 then take its gain)."""
+    named = {e.key for e in scan.problem.effects}
+    effects = [e for e in inseparable if e.key not in named]
+    if not effects or not bands.bands:
+        return []
+    wide = _with_candidates(scan, effects)
+    positions = np.arange(len(wide.x))
+    n_old = len(wide.problem.layout.effects) - len(effects)
+    own = [np.flatnonzero(np.isin(wide.kept, positions[cols]))
+           for cols in wide.problem.layout.effects[n_old:]]
+    band_scan = BandScan(wide, robot, scan.inputs.q, bands.scan.fold_rows)
+    kept = [(b.joint, b.ridge) for b in bands.bands]
+    every = np.concatenate(own)
+    with_bands, _ = band_scan.current(kept, every)
+    out = []
+    for band, p_band in zip(bands.bands, bands.p_values):
+        rest = [k for k in kept if k[0] != band.joint]
+        for effect, cols in zip(effects, own):
+            drop = np.setdiff1d(every, cols)
+            instead, _ = band_scan.current(rest, drop)
+            p = band_scan.gain_test(instead, with_bands, rest, drop)[2]
+            if p >= prefer_simpler_alpha:
+                out.append(Refusal(label=band.label, kind=band.kind, joint=band.joint,
+                                   stage="cyclic bands", p_value=p_band,
+                                   separability=float("nan"), moves_m=float("nan"),
+                                   confounded_with=effect.label))
+                break
+    return out
+
+
+def without_bands(outcome: BandOutcome, joints: set[int]) -> BandOutcome:
+    """``outcome`` with the kept bands of ``joints`` (0-based) removed: the rest refitted
+    at their penalties (held-out residuals of that fit on the scan's folds)."""
+    bands = outcome.scan
+    kept = [(b.joint, b.ridge) for b in outcome.bands if b.joint not in joints]
+    out = dataclasses.replace(outcome, bands=[], p_values=[], rhs=None)
+    if not kept:
+        return out
+    held, x = bands.current(kept)
+    cols = np.concatenate([bands.columns[j] for j, _ in kept])
+    out.rhs = -(bands.scan.residual + bands.a[:, cols] @ x[bands.n_u:])
+    out.bands = band_effects(bands, kept, x)
+    out.p_values = [p for b, p in zip(outcome.bands, outcome.p_values) if b.joint not in joints]
+    out.heldout = held
     return out
 
 

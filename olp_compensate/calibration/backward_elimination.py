@@ -36,7 +36,7 @@ from .cyclic_scan import BandOutcome, BandScan, apply_bands
 from .effect_scan import EffectScan
 from .effects import Effect
 from .identify import IdentificationResult, identify
-from .after_bands import AfterBandsRound, scan_after_bands
+from .after_bands import AfterBandsRound, confounded_bands, scan_after_bands, without_bands
 from .separability import Refusal
 from .time_blocks import BlockedFigures, scan_bands_blocked
 
@@ -139,13 +139,15 @@ def _bands(scan: EffectScan, robot, meas, inputs, options, folds_k: int):
 
 def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
                thresholds: list[float], options, base_options,
-               candidates: list[Effect] = ()) -> BandStage:
+               candidates: list[Effect] = (), inseparable: list[Effect] = ()) -> BandStage:
     """The bands at the scan's model (the geometry and the named ``effects``, each with
     the threshold of the forward round that kept it), then the backward elimination of
     the effects the bands make unneeded (module docstring), then the ``candidates`` not
     named scanned forward again with the bands in (:mod:`.after_bands`): one kept is
-    added, the model refitted, the bands scanned and the elimination run again;
-    ``options``: DiagnoseOptions, ``base_options``: the identification's."""
+    added, the model refitted, the bands scanned and the elimination run again; last,
+    a kept band the data cannot tell from one of the ``inseparable`` effects (significant,
+    refused by the forward scan) is removed (:func:`.after_bands.confounded_bands`; with
+    pose folds only); ``options``: DiagnoseOptions, ``base_options``: the identification's."""
     current, folds = scan.result, scan.folds
     stage = BandStage(current=current, scan=scan, extended=current)
     if not options.cyclic:
@@ -180,6 +182,12 @@ def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
         effects.append(round_.chosen)
         current, scan = refit, EffectScan(refit, meas, inputs, folds)
         bands, blocked = _bands(scan, robot, meas, inputs, options, folds_k)
+    if inseparable and blocked is None:  # bands standing in for an inseparable effect
+        confounded = confounded_bands(scan, bands, list(inseparable), robot,
+                                      options.prefer_simpler_alpha)
+        stage.refused += confounded
+        if confounded:
+            bands = without_bands(bands, {r.joint for r in confounded})
     stage.current, stage.scan, stage.bands, stage.blocked = current, scan, bands, blocked
     stage.extended = apply_bands(current, scan, bands) if bands.bands else current
     return stage

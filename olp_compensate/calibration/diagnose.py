@@ -217,6 +217,14 @@ def _checked_folds(meas: Measurements, options: DiagnoseOptions) -> int:
     return folds_k
 
 
+def _inseparable(rounds: list[Round]) -> list[Effect]:
+    """The candidates the forward scan refused as not separable (significant ones)."""
+    labels = {r.label for round_ in rounds for r in round_.refused if not r.confounded_with}
+    out = {c.effect.key: c.effect for round_ in rounds for c in round_.candidates
+           if c.effect.label in labels}
+    return list(out.values())
+
+
 def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: float,
                 prefer_simpler_alpha: float, stage: str = "effect scan"
                 ) -> tuple[Round, CandidateResult | None, dict]:
@@ -323,7 +331,7 @@ def diagnose(robot: Robot, meas: Measurements,
     # unneeded dropped (:mod:`.backward_elimination`)
     stage = band_stage(robot, meas, inputs, scan, [e for e, _, _ in kept],
                        [r.threshold for r in rounds[:len(kept)]], options, base_options,
-                       candidates)
+                       candidates, _inseparable(rounds))
     gone = {e.key for e in stage.dropped}
     kept = [k for k in kept + [(e, p, []) for e, p in stage.added] if k[0].key not in gone]
     scan, extended, bands, blocked = stage.scan, stage.extended, stage.bands, stage.blocked
@@ -455,7 +463,9 @@ def summary(d: Diagnosis) -> str:
         lines.append(f"WARNING: {d.drift}")
     lines += account_lines(_account(d)) + ([blocked_line(d.blocked)] if d.blocked else [])
     if not d.found:
-        lines.append(f"no effect found: no candidate lowers the held-out error significantly; "
+        why = ("the significant ones are not separable from the geometry (not named, above)"
+               if d.refused else "no candidate lowers the held-out error significantly")
+        lines.append(f"no effect found: {why}; "
                      f"the geometric model stands (held-out RMS {g.heldout_rms * 1e3:.4f} mm, "
                      f"{g.heldout_rms / sigma3:.2f}x the noise)")
         return "\n".join(lines)

@@ -94,9 +94,11 @@ class Refusal:
     @property
     def reason(self) -> str:
         if self.confounded_with:
+            own = (f"separability {self.separability:.3f} of its own; "
+                   if np.isfinite(self.separability) else "")
             return (f"the data cannot tell it from {self.confounded_with}, which is significant "
-                    f"but not separable from the geometry over these poses (separability "
-                    f"{self.separability:.3f} of its own; this design cannot say which)")
+                    f"but not separable from the geometry over these poses ({own}this design "
+                    f"cannot say which)")
         return (f"not separable from the geometry over these poses: "
                 f"{self.distinct_m * 1e3:.3g} mm of the {self.moves_m * 1e3:.3g} mm RMS it "
                 f"moves the measured points is distinct from the geometry and the named "
@@ -105,11 +107,14 @@ class Refusal:
 
 def refusal_entries(refusals: list[Refusal]) -> list[dict]:
     """The d.json key ``not_named``."""
+    def num(value: float) -> float | None:
+        return float(value) if np.isfinite(value) else None
+
     return [{"effect": r.label, "kind": r.kind,
              "joint": None if r.joint is None else r.joint + 1, "stage": r.stage,
-             "p_value": r.p_value, "separability": r.separability,
-             "min_separability": MIN_SEPARABILITY, "moves_mm": r.moves_m * 1e3,
-             "distinct_mm": r.distinct_m * 1e3, "confounded_with": r.confounded_with or None,
+             "p_value": num(r.p_value), "separability": num(r.separability),
+             "min_separability": MIN_SEPARABILITY, "moves_mm": num(r.moves_m * 1e3),
+             "distinct_mm": num(r.distinct_m * 1e3), "confounded_with": r.confounded_with or None,
              "reason": r.reason} for r in refusals]
 
 
