@@ -329,13 +329,17 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
     """Seconds of each stage of olp-fix's column path on ``module`` (in this process, the
     garbage collector off as in the command), as :func:`~olp_compensate.programs.rapid.
     module_columns.compensate_rapid_task` runs them on one module: the table rows whose
-    meaning is not plain (Offs/RelTool, several pairs) made objects, the objects' rows
-    apart from the table's chunks; a module no table can hold goes whole to the objects."""
+    meaning is not plain (several pairs, copies, routine arguments) made objects, the
+    objects' rows apart from the table's chunks (Offs/RelTool motions of table targets are
+    rows, programs/rapid/displaced.py); a module no table can hold goes whole to the
+    objects."""
     import gc
 
     from olp_compensate.programs.rapid import module_columns as mc
     from olp_compensate.programs.rapid.column_plans import task_plans
     from olp_compensate.programs.rapid.columns import with_objects
+    from olp_compensate.programs.rapid.displaced import (DisplacedMoves, RowsWithDisplaced,
+                                                         with_displaced)
     from olp_compensate.programs.rapid.reader import parse_rapid_columns
 
     gc.disable()
@@ -343,13 +347,16 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         stages = {}
         t0 = time.perf_counter()
         text = module.read_bytes().decode("latin-1")
-        parsed = mc._plain_parts([parse_rapid_columns(text, str(module))])
+        tables = [DisplacedMoves()]   # its Offs()/RelTool() motions as rows, as olp-fix
+        parsed = mc._plain_parts([parse_rapid_columns(text, str(module), tables[0])], tables)
         stages["read and parse"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         comp = Compensator(cal)
         (plan,) = task_plans([parsed[0][0]], [parsed[0][1]])
         program, columns = parsed[0]
         if plan is None:
+            if tables[0] is not None:
+                program, tables[0] = with_displaced(program, tables[0]), None
             program = with_objects(program, columns)
         (res,) = mc.resolve_task([program])
         stages["resolve the rest, plan the columns"] = time.perf_counter() - t0
@@ -371,7 +378,10 @@ def lane_stages(module: Path, cal) -> dict[str, float]:
         if table is None:
             report_rows, table_edits = sorted(rows, key=mc.LINE_COLUMN), []
         else:
-            report_rows = table.rows(sorted(rows + table.others, key=mc.LINE_COLUMN))
+            others = sorted(rows + table.others, key=mc.LINE_COLUMN)
+            if tables[0] is not None and len(tables[0]):
+                others = RowsWithDisplaced(others, tables[0], program.text, program.file)
+            report_rows = table.rows(others)
             table_edits = table.edits
         report = mc.CompensationReport(file=str(module), rows=report_rows,
                                        n_joints=comp.robot.n_joints)

@@ -443,3 +443,56 @@ def test_targets_another_module_moves_to_or_declares_take_the_object_path(comp):
     again = [CALIB_DATA, _motion_module("Cell", "c"), _motion_module("Twin", "c")]
     assert _task_plans(again, ["CalibData.mod", "Cell.mod", "Twin.mod"]) == [False] * 3
     _task_both(again, ["CalibData.mod", "Cell.mod", "Twin.mod"], comp)
+
+
+def _displaced_rows(text: str) -> tuple[list[str], list[str]]:
+    """(the Offs()/RelTool() motions kept as rows of the column parse, those made objects
+    of the program), each as the expressions written."""
+    from olp_compensate.programs.rapid.displaced import DisplacedMoves
+    from olp_compensate.programs.rapid.module_columns import _plain_parts
+
+    tables = [DisplacedMoves()]
+    ((program, _),) = _plain_parts([parse_rapid_columns(text, "m.mod", tables[0])], tables)
+    rows = [tables[0].objects(i, text, "m.mod")[1].expression
+            for i in range(len(tables[0]))] if tables[0] is not None else []
+    return rows, [u.runtime.expression for u in program.motions if u.runtime is not None]
+
+
+def test_offs_and_reltool_motions_are_table_rows_where_their_target_is(comp):
+    """A plain Offs()/RelTool() motion of a target kept in the table is a row of the
+    column parse, not an object; one whose target leaves the table (moved to only
+    through it, declared twice, not declared) is an object; the text and report are the
+    object path's either way."""
+    text = SPECIAL.replace("  ENDPROC", (
+        "    MoveL Offs(pA,0,0,10),v500,z10,tGun;\n"
+        "    MoveL RelTool(pTable, 0, 0, -20),v500,z10,tGun\\WObj:=wTable;\n"
+        "    MoveJ Offs(pNever,0,0,50),v500,z10,tGun\\WObj:=wTable;\n"
+        "    MoveL Offs(pGone,0,0,5),v500,z10,tGun;\n"
+        "    MoveL Offs(pa,1,2,3),v500,z10,tGun;\n"
+        "  ENDPROC"))
+    rows, objects = _displaced_rows(text)
+    assert rows == ["Offs(pA,0,0,10)", "RelTool(pTable, 0, 0, -20)", "Offs(pa,1,2,3)"]
+    assert objects == ["Offs(pNever,0,0,50)", "Offs(pGone,0,0,5)"]
+    report = _both(text, "special.mod", comp, "skip")
+    runtime = [r for r in report.rows if r.status == "runtime"]
+    assert [r.target for r in runtime] == rows[:2] + objects + rows[2:]
+    assert [r.line for r in runtime] == sorted(r.line for r in runtime)
+    problems = report.problem_rows()
+    assert [r.target for r in problems if r.status == "runtime"] == [r.target for r in runtime]
+    twice = text.replace("  PROC main()", "  CONST robtarget pA:=[[1,2,3],[1,0,0,0],[0,0,0,0],"
+                         "[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()")
+    rows, objects = _displaced_rows(twice)
+    assert "Offs(pA,0,0,10)" in objects and "Offs(pa,1,2,3)" in objects
+    assert rows == ["RelTool(pTable, 0, 0, -20)"]
+
+
+def test_the_realistic_modules_displaced_motions_are_rows(comp):
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from compensate import generate_realistic_module
+
+    text = generate_realistic_module(120, seed=4)
+    rows, objects = _displaced_rows(text)
+    assert objects == []
+    assert len(rows) == text.count("Offs(") + text.count("RelTool(") > 0

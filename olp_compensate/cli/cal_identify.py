@@ -12,7 +12,6 @@ from ..calibration.fit_check import MAX_RMS_M, FitVerdict, forced_warning, judge
 from ..calibration.measurements import check_spread
 from ..calibration.regions import (DEFAULT_MARGIN_M, check_margin, identify_regions,
                                    least_unknowns, region_column)
-from ..camera.scale import unverified_rows
 from ..errors import DataError, OlpError
 from ..io.calibration_file import write_calibration
 from ..io.session import read_measurements_any
@@ -55,6 +54,17 @@ def read_measurement_source(args, joint_units: list[str]):
     return read_measurements_any(args.measurements, joint_units, points=args.points,
                                  by=args.by, tolerance_s=args.tolerance_s,
                                  time_offset_s=args.time_offset_s)
+
+
+def _unverified_scale(metadata) -> bool:
+    """:func:`~olp_compensate.camera.scale.unverified_rows` of a measurement CSV's
+    metadata lines, the camera package imported only where a line says ``unverified``
+    (rows from the camera path; others need none of it)."""
+    if not any("unverified" in line for line in metadata):
+        return False
+    from ..camera.scale import unverified_rows
+
+    return unverified_rows(metadata)
 
 
 def check_freeze_names(robot, convention: str, names) -> None:
@@ -265,7 +275,7 @@ def run(args) -> int:
     result = identify(robot, meas, options)
     check_fit(result)
     print(report(result))
-    if unverified_rows(meas.metadata):
+    if _unverified_scale(meas.metadata):
         print("WARNING: these camera rows were measured with a board of unverified scale "
               "(their '# board scale:' line): a 0.1-0.3 % print error scales the identified "
               "lengths by as much, and neither the residual nor the held-out error shows it; "

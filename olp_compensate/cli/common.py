@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import gc
-import logging
 import os
 import signal
 import sys
@@ -59,13 +58,15 @@ def limit_threads() -> contextlib.AbstractContextManager:
 @contextlib.contextmanager
 def _signals_as_exceptions():
     """SIGTERM raises :class:`Terminated` (and SIGINT KeyboardInterrupt) for the run;
-    the previous handlers come back after it. Only in the main thread."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
+    the previous handlers come back after it. Only in the main thread (elsewhere
+    ``signal.signal`` refuses, and the handlers stay as they are)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:   # not the main thread
+        previous = ValueError
+    if previous is ValueError:   # (the run's own errors outside the handler above)
         yield
         return
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)
     previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
@@ -112,15 +113,38 @@ def _stdout_may_close():
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings from inside numpy or scipy: one log line, no source line."""
-    logging.getLogger("olp_compensate").info("%s: %s", category.__name__, message)
+    _logging().getLogger("olp_compensate").info("%s: %s", category.__name__, message)
+
+
+_LOG_FORMAT: list = []   # (level, format) of the run whose logging is not set up yet
+
+
+def _logging():
+    """The ``logging`` module, set up as :func:`run_guarded` asked (on first use: importing
+    and setting it up costs a command about 5 ms, and most runs log nothing)."""
+    import logging
+
+    if _LOG_FORMAT:
+        level, format = _LOG_FORMAT.pop()
+        logging.basicConfig(level=level, format=format)
+    return logging
+
+
+def _set_up_logging(prog: str, verbosity: int) -> None:
+    """Log records as ``prog: LEVEL: message`` at WARNING (INFO with -v, DEBUG with -vv):
+    at once when asked for more or when ``logging`` is loaded already (another library may
+    log), else on first use (:func:`_logging`; at WARNING only a library that loads
+    ``logging`` during the run and warns through it would find it not set up)."""
+    _LOG_FORMAT[:] = [(30 - 10 * min(verbosity, 2), f"{prog}: %(levelname)s: %(message)s")]
+    if verbosity or "logging" in sys.modules:
+        _logging()
 
 
 def run_guarded(action: Callable[[], int], verbosity: int, prog: str) -> int:
     """Run ``action``; turn :class:`OlpError` into one line on stderr and exit code 1,
     Ctrl-C and SIGTERM into exit code 130 with the files written so far named, after
     removing unfinished temporary files. With ``-v`` the traceback is shown as well."""
-    logging.basicConfig(level=logging.WARNING - 10 * min(verbosity, 2),
-                        format=f"{prog}: %(levelname)s: %(message)s")
+    _set_up_logging(prog, verbosity)
     forget_written()
     try:
         with _signals_as_exceptions(), limit_threads(), warnings.catch_warnings(), \
@@ -130,7 +154,7 @@ def run_guarded(action: Callable[[], int], verbosity: int, prog: str) -> int:
     except OlpError as exc:
         remove_live_temps()
         if verbosity:
-            logging.exception("details")
+            _logging().exception("details")
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
@@ -213,7 +237,8 @@ def exit_now(code: int) -> NoReturn:
     interpreter's teardown: a big run's millions of small objects are not freed one by one
     (0.25 s after a 100,000-target olp-fix). Only for a command's entry point: every file
     it writes must be closed already."""
-    logging.shutdown()
+    if "logging" in sys.modules:
+        sys.modules["logging"].shutdown()
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

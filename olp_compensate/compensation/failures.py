@@ -60,31 +60,34 @@ class _Ranges:
         return cls(robot, ranges, list(lo), list(hi), list(jlo), list(jhi), unit)
 
 
-def _range_words(limits: _Ranges, q_ctrl: np.ndarray) -> list[str]:
-    """Each axis of ``q_ctrl (n,)`` outside the controller's range, and each URDF joint
-    outside its limits, as words with values in deg (mm)."""
+def _range_words(limits: _Ranges, q_ctrl: np.ndarray) -> list[list[str]]:
+    """For each row of ``q_ctrl (k, n)`` (controller axes, rad/m), each axis outside the
+    controller's range, and each URDF joint outside its limits, as words with values in deg
+    (mm); all rows converted at once, the words written only where an axis is outside."""
     robot, ranges, unit = limits.robot, limits.ranges, limits.unit
     lo, hi = limits.lo, limits.hi
-    edge = robot.to_degrees_or_mm(q_ctrl[None])[0]
-    words = []
-    listed = np.flatnonzero((q_ctrl < ranges[:, 0] - 1e-9) | (q_ctrl > ranges[:, 1] + 1e-9))
-    for a in listed:
-        past = lo[a] - edge[a] if edge[a] < lo[a] else edge[a] - hi[a]
-        side = "below" if edge[a] < lo[a] else "above"
-        words.append(f"axis {a + 1} = {edge[a]:.2f} {unit[a]} is {past:.2f} {unit[a]} {side} "
-                     f"the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
-    joints = robot.joints_from_controller(q_ctrl[None])[0]
-    jl, jh = robot.lower_limits, robot.upper_limits
-    outside = np.flatnonzero((joints < jl - 1e-9) | (joints > jh + 1e-9))
-    if not len(outside):
-        return words
-    joint_edge = robot.to_degrees_or_mm(joints[None])[0]
-    for j in outside:
-        if j in listed:            # the same axis, already named
-            continue
-        words.append(f"URDF {robot.joints[j].name} = {joint_edge[j]:.2f} {unit[j]} is outside "
-                     f"its limits {limits.jlo[j]:.2f}..{limits.jhi[j]:.2f} {unit[j]}")
-    return words
+    out: list[list[str]] = [[] for _ in range(len(q_ctrl))]
+    if not len(q_ctrl):
+        return out
+    listed = (q_ctrl < ranges[:, 0] - 1e-9) | (q_ctrl > ranges[:, 1] + 1e-9)
+    joints = robot.joints_from_controller(q_ctrl)
+    outside = ((joints < robot.lower_limits - 1e-9) | (joints > robot.upper_limits + 1e-9)) \
+        & ~listed                          # an axis already named is not named again
+    edge = robot.to_degrees_or_mm(q_ctrl)
+    joint_edge = robot.to_degrees_or_mm(joints)
+    for k in np.flatnonzero(listed.any(axis=1) | outside.any(axis=1)).tolist():
+        words = out[k]
+        for a in np.flatnonzero(listed[k]).tolist():
+            value = edge[k, a]
+            past = lo[a] - value if value < lo[a] else value - hi[a]
+            side = "below" if value < lo[a] else "above"
+            words.append(f"axis {a + 1} = {value:.2f} {unit[a]} is {past:.2f} {unit[a]} "
+                         f"{side} the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
+        for j in np.flatnonzero(outside[k]).tolist():
+            words.append(f"URDF {robot.joints[j].name} = {joint_edge[k, j]:.2f} {unit[j]} is "
+                         f"outside its limits {limits.jlo[j]:.2f}..{limits.jhi[j]:.2f} "
+                         f"{unit[j]}")
+    return out
 
 
 ConfigWords = Callable[[int, "np.ndarray | None"], str]
@@ -117,21 +120,29 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
     failed = np.flatnonzero(~solution.success)
     out: list[FailureReport | None] = [None] * len(solution.success)
     q_ctrl_of, config_of = _turned_and_configs(comp, solution.q[failed])
-    limits = _Ranges.of(robot)
+    reasons = solution.reason[failed].tolist()
+    limited = np.flatnonzero((solution.reason[failed] == "joint_limit")
+                             & np.all(np.isfinite(q_ctrl_of), axis=1))
+    range_words: list[list[str]] = [[] for _ in reasons]
+    for k, words_k in zip(limited.tolist(), _range_words(_Ranges.of(robot),
+                                                          q_ctrl_of[limited])):
+        range_words[k] = words_k
     on_asked = solution.on_asked[failed].tolist()
     dist_m = solution.position_error_m[failed].tolist()
     dist_rad = solution.rotation_error_rad[failed].tolist()
+    asked_words = None if words is not None or confdata is None else \
+        [_config_words(c) for c in np.asarray(confdata)[failed].tolist()]
     for k, row in enumerate(failed.tolist()):
-        reason = str(solution.reason[row])
+        reason = str(reasons[k])
         q_ctrl, config = q_ctrl_of[k], config_of[k]
         has_q = config is not None
         if words is not None:
             asked = words(row, None) or None
             found = words(row, q_ctrl) if has_q else "none"
         else:
-            asked = None if confdata is None else _config_words(confdata[row])
+            asked = None if asked_words is None else asked_words[k]
             found = _config_words(config) if config is not None else "none"
-        note = _note(limits, reason, q_ctrl, has_q, bool(on_asked[k]), asked, found,
+        note = _note(reason, range_words[k], has_q, bool(on_asked[k]), asked, found,
                      float(dist_m[k]), float(dist_rad[k]))
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
     return out
@@ -153,12 +164,12 @@ def _turned_and_configs(comp: Compensator, q_urdf: np.ndarray):
     return q_ctrl, configs
 
 
-def _note(limits: _Ranges, reason: str, q_ctrl: np.ndarray, has_q: bool, on_asked: bool,
+def _note(reason: str, range_words: list[str], has_q: bool, on_asked: bool,
           asked: str | None, found: str, dist_m: float, dist_rad: float) -> str:
-    """The report note of one failed row (see :func:`explain_failures`)."""
+    """The report note of one failed row (see :func:`explain_failures`); ``range_words``
+    the axes of its joints outside their ranges (:func:`_range_words`)."""
     if reason == "joint_limit":
-        note = "; ".join(_range_words(limits, q_ctrl) if has_q else []) or \
-            "outside the joint limits"
+        note = "; ".join(range_words if has_q else []) or "outside the joint limits"
         if on_asked:
             note += f" (on the configuration asked for, {asked})" if asked else ""
         else:

@@ -204,7 +204,8 @@ class Compensator:
         for, default ``confdata``'s)."""
         solution = self.check_axis_ranges(solve(self.family, self.real_flange_and_jacobian,
                                                 base_T_flange, confdata, self.limits,
-                                                reach=self.reach, retries=retries))
+                                                reach=self.reach, retries=retries,
+                                                ruled=retries))
         return decide(self, solution, base_T_flange, confdata, asked) if retries else solution
 
     def check_axis_ranges(self, solution: IKSolution) -> IKSolution:
@@ -302,7 +303,7 @@ class Compensator:
             # the same poses: the nominal joints are the closed form solve starts from
             solution, nominal = solve_with_nominal(
                 self.family, self.real_flange_and_jacobian, desired_real_flange, confdata,
-                self.limits, reach=self.reach, retries=retries)
+                self.limits, reach=self.reach, retries=retries, ruled=retries)
             solution = self.check_axis_ranges(solution)
             nominal = self.controller_joints(nominal, requested_flange)
             if retries:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..programs.number_format import fixed_rows
 from .pose import COMPENSATED
 
 __all__ = ["TargetReport", "CompensationReport", "KEPT", "config_text", "config_texts"]
@@ -160,14 +161,17 @@ class _CsvRows:
         self.n_joints = n_joints
         self.row_format = ",".join(["%s,%s,%d,%d,%s,%s,%s"] + ["%.4f"] * 3 + ["%.5f"] * 2
                                    + ["%s,%s"] + ["%.6f"] * n_joints + ["%s"])
-        self.row_line = self.row_format + "\n"
-        self.width = 15 + n_joints    # fields of a row
+        # of column rows: each run of numbers written beforehand (fixed_rows), one field
+        self.row_line = ",".join(["%s,%s,%d,%d,%s,%s,%s,%s,%s,%s,%s"] + ["%s"] * bool(
+            n_joints) + ["%s"]) + "\n"
+        self.width = 12 + bool(n_joints)    # fields of a column row
         self.empty_joints = "," * (n_joints - 1)
         self.quoted = _Quoted()
 
     def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
-        """The fields of :attr:`row_format` for the complete rows ``rows`` of ``c``, row
-        after row in one flat list (each column converted in one pass)."""
+        """The fields of :attr:`row_line` for the complete rows ``rows`` of ``c``, row
+        after row in one flat list (each column converted in one pass, the numbers of a
+        row's runs of floats written together: :func:`fixed_rows`)."""
         if not len(rows):
             return []
         quoted = self.quoted.__getitem__
@@ -179,10 +183,11 @@ class _CsvRows:
         tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
         columns = [names, itertools.repeat(quoted(c.file)), c.line[rows].tolist(),
                    c.column[rows].tolist(), map(quoted, [c.status[i] for i in r]), tool, wobj,
-                   *c.correction_mm[rows].T.tolist(), c.correction_deg[rows].tolist(),
-                   c.joint_change[rows].tolist(),
+                   fixed_rows(c.correction_mm[rows], 4),
+                   fixed_rows(np.stack([c.correction_deg[rows], c.joint_change[rows]], 1), 5),
                    map(quoted, [c.config_before[i] for i in r]),
-                   map(quoted, [c.config_after[i] for i in r]), *c.joints[rows].T.tolist(),
+                   map(quoted, [c.config_after[i] for i in r]),
+                   *[fixed_rows(c.joints[rows], 6)] * bool(self.n_joints),
                    map(quoted, [c.note[i] for i in r])]
         return list(itertools.chain.from_iterable(zip(*columns)))
 
@@ -369,16 +374,22 @@ class ReportRows(RowSequence):
         out: dict[str, int] = {}
         for status in self.columns.status:
             out[status] = out.get(status, 0) + 1
-        for r in self.others:
-            out[r.status] = out.get(r.status, 0) + 1
+        others = self.others
+        statuses = others.statuses() if hasattr(others, "statuses") else \
+            (r.status for r in others)   # others made on access give their statuses
+        for status in statuses:
+            out[status] = out.get(status, 0) + 1
         return out
 
     def problem_rows(self) -> list[TargetReport]:
+        if hasattr(self.others, "problem_rows"):   # others made on access: a sequence
+            return self.others.problem_rows()
         return [r for r in self.others if not r.fine]   # others keep their text order
 
     def largest_correction(self) -> tuple[float, float, float] | None:
-        c = self.columns
-        found = _largest(r for r in self.others if r.status in COMPENSATED)
+        c, others = self.columns, self.others
+        found = _largest(others.compensated_rows() if hasattr(others, "compensated_rows")
+                         else (r for r in others if r.status in COMPENSATED))
         if not len(c):
             return found
         change = c.joint_change[~np.isnan(c.joint_change)]

@@ -17,7 +17,8 @@ import numpy as np
 
 from ..errors import DataError
 from .emit import target_edits
-from .number_format import DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, format_finite
+from .number_format import (DEG_DECIMALS, MM_DECIMALS, QUAT_DECIMALS, fixed_rows,
+                            format_finite)
 from .regex_compat import portable
 from .targets import QUAT_WXYZ, Edit, Program
 
@@ -277,11 +278,27 @@ class _PlainRun:
         values = self.zero_small(new)
         kinds = set(separators)
         if len(kinds) == 1:   # (a template holds no NUL: the separators hold none)
-            return ("\0".join([self.template(kinds.pop())] * len(separators))
-                    % tuple(values.ravel().tolist())).split("\0")
+            return self.written_alike(kinds.pop(), values)
         template_of = self.template
         return list(map(operator.mod, map(template_of, separators),
                         map(tuple, values.tolist())))
+
+    def written_alike(self, separators: tuple[str, ...], values: np.ndarray) -> list[str]:
+        """The new texts of spans that all have these ``separators``: each run of columns
+        with one number of decimals and ``,`` between them written by :func:`fixed_rows`
+        (array operations), the runs put together by one ``%`` format."""
+        runs, template, start = [], [], 0
+        for k in range(1, len(self.decimals) + 1):
+            if (k == len(self.decimals) or separators[k - 1] != ","
+                    or self.decimals[k] != self.decimals[start]):
+                runs.append(fixed_rows(values[:, start:k], self.decimals[start]))
+                template += ["%s", separators[k - 1].replace("%", "%%")] if k < len(
+                    self.decimals) else ["%s"]
+                start = k
+        if len(runs) == 1:
+            return runs[0]
+        return ("\0".join(["".join(template)] * len(values))
+                % tuple(chain.from_iterable(zip(*runs)))).split("\0")
 
 
 def _batch(name: str, values, n: int, k: int) -> np.ndarray:

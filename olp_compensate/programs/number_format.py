@@ -70,6 +70,60 @@ def _format_exp(original: str, value: float, decimals: int) -> str:
     return f"{mant}{letter}{sign}{str(abs(exn)).zfill(len(digits))}"
 
 
+def fixed_rows(values: np.ndarray, decimals: int) -> list[str]:
+    """Each row of ``values`` (n, m) floats as ``",".join("%.{decimals}f" % v ...)``
+    (the same text), the whole array written by array operations (a fifth of the time).
+
+    Each number is the integer nearest ``|v| * 10**decimals`` (the product rounded to
+    floats, its digits by integer division), with its point put in and a ``-`` where the
+    sign bit is set (``%`` writes ``-0.0000`` too). Where that product lies so near a
+    half-integer that its rounding could differ from the exact decimal rounding ``%``
+    does (within two units in its last place), and where it is not below 2**52 (or not
+    finite), the row is written by ``%`` instead."""
+    v = np.asarray(values, dtype=float)
+    n, m = v.shape if v.ndim == 2 else (len(v), 1)
+    if not n or not m:
+        return [""] * n
+    v = v.reshape(n, m)
+    scaled = np.abs(v) * 10.0 ** decimals
+    if not scaled.max() < 2.0 ** 52:   # NaN, inf or too large for exact integers
+        return [_fixed_row(row, decimals) for row in v.tolist()]
+    whole = np.rint(scaled)
+    unsure = np.abs(np.abs(scaled - whole) - 0.5) <= scaled * 2.0 ** -51
+    top = int(whole.max())
+    rest = whole.astype(np.uint32 if top < 2 ** 32 else np.uint64)
+    width = max(len(str(top)), decimals + 1)   # digits of the widest
+    point = 1 if decimals else 0
+    # a number: sign, digits (the point among them), ',' or '\n'; 0 bytes are dropped
+    chars = np.zeros((n, m, width + point + 2), np.uint8)
+    np.multiply(np.signbit(v), ord("-"), out=chars[:, :, 0], dtype=np.uint8)
+    tens, digit = np.empty_like(rest), np.empty_like(rest)
+    column = width + point
+    for k in range(width):
+        if decimals and k == decimals:
+            chars[:, :, column] = ord(".")
+            column -= 1
+        np.floor_divide(rest, 10, out=tens)
+        np.subtract(rest, np.multiply(tens, 10, out=digit), out=digit)
+        if k > decimals:   # a leading zero of the integer part: dropped
+            np.multiply(digit + 48, rest > 0, out=digit)
+        else:
+            digit += 48
+        chars[:, :, column] = digit
+        rest, tens, column = tens, rest, column - 1
+    chars[:, :, -1] = ord(",")
+    chars[:, -1, -1] = ord("\n")
+    out = chars.tobytes().translate(None, b"\0").decode("ascii").split("\n")
+    out.pop()
+    for i in np.flatnonzero(unsure.any(axis=1)).tolist():
+        out[i] = _fixed_row(v[i].tolist(), decimals)
+    return out
+
+
+def _fixed_row(row: list[float], decimals: int) -> str:
+    return ",".join(["%.*f" % (decimals, x) for x in row])
+
+
 def format_int_like(original: str, value: int) -> str:
     """An integer (confdata) in the style of ``original`` (keeps a leading ``+``)."""
     s = str(int(value))

@@ -42,6 +42,7 @@ class SolveOptions:
     boundary_tolerance: float = 1e-9
     singular_tol: float = 1e-7
     retries: bool = True
+    ruled: bool = False
 
 
 def solve(family_params: OPWParameters | URParameters,
@@ -50,7 +51,7 @@ def solve(family_params: OPWParameters | URParameters,
           rotation_tol: float = 1e-9, max_iterations: int = 100,
           quadrant_tolerance: float = np.pi / 4, boundary_tolerance: float = 1e-9,
           singular_tol: float = 1e-7, reach: ReachBound | None = None,
-          retries: bool = True) -> IKSolution:
+          retries: bool = True, ruled: bool = False) -> IKSolution:
     """Joints reaching ``target (m, 4, 4)`` (m) on the model ``fk_jacobian``, per branch.
 
     1. The nominal closed form of ``family_params`` on the branch ``confdata (m, 4)`` =
@@ -80,12 +81,17 @@ def solve(family_params: OPWParameters | URParameters,
     still failed after 2. that it proves out of reach (on the requested wrist
     configuration) are 'unreachable' at once, without 4. and 5. ``retries`` False stops
     after 3. (a caller that gathers the failed targets of many batches retries them in one:
-    4. and 5. cost per Newton step, whatever the number of targets).
+    4. and 5. cost per Newton step, whatever the number of targets). ``ruled`` True: the
+    caller decides the failed targets by the configuration rule
+    (:func:`~olp_compensate.compensation.config_rule.decide`, which searches them again
+    and sets their joints): the targets ``reach`` proves out of reach after the first two
+    steps of 2. stop there instead of taking its remaining steps (same statuses; their
+    joints and errors are the rule's).
     """
     options = SolveOptions(position_tol=position_tol, rotation_tol=rotation_tol,
                            max_iterations=max_iterations, quadrant_tolerance=quadrant_tolerance,
                            boundary_tolerance=boundary_tolerance, singular_tol=singular_tol,
-                           retries=retries)
+                           retries=retries, ruled=ruled)
     return _BranchSolver(family_params, fk_jacobian, target, confdata, limits, options,
                          reach).solve()[0]
 
@@ -251,6 +257,11 @@ class _BranchSolver:
                 else np.zeros(0, int))
         if len(rows) and self.max_iterations > _FIRST_STEPS:
             q_end, X_end = (np.concatenate([part[i] for part in unfinished]) for i in (1, 2))
+            if o.ruled:               # the rule searches the rows proven out of reach anyway
+                go_on = ~self.beyond_reach(rows)
+                self.status[rows[~go_on]] = 1
+                rows, q_end, X_end = rows[go_on], q_end[go_on], X_end[go_on]
+        if len(rows) and self.max_iterations > _FIRST_STEPS:
             q, singular, err, steps, converged, _ = closed_form_newton(
                 self.params, self.fk_jacobian, self.T[rows], self.confdata[rows, 3], q_end,
                 o.position_tol, o.rotation_tol,
@@ -259,16 +270,20 @@ class _BranchSolver:
             self.result.iterations[rows] -= 1     # the first evaluation is the last one's again
             self.store(rows, q, singular, err, converged, steps)
 
+    def beyond_reach(self, rows):
+        """(k,) bool: which of ``rows`` :attr:`reach` proves out of reach (on the requested
+        wrist configuration); none without a bound."""
+        if self.reach is None or len(rows) == 0:
+            return np.zeros(len(rows), bool)
+        wrist = self.requested(rows)[:, 2] if self.check_configuration else None
+        return np.asarray(self.reach.unreachable(self.T[rows], wrist, self.params,
+                                                 self.options.boundary_tolerance), bool)
+
     def screen_reach(self):
         """3. The failures :attr:`reach` proves out of reach (on the requested wrist
         configuration) get status 1, as no start at all: 'unreachable', nothing to retry."""
         rows = self.failed_rows()
-        if self.reach is None or len(rows) == 0:
-            return
-        wrist = self.requested(rows)[:, 2] if self.check_configuration else None
-        beyond = rows[self.reach.unreachable(self.T[rows], wrist, self.params,
-                                             self.options.boundary_tolerance)]
-        self.status[beyond] = 1
+        self.status[rows[self.beyond_reach(rows)]] = 1
 
     def restarts(self, rows, first_starts, base):
         """The starts ``[(k, 6), ...]`` rad of a multi-start on ``rows``: ``first_starts``

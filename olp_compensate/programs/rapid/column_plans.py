@@ -156,3 +156,49 @@ def outside_their_routine(routines: list, move_routines: list, rows: np.ndarray)
         return []
     return [k for k, row in enumerate(rows.tolist()) if row >= 0 and routines[row]
             and (move_routines[k] or "").lower() != routines[row].lower()]
+
+
+def plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = ()
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(targets (n,) bool, motions (k,) bool, displaced (d,) bool): the table rows whose
+    meaning is plain
+    within the module. A target is not plain when its name is declared twice, named by
+    any of the module's objects (a run-time expression, routine argument, copy,
+    assignment, another declaration), moved to with an index, or moved to with several
+    tool/work-object pairs, or (a routine's target) moved to from another routine, or
+    moved to only through Offs()/RelTool(); a motion is not plain when its target is not a
+    plain table target (a name the table does not declare). The rows that are not plain
+    go to the object path together with every table motion to them. ``displaced``: the
+    lower-case names Offs()/RelTool() motions held as rows displace; such a motion stays a
+    row where its target is a plain table target."""
+    table, moves = columns.targets, columns.moves
+    lower = [name if name.islower() else name.lower() for name in table.names]
+    row_of: dict[str, int] = {}
+    twice = set()
+    for k, name in enumerate(lower):
+        if row_of.setdefault(name, k) != k:
+            twice.add(name)
+    named = (twice | named_elsewhere(program, displaced=False)) & row_of.keys()
+    keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
+    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
+                        for name in moves.target_names), np.intp, len(moves))
+    indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
+        np.zeros(0, bool)
+    keep_targets[rows[indexed & (rows >= 0)]] = False
+    for k in outside_their_routine(table.routines, moves.routines, rows):
+        keep_targets[rows[k]] = False   # a routine's target named in another routine
+    moved = np.zeros(len(lower), bool)
+    moved[rows[rows >= 0]] = True
+    for name in (displaced_names(program) | set(displaced)) & row_of.keys():
+        if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
+            keep_targets[row_of[name]] = False
+    pair_of = {}
+    for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
+        if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:
+            keep_targets[rows[k]] = False     # its first motion's pair is another
+    keep_moves = (rows >= 0) & ~indexed
+    keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
+    bases = np.fromiter((row_of.get(name, -1) for name in displaced), np.intp, len(displaced))
+    keep_displaced = bases >= 0
+    keep_displaced[keep_displaced] = keep_targets[bases[keep_displaced]]
+    return keep_targets, keep_moves, keep_displaced

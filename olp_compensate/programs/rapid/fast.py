@@ -379,17 +379,22 @@ def _displaced_move(sink: Sink, m: re.Match) -> None:
     the builder makes of the same call (build.py ``Builder.call``), without its records."""
     span = m.span(2)
     line, col = sink.index.line_col(span[0])
+    if sink.displaced is not None:   # a row (displaced.py): the objects made on access
+        regs = m.regs
+        sink.displaced.add(line, col, regs, *m.group(1, 3, 5, 6), sink.routine)
+        return
     instruction, expression, function, tool, wobj = m.group(1, 2, 3, 5, 6)
     # one string per distinct word (a module holds thousands of these motions)
     instruction, tool = intern(instruction), intern(tool)
+    reason = intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})")
+    wobj = None if wobj is None else intern(wobj)
     runtime = RuntimeTarget(
         expression=expression, location=SourceLocation(sink.file, line, col),
-        reason=intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})"),
-        base_name=m.group(4), routine=sink.routine, span=span)
+        reason=reason, base_name=m.group(4), routine=sink.routine, span=span)
     sink.runtime.append(runtime)
     sink.motions.append(MotionUse(
         instruction=instruction, source=(sink.file, line, col), role="to", runtime=runtime,
-        tool=tool, wobj=None if wobj is None else intern(wobj), routine=sink.routine,
+        tool=tool, wobj=wobj, routine=sink.routine,
         instruction_span=m.span(1), statement_span=(m.start(), m.start(7)),
         target_span=span))
 

@@ -13,11 +13,14 @@ in the last digits of its joints, as numpy's vector and scalar loops round diffe
 The column path is taken target by target where a target's meaning is plain: declared
 once (at module level, or ``VAR``/``CONST`` in a routine: a row with its routine), named by
 no other statement than its module's table motions and motions that displace it at run
-time (``MoveL Offs(p, ...)``, ``RelTool``: their own ``runtime`` rows, objects), with no
+time (``MoveL Offs(p, ...)``, ``RelTool``: their own ``runtime`` report rows; in a module
+alone, rows of the column parse, :mod:`.displaced`, made objects only where their target
+leaves the table), with no
 routine parameter, copy, assignment, other run-time expression or routine call naming it,
 moved to by name without an index, from its own routine (a routine's target), and with
 one tool/work-object pair (tools and work objects may be declared in any module). A
-target that is not plain goes to the object path with its motions (:func:`_plain_rows`),
+target that is not plain goes to the object path with its motions
+(:func:`.column_plans.plain_rows`),
 and so does a table motion to a target outside the table; the module's other targets stay
 in columns. In a task whose modules declare or move to each other's table targets, such a
 module is compensated as objects whole.
@@ -46,12 +49,12 @@ from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
 from ..object_model.rows import failure_row, solved_note, written_row
-from .column_plans import (Plan, displaced_names, modules_sharing_names, named_elsewhere,
-                           outside_their_routine, task_plans)
+from .column_plans import Plan, modules_sharing_names, plain_rows, task_plans
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
 from ..targets import Program
 from .columns import ModuleColumns, TargetTable, split, with_objects
+from .displaced import DisplacedMoves, RowsWithDisplaced, with_displaced
 from .reader import parse_rapid_columns
 
 __all__ = ["compensate_rapid_module", "compensate_rapid_task", "CHUNK", "PARALLEL_MIN"]
@@ -95,9 +98,16 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
     are two or more, with the same result."""
     from ..object_model.task import NOT_MOVED_IN_TASK, _calls_to_task_routines, compensate_task
 
-    parsed = [parse_rapid_columns(text, file) for text, file in zip(texts, files)]
-    parsed = _plain_parts(parsed)
+    # one module alone: its plain Offs()/RelTool() motions are rows (displaced.py)
+    tables = [DisplacedMoves() if len(texts) == 1 else None for _ in texts]
+    parsed = [parse_rapid_columns(text, file, table)
+              for text, file, table in zip(texts, files, tables)]
+    parsed = _plain_parts(parsed, tables)
     plans = task_plans([p for p, _ in parsed], [c for _, c in parsed])
+    for m, plan in enumerate(plans):
+        if plan is None and tables[m] is not None:   # objects, all of them
+            parsed[m] = (with_displaced(parsed[m][0], tables[m]), parsed[m][1])
+            tables[m] = None
     programs = [p if plan is not None else with_objects(p, c)
                 for (p, c), plan in zip(parsed, plans)]
     if all(plan is None for plan in plans):
@@ -123,7 +133,10 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
         parsed[m] = None   # the motions' table is read: only the targets' is needed now
         table.compensate_all(chunk, jobs)
         count += len(edits) + sum(map(len, table.edits))
-        parts.append(table.rows(sorted(rows + table.others, key=LINE_COLUMN)))
+        others = sorted(rows + table.others, key=LINE_COLUMN)
+        if tables[m] is not None and len(tables[m]):
+            others = RowsWithDisplaced(others, tables[m], program.text, program.file)
+        parts.append(table.rows(others))
         new_texts.append(SplicedText(program.text, [edits, *table.edits]))
     report = CompensationReport(
         file=files[0], rows=parts[0] if len(parts) == 1 else ChainedRows(parts),
@@ -131,63 +144,39 @@ def compensate_rapid_task(texts: list[str], files: list[str], comp: Compensator,
     return new_texts, report
 
 
-def _plain_parts(parsed: list[tuple[Program, ModuleColumns]]
+def _plain_parts(parsed: list[tuple[Program, ModuleColumns]],
+                 tables: list[DisplacedMoves | None] | None = None
                  ) -> list[tuple[Program, ModuleColumns]]:
     """Each module's column parse with the table rows whose meaning is not plain within the
-    module (:func:`_plain_rows`) made into objects: a run-time use, copy or routine
+    module (:func:`.column_plans.plain_rows`) made into objects: a run-time use, copy or routine
     argument of one target sends that target and its motions to the object path, not the
     whole module. Modules of a task whose tables share names are left whole (their plan
-    is decided for the module, :func:`.column_plans.task_plans`)."""
+    is decided for the module, :func:`.column_plans.task_plans`). ``tables``: each
+    module's Offs()/RelTool() motions held as rows (or None), narrowed in place to those
+    that displace a target kept in the table; the others made objects of the program."""
+    tables = tables or [None] * len(parsed)
     if len(parsed) > 1:
         shared = modules_sharing_names([p for p, _ in parsed], [c for _, c in parsed])
     else:
         shared = set()
     out = []
     for m, (program, columns) in enumerate(parsed):
+        table = tables[m]
+        bases = table.base_names(program.text) if table is not None else []
         if m in shared or not len(columns.targets):
+            if table is not None:
+                program, tables[m] = with_displaced(program, table), None
             out.append((program, columns))
             continue
-        out.append(split(program, columns, *_plain_rows(program, columns)))
+        keep_targets, keep_moves, keep = plain_rows(program, columns, bases)
+        program, columns = split(program, columns, keep_targets, keep_moves)
+        if table is not None and not len(table):
+            tables[m] = None
+        elif table is not None:
+            program = with_displaced(program, table, keep)
+            tables[m] = table.subset(keep) if not keep.all() else table
+        out.append((program, columns))
     return out
-
-
-def _plain_rows(program: Program, columns: ModuleColumns) -> tuple[np.ndarray, np.ndarray]:
-    """(targets (n,) bool, motions (k,) bool): the table rows whose meaning is plain
-    within the module. A target is not plain when its name is declared twice, named by
-    any of the module's objects (a run-time expression, routine argument, copy,
-    assignment, another declaration), moved to with an index, or moved to with several
-    tool/work-object pairs, or (a routine's target) moved to from another routine, or
-    moved to only through Offs()/RelTool(); a motion is not plain when its target is not a
-    plain table target (a name the table does not declare). The rows that are not plain
-    go to the object path together with every table motion to them."""
-    table, moves = columns.targets, columns.moves
-    lower = [name if name.islower() else name.lower() for name in table.names]
-    row_of: dict[str, int] = {}
-    twice = set()
-    for k, name in enumerate(lower):
-        if row_of.setdefault(name, k) != k:
-            twice.add(name)
-    named = (twice | named_elsewhere(program, displaced=False)) & row_of.keys()
-    keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
-    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
-                        for name in moves.target_names), np.intp, len(moves))
-    indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
-        np.zeros(0, bool)
-    keep_targets[rows[indexed & (rows >= 0)]] = False
-    for k in outside_their_routine(table.routines, moves.routines, rows):
-        keep_targets[rows[k]] = False   # a routine's target named in another routine
-    moved = np.zeros(len(lower), bool)
-    moved[rows[rows >= 0]] = True
-    for name in displaced_names(program) & row_of.keys():
-        if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
-            keep_targets[row_of[name]] = False
-    pair_of = {}
-    for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
-        if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:
-            keep_targets[rows[k]] = False     # its first motion's pair is another
-    keep_moves = (rows >= 0) & ~indexed
-    keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
-    return keep_targets, keep_moves
 
 
 @dataclass(eq=False)
@@ -436,8 +425,11 @@ class _TablePart:
             columns = RowColumns.concatenate([_empty_columns(self.program.file,
                                                              self.comp.robot.n_joints)])
         key_columns = (columns.line << 32) | columns.column
-        key_others = np.fromiter(((r.line << 32) | r.column for r in others), np.int64,
-                                 len(others))
+        if isinstance(others, RowsWithDisplaced):
+            key_others = others.sorted_keys
+        else:
+            key_others = np.fromiter(((r.line << 32) | r.column for r in others), np.int64,
+                                     len(others))
         order = np.concatenate([np.arange(len(columns)), -1 - np.arange(len(others))])
         return ReportRows(columns, others, order[np.argsort(
             np.concatenate([key_columns, key_others]), kind="stable")])

@@ -217,20 +217,24 @@ def parse_rapid(text: str, file: str = "<string>") -> Program:
     return _parse(text, file, None)
 
 
-def parse_rapid_columns(text: str, file: str = "<string>") -> tuple[Program, ModuleColumns]:
+def parse_rapid_columns(text: str, file: str = "<string>", displaced=None
+                        ) -> tuple[Program, ModuleColumns]:
     """:func:`parse_rapid` keeping the module-level plain robtarget declarations and the
     plain MoveL/MoveJ in columns (:mod:`.columns`): ``(program, columns)``, where
     ``program`` holds everything else; ``with_objects(program, columns)`` is what
-    :func:`parse_rapid` gives."""
+    :func:`parse_rapid` gives. ``displaced``: an empty :class:`~.displaced.DisplacedMoves`
+    to receive the plain Offs()/RelTool() motions as rows (then missing from ``program``:
+    the caller's to restore), else they are objects."""
     columns = ModuleColumns(TargetTable(), MoveTable())
-    program = _parse(text, file, columns)
+    program = _parse(text, file, columns, displaced)
     columns.place(LineIndex(text).starts)
     return program, columns
 
 
-def _parse(text: str, file: str, columns: ModuleColumns | None) -> Program:
+def _parse(text: str, file: str, columns: ModuleColumns | None, displaced=None) -> Program:
     check_text(text, file)
-    sink = Sink(text, file, lambda start, end: _reparse_call(text, file, start, end), columns)
+    sink = Sink(text, file, lambda start, end: _reparse_call(text, file, start, end), columns,
+                displaced)
     token = current_sink.set(sink)
     try:
         parser("rapid.lark", Callbacks, ("start", "call")).parse(text, start="start")

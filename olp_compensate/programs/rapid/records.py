@@ -111,9 +111,9 @@ class Sink:
 
     __slots__ = ("text", "file", "index", "decls", "calls", "assigns", "routines", "modules",
                  "targets", "motions", "runtime", "depth", "routine", "pending", "reparse", "reparsing",
-                 "types", "columns", "indexed_text")
+                 "types", "columns", "indexed_text", "displaced")
 
-    def __init__(self, text: str, file: str, reparse, columns=None):
+    def __init__(self, text: str, file: str, reparse, columns=None, displaced=None):
         self.text, self.file, self.reparse = text, file, reparse
         self.index = LineIndex(text)
         self.decls: list[Decl] = []
@@ -132,6 +132,9 @@ class Sink:
         self.reparsing = False   # inside a call parsed again by the grammar
         self.columns = columns   # a column parse: the fast paths' tables, else None
         self.indexed_text = None   # the text with its line breaks listed, for reparses
+        # a column parse may hold its plain Offs()/RelTool() motions as rows
+        # (displaced.DisplacedMoves), else they are objects (``motions``, ``runtime``)
+        self.displaced = displaced
 
 
 _TOKEN_KIND = {"NUM": "num", "STRING": "string", "AGGREGATE": "aggregate", "STAR": "star",

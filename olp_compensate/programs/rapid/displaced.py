@@ -1,0 +1,203 @@
+"""Motions that displace a named target at run time, held as rows of a column parse.
+
+``MoveL Offs(p, 0, 0, 50), v, z, tool\\WObj:=w;`` and ``RelTool(p, ...)`` of the plainest
+form (what fast.py's ``_DISPLACED_MOVE`` reads) are not compensated: each is one
+``runtime`` report row. A real module holds tens of thousands of them; as objects
+(:class:`~..targets.MotionUse`, :class:`~..targets.RuntimeTarget`, their report row) they
+took about 1 KB each. Here they are rows: offsets in one integer array, the repeated words
+(instruction, tool, work object, routine, reason) stored once; the objects and the report
+row are made on access, exactly as the object parse makes them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import heapq
+from array import array
+from collections.abc import Sequence
+from sys import intern
+
+import numpy as np
+
+from ...compensation.report import COMPENSATED, TargetReport
+from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
+from .instructions import RUNTIME_FUNCS
+
+_WIDTH = 10
+"""Integers per row: line, column, instruction (start, end), statement (start, end),
+target expression (start, end), the displaced target's name (start, end)."""
+
+
+class DisplacedMoves:
+    """The plain Offs()/RelTool() motions of one module, in text order."""
+
+    __slots__ = ("numbers", "instructions", "reasons", "tools", "wobjs", "routines", "_words")
+
+    def __init__(self):
+        self.numbers = array("q")            # _WIDTH per row
+        self.instructions: list[str] = []
+        self.reasons: list[str] = []
+        self.tools: list[str] = []
+        self.wobjs: list[str | None] = []
+        self.routines: list[str | None] = []
+        self._words: dict = {}   # one string per distinct word and reason
+
+    def __len__(self) -> int:
+        return len(self.reasons)
+
+    def add(self, line: int, column: int, regs: tuple, instruction: str, function: str,
+            tool: str, wobj: str | None, routine: str | None) -> None:
+        """Add a row: where the target expression starts (1-based ``line``, ``column``),
+        the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py: 1 instruction,
+        2 expression, 4 target name, 7 the arguments' end), its words as written."""
+        self.numbers.extend((line, column, *regs[1], regs[0][0], regs[7][0], *regs[2],
+                             *regs[4]))
+        words = self._words
+        instruction = words.setdefault(instruction, instruction)
+        key = (function, instruction)
+        reason = words.get(key)
+        if reason is None:
+            reason = words[key] = intern(f"{RUNTIME_FUNCS[function.lower()]} ({instruction})")
+        self.instructions.append(instruction)
+        self.reasons.append(reason)
+        self.tools.append(words.setdefault(tool, tool))
+        self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
+        self.routines.append(routine)
+
+    def _row(self, i: int) -> array:
+        return self.numbers[_WIDTH * i:_WIDTH * i + _WIDTH]
+
+    def base_names(self, text: str) -> list[str]:
+        """Lower-case name of each row's displaced target."""
+        s = self.numbers
+        return [text[a:b].lower() for a, b in zip(s[8::_WIDTH], s[9::_WIDTH])]
+
+    def keys(self) -> np.ndarray:
+        """(n,) int64: ``line << 32 | column`` of each row (the report's order)."""
+        s = np.frombuffer(self.numbers, np.int64).reshape(-1, _WIDTH) if len(self) else \
+            np.zeros((0, _WIDTH), np.int64)
+        return (s[:, 0] << 32) | s[:, 1]
+
+    def objects(self, i: int, text: str, file: str) -> tuple[MotionUse, RuntimeTarget]:
+        """Row ``i`` as the (MotionUse, RuntimeTarget) the object parse makes."""
+        line, col, i0, i1, s0, s1, t0, t1, b0, b1 = self._row(i)
+        runtime = RuntimeTarget(
+            expression=text[t0:t1], location=SourceLocation(file, line, col),
+            reason=self.reasons[i], base_name=text[b0:b1], routine=self.routines[i],
+            span=(t0, t1))
+        use = MotionUse(
+            instruction=self.instructions[i], source=(file, line, col), role="to",
+            runtime=runtime, tool=self.tools[i], wobj=self.wobjs[i],
+            routine=self.routines[i], instruction_span=(i0, i1), statement_span=(s0, s1),
+            target_span=(t0, t1))
+        return use, runtime
+
+    def report_row(self, i: int, text: str, file: str) -> TargetReport:
+        """Row ``i``'s report row: status ``runtime``, the reason as note (what
+        object_model.rows.motion_row makes of the motion)."""
+        line, col, _, _, _, _, t0, t1, _, _ = self._row(i)
+        return TargetReport(target=text[t0:t1], file=file, line=line, column=col,
+                            status="runtime", tool=self.tools[i] or "",
+                            wobj=self.wobjs[i] or "", note=self.reasons[i])
+
+    def subset(self, keep: np.ndarray) -> DisplacedMoves:
+        """A table of the rows where ``keep`` (n,) bool is true, in order."""
+        out = DisplacedMoves()
+        rows = np.flatnonzero(keep).tolist()
+        for name in ("instructions", "reasons", "tools", "wobjs", "routines"):
+            column = getattr(self, name)
+            setattr(out, name, [column[k] for k in rows])
+        s = np.frombuffer(self.numbers, np.int64).reshape(-1, _WIDTH) if len(self) else \
+            np.zeros((0, _WIDTH), np.int64)
+        out.numbers = array("q", s[keep].ravel().tolist())
+        return out
+
+
+class RowsWithDisplaced(Sequence):
+    """Report rows held as objects (``objects``, in line/column order) and the rows of a
+    :class:`DisplacedMoves` table of ``text`` (``file``), merged in line/column order
+    (an object first where both are at the same place); a displaced row is made on
+    access."""
+
+    def __init__(self, objects: list, table: DisplacedMoves, text: str, file: str):
+        self.objects, self.table, self.text, self.file = objects, table, text, file
+        mine = np.fromiter(((r.line << 32) | r.column for r in objects), np.int64,
+                           len(objects))
+        keys = np.concatenate([mine, table.keys()])
+        order = np.argsort(keys, kind="stable")
+        self.sorted_keys = keys[order]
+        self.order = np.where(order < len(objects), order, len(objects) - 1 - order)
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        j = int(self.order[k])
+        return self.objects[j] if j >= 0 else self.table.report_row(-1 - j, self.text,
+                                                                     self.file)
+
+    def __iter__(self):
+        objects, row, text, file = self.objects, self.table.report_row, self.text, self.file
+        for j in self.order.tolist():
+            yield objects[j] if j >= 0 else row(-1 - j, text, file)
+
+    def statuses(self):
+        """The status of each row, in order, without making the table's rows."""
+        objects = self.objects
+        for j in self.order.tolist():
+            yield objects[j].status if j >= 0 else "runtime"
+
+    def compensated_rows(self):
+        """The compensated rows (objects all: a run-time motion is not one), any order."""
+        return (r for r in self.objects if r.status in COMPENSATED)
+
+    def problem_rows(self) -> Sequence:
+        """The rows neither compensated nor needing none, in order, made on access (a
+        run-time motion is one of them)."""
+        objects = self.objects
+        fine = np.fromiter((r.fine for r in objects), bool, len(objects))
+        order = self.order
+        mine = order >= 0
+        picked = np.flatnonzero(~mine)
+        if len(objects):
+            picked = np.flatnonzero(~mine | ~fine[np.where(mine, order, 0)])
+        return _Picked(self, picked)
+
+
+class _Picked(Sequence):
+    """Rows ``positions`` of a sequence of rows, made on access."""
+
+    def __init__(self, rows: Sequence, positions: np.ndarray):
+        self.rows, self.positions = rows, positions
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        return self.rows[int(self.positions[k])]
+
+
+def with_displaced(program: Program, table: DisplacedMoves,
+                   keep: np.ndarray | None = None) -> Program:
+    """``program`` with the rows of ``table`` not kept (``keep`` (n,) bool; None: none
+    kept) made objects, merged in text order into its motions and run-time targets: what
+    the object parse of the module gives."""
+    rows = range(len(table)) if keep is None else np.flatnonzero(~keep).tolist()
+    if not len(rows):
+        return program
+    made = [table.objects(i, program.text, program.file) for i in rows]
+    motions = tuple(heapq.merge(program.motions, [u for u, _ in made], key=_use_key))
+    runtime = tuple(heapq.merge(program.runtime, [r for _, r in made], key=_span_key))
+    return dataclasses.replace(program, motions=motions, runtime=runtime)
+
+
+def _use_key(u: MotionUse):
+    return u.target_span or u.statement_span
+
+
+def _span_key(r: RuntimeTarget):
+    return r.span or (0, 0)

@@ -1,0 +1,133 @@
+"""Targets that fail, solved with less repeated work and the same answers (issue 32, item 3):
+
+- the solver, told that the configuration rule follows (``ruled``), stops the targets the
+  reach bound proves out of reach after the closed form's first steps: the same verdicts,
+  fewer steps, and the rule's final statuses and joints are those without it;
+- the notes of a batch of joint_limit targets name each row's own axes (the words of all
+  rows are converted at once);
+- turning joints toward the controller's ranges is what an enumeration of the turns of
+  each axis gives (the candidates of the search are turned so).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from olp_compensate.calibration.simulate import random_joints
+from olp_compensate.compensation.config_rule import decide, turn_toward_ranges
+from olp_compensate.compensation.failures import explain_failures
+from olp_compensate.compensation.ik import solve
+from olp_compensate.compensation.pose import Compensator
+from olp_compensate.kinematics.robot import load_robot
+from virtual_world import identified_world
+
+
+@pytest.fixture(scope="module")
+def world():
+    robot = load_robot("abb_irb2400")
+    virtual, cal = identified_world(robot, 3)
+    return Compensator(cal)
+
+
+def _targets(comp: Compensator, n: int, seed: int, far_every: int = 3):
+    """Flange poses of n random joints inside the ranges (URDF rad) and their confdata;
+    every ``far_every``-th moved 2.5x away from the base (out of reach: further than the
+    arm's length from axis 2 whatever the joints)."""
+    robot = comp.robot
+    q = robot.joints_from_controller(random_joints(robot, n, np.random.default_rng(seed),
+                                                   margin=0.3))
+    desired = comp.nominal_flange(q)
+    far = np.arange(n) % far_every == 0
+    desired[far, :3, 3] *= 2.5
+    return desired, comp.confdata(q), far
+
+
+def _reach_of_arm(comp: Compensator) -> float:
+    """An upper bound (m) of the distance from the base origin to the flange: the sum of
+    the distances between consecutive joint origins and to the flange, at zero."""
+    frames = comp.robot.joint_frames_at_zero()
+    points = np.concatenate([[np.zeros(3)], frames[:, :3, 3],
+                             [comp.robot.flange_at_zero()[:3, 3]]])
+    return float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1))) * 1.05
+
+
+def test_the_ruled_solver_stops_proven_targets_early_with_the_same_answers(world):
+    comp = world
+    desired, confdata, far = _targets(comp, 60, seed=11)
+    assert np.all(np.linalg.norm(desired[far, :3, 3], axis=1) > _reach_of_arm(comp))
+    args = (comp.family, comp.real_flange_and_jacobian, desired, confdata, comp.limits)
+    plain = solve(*args, reach=comp.reach)
+    ruled = solve(*args, reach=comp.reach, ruled=True)
+    # the same verdict on every target; the far ones unreachable, with fewer steps
+    assert list(ruled.reason) == list(plain.reason)
+    assert np.all(ruled.reason[far] == "unreachable")
+    assert np.sum(ruled.iterations[far]) < np.sum(plain.iterations[far])
+    reached = plain.success
+    assert np.allclose(ruled.q[reached], plain.q[reached], atol=1e-9)
+    # the rule's final statuses and joints: the same with and without
+    ruled_final = decide(comp, comp.check_axis_ranges(ruled), desired, confdata)
+    plain_final = decide(comp, comp.check_axis_ranges(plain), desired, confdata)
+    assert list(ruled_final.reason) == list(plain_final.reason)
+    assert np.allclose(ruled_final.q, plain_final.q, atol=1e-9, equal_nan=True)
+    assert np.allclose(ruled_final.position_error_m, plain_final.position_error_m,
+                       rtol=1e-9, equal_nan=True)
+    # what a caller of compensate_flanges gets (the solver told that the rule follows)
+    _, _, through, _ = comp.compensate_flanges(desired, None, confdata)
+    assert list(through.reason) == list(plain_final.reason)
+    assert np.allclose(through.q, plain_final.q, atol=1e-9, equal_nan=True)
+
+
+def test_notes_of_a_batch_name_each_rows_own_axes(world):
+    """Targets past the ranges of different axes, explained together: each note lists
+    exactly the axes of that row's reported joints outside the controller's ranges, with
+    their values (deg, two decimals) and the side."""
+    comp = world
+    robot = comp.robot
+    ranges = robot.controller_ranges
+    rng = np.random.default_rng(8)
+    q_ctrl = random_joints(robot, 40, rng, margin=0.3)
+    for k in range(len(q_ctrl)):               # one axis of 2, 3 and 5 past an end
+        axis, side = (1, 2, 4)[k % 3], k % 2
+        q_ctrl[k, axis] = ranges[axis, side] + np.radians(8.0 if side else -8.0)
+    q = robot.joints_from_controller(q_ctrl)
+    desired = comp.nominal_flange(q)
+    _, _, solution, _ = comp.compensate_flanges(desired, None, comp.confdata(q))
+    reports = explain_failures(comp, solution, desired, comp.confdata(q))
+    limited = [k for k, r in enumerate(reports) if r is not None and r.status == "joint_limit"]
+    assert len(limited) >= 10
+    lo, hi = np.degrees(ranges[:, 0]), np.degrees(ranges[:, 1])
+    for k in limited:
+        joints_deg = np.degrees(reports[k].joints)
+        out = [a for a in range(6) if joints_deg[a] < lo[a] - 1e-7 or joints_deg[a] > hi[a] + 1e-7]
+        named = [int(a) - 1 for a in re.findall(r"axis (\d) = ", reports[k].note)]
+        assert named == out, (k, reports[k].note)
+        for a in out:
+            side = "below" if joints_deg[a] < lo[a] else "above"
+            assert f"axis {a + 1} = {joints_deg[a]:.2f} deg" in reports[k].note
+            assert f"deg {side} the controller's range" in reports[k].note
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "ur5e", "staubli_tx2_60"])
+def test_turn_toward_ranges_is_the_enumeration_of_turns(name):
+    robot = load_robot(name)
+    ranges = robot.controller_ranges
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-14.0, 14.0, (300, robot.n_joints))
+    got = turn_toward_ranges(robot, q)
+    for i in range(len(q)):
+        for a, joint in enumerate(robot.joints):
+            value = q[i, a]
+            if joint.kind != "revolute":
+                assert got[i, a] == value
+                continue
+            lo, hi = ranges[a]
+            fits = [value + 2 * np.pi * t for t in range(-3, 4)
+                    if np.isfinite(lo) and np.isfinite(hi)
+                    and lo - 1e-9 <= value + 2 * np.pi * t <= hi + 1e-9]
+            want = min(fits, key=abs) if fits else (value + np.pi) % (2 * np.pi) - np.pi
+            assert got[i, a] == pytest.approx(want, abs=1e-12), (i, a)
+    assert np.array_equal(turn_toward_ranges(robot, q.reshape(30, 10, -1)).reshape(q.shape),
+                          got)
