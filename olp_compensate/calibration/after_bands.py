@@ -12,12 +12,14 @@ that other joint stand in for the backlash (a 6x-noise backlash of joint 3 besid
    on the bands' folds (time blocks with ``time_s``), each candidate in turn is fitted
    unpenalized beside them, and its held-out gain over the model without any candidate
    tested by the z-test of :meth:`.cyclic_scan.BandScan.gain_test`, significant below
-   alpha / K (K the candidates tested), as in the forward scan; a significant candidate
-   must also be separable (:mod:`.separability`) from the unpenalized columns (the
-   geometry and the named effects: a penalized band's span holds a fair copy of a
-   backlash step, and the band is tested again once the candidate is in);
-3. the one of least held-out error is returned; the caller adds it, refits, scans the
-   bands again and runs the backward elimination (:mod:`.backward_elimination`).
+   alpha / K (K the candidates tested), as in the forward scan;
+3. the significant one of least held-out error is returned; the caller adds it, refits,
+   scans the bands again and runs the backward elimination (:mod:`.backward_elimination`).
+   As in the forward scan it is named only when separable (:mod:`.separability`) from the
+   unpenalized columns (the geometry and the named effects: a penalized band's span holds
+   a fair copy of a backlash step, and the band is tested again once the candidate is in)
+   and significantly better than every significant candidate that is not; else it is a
+   predictive term, not named (``AfterBandsRound.unnamed``).
 """
 
 from __future__ import annotations
@@ -27,11 +29,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cyclic_scan import BandOutcome, BandScan, band_effects
+from .cyclic_scan import BandOutcome, BandScan
 from .effect_scan import EffectScan
 from .effects import Effect
 from .identifiability import effect_separation
 from .separability import Refusal, separability_from_gram, separable
+
+
+STAGE = "effect scan after the bands"
 
 
 @dataclass(frozen=True)
@@ -55,14 +60,15 @@ class AfterBandsRound:
     threshold: float
     candidates: list[AfterBandsCandidate] = field(default_factory=list)
     chosen: Effect | None = None
-    confounded: list[Refusal] = field(default_factory=list)
-    """Separable significant candidates refused as confounded with an inseparable one."""
+    unnamed: Refusal | None = None
+    """Why the chosen candidate, kept in the model, is not named (None: named)."""
 
     @property
     def refused(self) -> list[Refusal]:
-        return self.confounded + [Refusal(label=c.effect.label, kind=c.effect.kind, joint=c.effect.joint,
-                        stage="effect scan after the bands", p_value=c.p_value,
-                        separability=c.separability, moves_m=c.moves_m)
+        """The significant candidates that are not separable (kept or not)."""
+        return [Refusal(label=c.effect.label, kind=c.effect.kind, joint=c.effect.joint,
+                        stage=STAGE, p_value=c.p_value, separability=c.separability,
+                        moves_m=c.moves_m, gain=c.gain)
                 for c in self.candidates
                 if c.p_value < self.threshold and not separable(c.separability)]
 
@@ -81,9 +87,10 @@ def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effe
                      robot, alpha: float, prefer_simpler_alpha: float = 0.05
                      ) -> AfterBandsRound | None:
     """One round of the module docstring at the scan's model with the kept ``bands``;
-    None when no candidate can be tested. As in the forward scan, a significant
-    separable candidate the data cannot tell from a significant inseparable one (not
-    significantly better than it at ``prefer_simpler_alpha``) is refused too."""
+    None when no candidate can be tested. As in the forward scan, the chosen candidate is
+    not named when it is not separable, or when the data cannot tell it from a
+    significant inseparable one (not significantly better than it at
+    ``prefer_simpler_alpha``)."""
     named = {e.key for e in scan.problem.effects}
     testable = [c for c in candidates if c.key not in named
                 and effect_separation(scan.jac, scan.columns(c), scan.names) is None]
@@ -114,40 +121,37 @@ def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effe
         candidate = AfterBandsCandidate(
             effect=effect, gain=gain / max(reference.sse, 1e-300), z=z, p_value=p,
             separability=share, moves_m=float(np.sqrt(3.0 * np.mean(motion**2))))
-        candidate = dataclasses.replace(candidate, significant=bool(
-            p < out.threshold and separable(share)))
-        out.candidates.append(candidate)
+        out.candidates.append(dataclasses.replace(candidate, significant=bool(p < out.threshold)))
         held_of[effect.key] = (held, drop)
-    inseparable = [c for c in out.candidates
-                   if c.p_value < out.threshold and not separable(c.separability)]
-    for c in sorted((c for c in out.candidates if c.significant),
-                    key=lambda c: held_of[c.effect.key][0].sse):
-        # refused when not significantly better than an inseparable significant one
-        held, drop = held_of[c.effect.key]
-        confounded = [r for r in inseparable if band_scan.gain_test(
-            held_of[r.effect.key][0], held, kept, held_of[r.effect.key][1])[2]
-            >= prefer_simpler_alpha]
-        if not confounded:
-            out.chosen = c.effect
-            break
-        out.confounded.append(Refusal(
-            label=c.effect.label, kind=c.effect.kind, joint=c.effect.joint,
-            stage="effect scan after the bands", p_value=c.p_value,
-            separability=c.separability, moves_m=c.moves_m,
-            confounded_with=confounded[0].effect.label))
-    gone = {r.label for r in out.confounded}
-    out.candidates = [dataclasses.replace(c, significant=False) if c.effect.label in gone
-                      else c for c in out.candidates]
+    significant = [c for c in out.candidates if c.significant]
+    if not significant:
+        return out
+    chosen = min(significant, key=lambda c: held_of[c.effect.key][0].sse)
+    out.chosen = chosen.effect
+    held, _ = held_of[chosen.effect.key]
+    n = max(len(reference.residuals), 1)
+    fields = dict(label=chosen.effect.label, kind=chosen.effect.kind, joint=chosen.effect.joint,
+                  stage=STAGE, p_value=chosen.p_value, separability=chosen.separability,
+                  moves_m=chosen.moves_m, gain=chosen.gain,
+                  gain_m=float(np.sqrt(reference.sse / n) - np.sqrt(held.sse / n)))
+    confounded = [r for r in significant if r is not chosen and not separable(r.separability)
+                  and band_scan.gain_test(held_of[r.effect.key][0], held, kept,
+                                          held_of[r.effect.key][1])[2] >= prefer_simpler_alpha]
+    if not separable(chosen.separability):
+        out.unnamed = Refusal(**fields)
+    elif confounded:
+        out.unnamed = Refusal(**fields, confounded_with=confounded[0].effect.label)
     return out
 
 
 def confounded_bands(scan: EffectScan, bands: BandOutcome, inseparable: list[Effect], robot,
                      prefer_simpler_alpha: float = 0.05) -> list[Refusal]:
-    """The kept bands the data cannot tell from a significant effect the forward scan
-    refused as inseparable (``inseparable``): the model with the band is not
-    significantly better (``prefer_simpler_alpha``) than the same model with that effect,
-    unpenalized, in its place (on a joint-by-joint sweep the geometry absorbs a
-    compliance of joint 3, and bands of joints 2 and 3 then take its gain)."""
+    """The kept bands the data cannot tell from a significant inseparable effect that is
+    not in the model (``inseparable``): the model with the band is not significantly
+    better (``prefer_simpler_alpha``) than the same model with that effect, unpenalized,
+    in its place (on a joint-by-joint sweep the geometry absorbs a compliance of joint 3,
+    and bands of joints 2 and 3 can take its gain). Such a band stays in the model, not
+    named; the refusal's ``confounded_with`` names the effect."""
     named = {e.key for e in scan.problem.effects}
     effects = [e for e in inseparable if e.key not in named]
     if not effects or not bands.bands:
@@ -177,26 +181,10 @@ def confounded_bands(scan: EffectScan, bands: BandOutcome, inseparable: list[Eff
     return out
 
 
-def without_bands(outcome: BandOutcome, joints: set[int]) -> BandOutcome:
-    """``outcome`` with the kept bands of ``joints`` (0-based) removed: the rest refitted
-    at their penalties (held-out residuals of that fit on the scan's folds)."""
-    bands = outcome.scan
-    kept = [(b.joint, b.ridge) for b in outcome.bands if b.joint not in joints]
-    out = dataclasses.replace(outcome, bands=[], p_values=[], rhs=None)
-    if not kept:
-        return out
-    held, x = bands.current(kept)
-    cols = np.concatenate([bands.columns[j] for j, _ in kept])
-    out.rhs = -(bands.scan.residual + bands.a[:, cols] @ x[bands.n_u:])
-    out.bands = band_effects(bands, kept, x)
-    out.p_values = [p for b, p in zip(outcome.bands, outcome.p_values) if b.joint not in joints]
-    out.heldout = held
-    return out
-
-
 def after_bands_entry(rounds: list[AfterBandsRound]) -> list[dict]:
     """The d.json key ``effect_scan_after_bands``: one entry per round."""
     return [{"threshold": r.threshold, "chosen": None if r.chosen is None else r.chosen.label,
+             "chosen_named": r.chosen is not None and r.unnamed is None,
              "candidates": [{"effect": c.effect.label, "kind": c.effect.kind,
                              "joint": None if c.effect.joint is None else c.effect.joint + 1,
                              "heldout_gain": c.gain, "z": c.z, "p_value": c.p_value,
@@ -211,8 +199,9 @@ def after_bands_lines(rounds: list[AfterBandsRound]) -> list[str]:
         best = sorted(r.candidates, key=lambda c: c.p_value)[:3]
         tested = ", ".join(f"{c.effect.label} ({100 * c.gain:.1f} %, p = {c.p_value:.1e})"
                            for c in best)
-        verdict = (f"kept {r.chosen.label}" if r.chosen is not None
-                   else "no further term is significant")
+        verdict = ("no further term is significant" if r.chosen is None
+                   else f"kept {r.chosen.label}" if r.unnamed is None
+                   else "kept a predictive term, not named (below)")
         lines.append(f"effect scan after the bands, round {number} (threshold "
                      f"{r.threshold:.1e}; best: {tested}): {verdict}")
     return lines

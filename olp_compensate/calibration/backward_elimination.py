@@ -36,7 +36,7 @@ from .cyclic_scan import BandOutcome, BandScan, apply_bands
 from .effect_scan import EffectScan
 from .effects import Effect
 from .identify import IdentificationResult, identify
-from .after_bands import AfterBandsRound, confounded_bands, scan_after_bands, without_bands
+from .after_bands import AfterBandsRound, confounded_bands, scan_after_bands
 from .separability import Refusal
 from .time_blocks import BlockedFigures, scan_bands_blocked
 
@@ -73,8 +73,12 @@ class BandStage:
     """Effects significant in the scan after the bands but not separable."""
     after_bands: list[AfterBandsRound] = field(default_factory=list)
     """The rounds of the classic candidates scanned again with the bands in."""
-    added: list[tuple[Effect, float]] = field(default_factory=list)
-    """Effects (and p-values) named by those rounds, in the order added."""
+    added: list[tuple[Effect, float, Refusal | None]] = field(default_factory=list)
+    """Effects kept by those rounds, in the order added: (effect, p-value, why it is not
+    named or None)."""
+    confounded: list[Refusal] = field(default_factory=list)
+    """Kept bands the data cannot tell from a significant inseparable effect not in the
+    model (:func:`.after_bands.confounded_bands`): kept, not named."""
 
     @property
     def dropped(self) -> list[Effect]:
@@ -143,11 +147,12 @@ def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
     """The bands at the scan's model (the geometry and the named ``effects``, each with
     the threshold of the forward round that kept it), then the backward elimination of
     the effects the bands make unneeded (module docstring), then the ``candidates`` not
-    named scanned forward again with the bands in (:mod:`.after_bands`): one kept is
+    kept scanned forward again with the bands in (:mod:`.after_bands`): one kept is
     added, the model refitted, the bands scanned and the elimination run again; last,
     a kept band the data cannot tell from one of the ``inseparable`` effects (significant,
-    refused by the forward scan) is removed (:func:`.after_bands.confounded_bands`; with
-    pose folds only); ``options``: DiagnoseOptions, ``base_options``: the identification's."""
+    not separable, not in the model) is marked not to be named (``stage.confounded``;
+    :func:`.after_bands.confounded_bands`; with pose folds only); ``options``:
+    DiagnoseOptions, ``base_options``: the identification's."""
     current, folds = scan.result, scan.folds
     stage = BandStage(current=current, scan=scan, extended=current)
     if not options.cyclic:
@@ -174,20 +179,17 @@ def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
         refit = identify(robot, meas, dataclasses.replace(
             base_options, effects=tuple(effects) + (round_.chosen,)))
         if refit.dropped_effects:  # the non-linear fit disagrees: keep the model before
-            round_.chosen = None
+            round_.chosen, round_.unnamed = None, None
             break
         chosen = next(c for c in round_.candidates if c.effect.key == round_.chosen.key)
-        stage.added.append((round_.chosen, chosen.p_value))
+        stage.added.append((round_.chosen, chosen.p_value, round_.unnamed))
         threshold_of[round_.chosen.key] = round_.threshold
         effects.append(round_.chosen)
         current, scan = refit, EffectScan(refit, meas, inputs, folds)
         bands, blocked = _bands(scan, robot, meas, inputs, options, folds_k)
     if inseparable and blocked is None:  # bands standing in for an inseparable effect
-        confounded = confounded_bands(scan, bands, list(inseparable), robot,
-                                      options.prefer_simpler_alpha)
-        stage.refused += confounded
-        if confounded:
-            bands = without_bands(bands, {r.joint for r in confounded})
+        stage.confounded = confounded_bands(scan, bands, list(inseparable), robot,
+                                            options.prefer_simpler_alpha)
     stage.current, stage.scan, stage.bands, stage.blocked = current, scan, bands, blocked
     stage.extended = apply_bands(current, scan, bands) if bands.bands else current
     return stage

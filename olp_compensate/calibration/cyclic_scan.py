@@ -39,7 +39,7 @@ from .effect_scan import EffectScan, Heldout
 from .problem import problem_at
 from .identify import IdentificationResult
 from .effects import CyclicError
-from .separability import separability_from_gram, separable
+from .separability import separability_from_gram
 from .moment_arms import MIN_LEVER_M, moment_arms  # noqa: F401  (MIN_LEVER_M: re-exported)
 from ..kinematics.robot import Robot
 
@@ -95,7 +95,9 @@ class BandResult:
     separability: float = float("nan")
     """Share of the band's motion distinct from the unpenalized unknowns (the geometry and
     the named effects; the kept bands are penalized and tested again by the elimination)
-    (:mod:`.separability`; below ``MIN_SEPARABILITY``: not kept, and said so)."""
+    (:mod:`.separability`; below ``MIN_SEPARABILITY``: kept when significant, not named)."""
+    base_rms_m: float = float("nan")
+    """Held-out RMS (3-D per row, m, weighted) of the model the band was tested against."""
 
 
 @dataclass
@@ -354,13 +356,14 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
             held_of[j] = held
             results.append(BandResult(effect=bands.templates[j], gain=gain / base.sse, z=z,
                                       p_value=p, ridge=lam, moves=float(move / base_rms),
-                                      moves_m=float(move), separability=share))
+                                      moves_m=float(move), separability=share,
+                                      base_rms_m=float(base_rms)))
         if not results:
             break
         threshold = alpha / len(results)
-        results = [dataclasses.replace(r, significant=bool(
-            r.p_value < threshold and r.moves <= MAX_MOVES and separable(r.separability)))
-            for r in results]
+        results = [dataclasses.replace(r, significant=bool(r.p_value < threshold
+                                                           and r.moves <= MAX_MOVES))
+                   for r in results]
         outcome.rounds.append(results)
         outcome.thresholds.append(threshold)
         significant = [r for r in results if r.significant]

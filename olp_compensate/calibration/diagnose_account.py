@@ -22,12 +22,15 @@ def _quadrature(big: float, small: float) -> float:
 
 
 def account(geometric_m: float, extended_m: float, remainder: Predictability | None,
-            noise_sigma_m: float, noise_source: str) -> dict:
-    """The JSON account, mm (3-D RMS except ``noise_per_axis_mm``)."""
+            noise_sigma_m: float, noise_source: str, predictive_terms: int = 0) -> dict:
+    """The JSON account, mm (3-D RMS except ``noise_per_axis_mm``); the extended model
+    holds the named effects and ``predictive_terms`` terms kept but not named (what
+    ``explained_by_named_effects_mm`` counts with them)."""
     predictable = extended_m if remainder is None else remainder.rms_after
     return {"geometric_heldout_mm": geometric_m * 1e3,
             "explained_by_named_effects_mm": _quadrature(geometric_m, extended_m) * 1e3,
             "extended_heldout_mm": extended_m * 1e3,
+            "predictive_terms_in_extended": predictive_terms,
             "predictable_not_named_mm": _quadrature(extended_m, predictable) * 1e3,
             "predictable_from_joints": [] if remainder is None
             else [j + 1 for j in remainder.joints],
@@ -45,7 +48,10 @@ def account_lines(doc: dict) -> list[str]:
     joints = doc["predictable_from_joints"]
     where = (f" from joint{'s' if len(joints) > 1 else ''} "
              + " and ".join(str(j) for j in joints)) if joints else ""
-    return [f"what remains: named effects explain {doc['explained_by_named_effects_mm']:.4f} "
+    n = doc.get("predictive_terms_in_extended", 0)
+    terms = (f" and {n} predictive term{'s' if n > 1 else ''} not named" if n else "")
+    return [f"what remains: named effects{terms} explain "
+            f"{doc['explained_by_named_effects_mm']:.4f} "
             f"mm of the {doc['geometric_heldout_mm']:.4f} mm (held-out RMS, in quadrature); "
             f"{doc['predictable_not_named_mm']:.4f} mm more is predictable{where} but not "
             f"named; the rest ({doc['remaining_mm']:.4f} mm 3-D RMS) is the noise floor, "
@@ -120,3 +126,20 @@ def refusals_with_bands(refused: list[Refusal], bands: BandOutcome | None) -> li
     for r in refused:
         out.setdefault((r.label, r.stage), r)
     return list(out.values())
+
+
+def band_refusal(bands: BandOutcome, band: CyclicError, confounded_with: str = ""
+                 ) -> Refusal | None:
+    """Why the kept ``band`` is not named (None: it is named): not separable from the
+    unpenalized unknowns in the round that kept it, or ``confounded_with`` a significant
+    inseparable effect (:func:`.after_bands.confounded_bands`). Carries its held-out gain
+    in that round."""
+    result = next((r for results in reversed(bands.rounds) for r in results
+                   if r.significant and r.effect.joint == band.joint), None)
+    if result is None or (separable(result.separability) and not confounded_with):
+        return None
+    drop = result.base_rms_m * (1.0 - np.sqrt(max(1.0 - result.gain, 0.0)))
+    return Refusal(label=result.effect.label, kind=result.effect.kind, joint=band.joint,
+                   stage="cyclic bands", p_value=result.p_value,
+                   separability=result.separability, moves_m=result.moves_m,
+                   gain=result.gain, gain_m=float(drop), confounded_with=confounded_with)

@@ -170,7 +170,7 @@ def candidate_effects(robot: Robot, has_temperature: bool) -> list[Effect]:
 def choose_candidate(scan: EffectScan, tested: list[tuple[CandidateResult, Heldout]],
                      threshold: float, prefer_simpler_alpha: float):
     """(chosen candidate or None, labels of the alternatives); see the module docstring."""
-    significant = [item for item in tested if item[0].significant]
+    significant = [item for item in tested if item[0].p_value < threshold]
     if not significant:
         return None, []
     best = min(significant, key=lambda item: item[1].sse)
@@ -189,29 +189,33 @@ def choose_candidate(scan: EffectScan, tested: list[tuple[CandidateResult, Heldo
     return chosen[0], alternatives
 
 
-def unconfounded_choice(scan: EffectScan, tested: list, threshold: float,
-                         prefer_simpler_alpha: float, refused: list, stage: str):
-    """:func:`choose_candidate` among the separable significant candidates,
-    refusing (a :class:`.separability.Refusal` appended to ``refused``) each choice the data cannot tell from a significant
-    candidate that is not separable: it is not significantly better than it
-    (:meth:`EffectScan.gain_test` at ``prefer_simpler_alpha``)."""
-    inseparable = [(r, held) for r, held in tested
-                   if r.p_value < threshold and not separable(r.separability)]
-    while True:
-        chosen, alternatives = choose_candidate(scan, tested, threshold, prefer_simpler_alpha)
-        if chosen is None or not inseparable:
-            return chosen, alternatives
-        held = next(h for r, h in tested if r is chosen)
-        confounded = [r for r, h in inseparable
-                      if scan.gain_test(h, held)[2] >= prefer_simpler_alpha]
-        if not confounded:
-            return chosen, alternatives
-        refused.append(Refusal(label=chosen.effect.label, kind=chosen.effect.kind,
-                               joint=chosen.effect.joint, stage=stage,
-                               p_value=chosen.p_value, separability=chosen.separability,
-                               moves_m=chosen.moves_m,
-                               confounded_with=confounded[0].effect.label))
-        tested = [(r, h) for r, h in tested if r is not chosen]
+def heldout_rms_drop(reference: Heldout, candidate: Heldout) -> float:
+    """How much the held-out RMS (3-D per row, m, weighted as the fit) falls from
+    ``reference`` to ``candidate``."""
+    n = max(len(reference.residuals), 1)
+    return float(np.sqrt(reference.sse / n) - np.sqrt(candidate.sse / n))
+
+
+def naming_refusal(scan: EffectScan, tested: list, chosen: CandidateResult, threshold: float,
+                   prefer_simpler_alpha: float, stage: str) -> Refusal | None:
+    """Why the ``chosen`` candidate, kept in the model, is not named (None: it is named).
+    Not named when it is not separable (:mod:`.separability`), or when the data cannot
+    tell it from a significant candidate that is not (it is not significantly better than
+    it, :meth:`EffectScan.gain_test` at ``prefer_simpler_alpha``: it may be that one's
+    proxy). The refusal carries its held-out gain (share and RMS drop, m)."""
+    held = next(h for r, h in tested if r is chosen)
+    fields = dict(label=chosen.effect.label, kind=chosen.effect.kind, joint=chosen.effect.joint,
+                  stage=stage, p_value=chosen.p_value, separability=chosen.separability,
+                  moves_m=chosen.moves_m, gain=chosen.gain,
+                  gain_m=heldout_rms_drop(scan.base, held))
+    if not separable(chosen.separability):
+        return Refusal(**fields)
+    confounded = [r for r, h in tested if r is not chosen and r.p_value < threshold
+                  and not separable(r.separability)
+                  and scan.gain_test(h, held)[2] >= prefer_simpler_alpha]
+    if confounded:
+        return Refusal(**fields, confounded_with=confounded[0].effect.label)
+    return None
 
 
 def drift_warning(scan: EffectScan, alpha: float) -> str | None:

@@ -16,6 +16,13 @@ An effect is named only when ``s >= MIN_SEPARABILITY``; below, the diagnosis say
 ("not named: not separable from the geometry over these poses", with s and the sizes) and
 never names it silently.
 
+Naming is a label, not a model choice. A term the held-out test keeps stays in the
+extended model whatever its separability (what it predicts is real: its held-out gain was
+measured); only its name and size are withheld when it is not separable, or when the data
+cannot tell it from a significant candidate that is not (a proxy). Such a term is a
+"predictive term, not named" (d.json ``predictive_not_named``); a significant term the
+model does not keep, with the same reasons, goes to ``not_named``.
+
 The threshold, measured on virtual robots with the truth known (``benchmarks/diagnose.py``
 and ``benchmarks/cyclic.py`` cases, true effects 3-6x the noise): true effects named have
 s = 0.40-0.99 (gravity compliance of joint 2 over random poses the lowest, 0.40; bands
@@ -88,10 +95,25 @@ class Refusal:
     """When set: the effect is separable, but the data cannot tell it from this one, which
     is significant and not separable (the design points at an effect it cannot separate;
     naming the separable one would name a proxy)."""
+    gain: float = float("nan")
+    """Share of the held-out sum of squares the term removed where it was tested."""
+    gain_m: float = float("nan")
+    """How much the held-out RMS (3-D, per point, m; weighted as the fit) fell when the
+    term was added: the reference model's held-out RMS minus the model's with it."""
 
     @property
     def distinct_m(self) -> float:
         return self.moves_m * self.separability
+
+    @property
+    def kept_reason(self) -> str:
+        """Why a term kept in the model is not named (no size: it is not determined)."""
+        if self.confounded_with:
+            return (f"the data cannot tell it from {self.confounded_with}, which is significant "
+                    f"but not separable from the geometry over these poses")
+        return (f"not separable from the geometry over these poses (separability "
+                f"{self.separability:.3f} < {MIN_SEPARABILITY}): what it predicts is measured "
+                f"held-out, its size is not determined by these data")
 
     @property
     def reason(self) -> str:
@@ -118,6 +140,42 @@ def refusal_entries(refusals: list[Refusal]) -> list[dict]:
              "min_separability": MIN_SEPARABILITY, "moves_mm": num(r.moves_m * 1e3),
              "distinct_mm": num(r.distinct_m * 1e3), "confounded_with": r.confounded_with or None,
              "reason": r.reason} for r in refusals]
+
+
+def predictive_entries(terms: list[Refusal]) -> list[dict]:
+    """The d.json key ``predictive_not_named``: the terms kept in the extended model but not
+    named; ``kind`` and ``joint`` (1-based) are the candidate's, a hint only."""
+    def num(value: float) -> float | None:
+        return float(value) if np.isfinite(value) else None
+
+    return [{"hint_kind": r.kind, "hint_joint": None if r.joint is None else r.joint + 1,
+             "stage": r.stage, "p_value": num(r.p_value),
+             "separability": num(r.separability), "min_separability": MIN_SEPARABILITY,
+             "heldout_gain": num(r.gain), "heldout_gain_mm": num(r.gain_m * 1e3),
+             "confounded_with": r.confounded_with or None, "reason": r.kept_reason}
+            for r in terms]
+
+
+def predictive_gain_m(terms: list[Refusal]) -> float:
+    """The held-out RMS the ``terms`` removed when they were added, summed, m."""
+    return float(sum(r.gain_m for r in terms if np.isfinite(r.gain_m)))
+
+
+def predictive_lines(terms: list[Refusal]) -> list[str]:
+    """The text summary's lines for the terms kept in the model but not named."""
+    if not terms:
+        return []
+    n = len(terms)
+    why = ("not separable from the geometry over these poses" if not any(
+        r.confounded_with for r in terms) else "not separable from the geometry over these "
+        "poses, or not distinguishable from a term that is not")
+    lines = [f"predictable, not named: {n} term{'s' if n > 1 else ''}, gain "
+             f"{predictive_gain_m(terms) * 1e3:.4f} mm held-out (3-D RMS, summed as they were "
+             f"added); {why}: kept in the extended model, names and sizes withheld"]
+    for r in terms:
+        lines.append(f"  term ({r.stage}, p = {r.p_value:.1e}, held-out gain "
+                     f"{r.gain_m * 1e3:.4f} mm; a hint only: {r.label}): {r.kept_reason}")
+    return lines
 
 
 def refusal_lines(refusals: list[Refusal]) -> list[str]:
