@@ -88,6 +88,7 @@ def test_a_compliance_a_sweep_cannot_separate_is_kept_unnamed():
     assert "not separable from the geometry over these poses" in term["reason"]
     assert "moves_mm" not in term and "value" not in term  # its size is withheld
     assert "joint_compliance j3" not in {e["effect"] for e in doc["not_named"]}
+    assert doc["test"]["rounds"][0]["chosen_named"] is False
     # kept in the model: the extended held-out error falls to the true noise (3-D RMS)
     held = doc["heldout_rms_mm"]
     noise_3d_mm = NOISE * np.sqrt(3) * 1e3

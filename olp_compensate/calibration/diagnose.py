@@ -434,6 +434,7 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
         "test": {"description": d.test, "alpha": d.alpha,
                  "rounds": [{"threshold": r.threshold,
                              "chosen": None if r.chosen is None else r.chosen.label,
+                             "chosen_named": r.chosen is not None and r.unnamed is None,
                              "alternatives": r.alternatives,
                              "candidates": [candidate_entry(c) for c in r.candidates]}
                             for r in d.rounds]},

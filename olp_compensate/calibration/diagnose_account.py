@@ -106,8 +106,11 @@ def band_round_lines(bands: BandOutcome | None) -> list[str]:
                               if not separable(r.separability) else "") + ")"
                            for r in results)
         kept = [r for r in results if r.significant]
-        verdict = (f"kept the band of joint {min(kept, key=lambda r: -r.gain).effect.joint + 1}"
-                   if kept else "no band is significant")
+        best = min(kept, key=lambda r: -r.gain) if kept else None
+        verdict = ("no band is significant" if best is None
+                   else f"kept the band of joint {best.effect.joint + 1}"
+                   + ("" if separable(best.separability)
+                      else " (not separable: a predictive term, not named)"))
         lines.append(f"cyclic band round {number} (threshold {threshold:.1e}): {tested}; "
                      f"{verdict}")
     return lines
