@@ -295,6 +295,10 @@ def diagnose_checks(replica: Replica, doc: dict, independent_mm: float,
                                   + (f" dominant {e['dominant_orders']}"
                                      if "dominant_orders" in e else "")
                                   for e in doc["effects"]))
+    unnamed = doc.get("predictive_not_named", [])
+    print(f"  predictive terms not named: {len(unnamed)}" + "".join(
+        f"; hint {e['hint_kind']} j{e['hint_joint']} (s = {e['separability']:.3f})"
+        for e in unnamed))
     bands = {e["joint"]: e["dominant_orders"][0] for e in doc["effects"]
              if e["kind"] == "cyclic_error"}
     right = sum(bands.get(e.joint + 1) == e.dominant_order for e in replica.hidden)

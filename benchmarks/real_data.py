@@ -138,7 +138,9 @@ def range_check(robot, meas, joint: int, folds: int, bootstrap: int = 0) -> None
           f"rows, outside the fitted range): geometric "
           f"{rms_on(robot, geometric, meas.subset(test)) * 1e3:.4f} mm, named effects "
           f"{rms_on(robot, extended, meas.subset(test)) * 1e3:.4f} mm ("
-          + (", ".join(k.effect.label for k in d.effects) or "none") + ")")
+          + (", ".join(k.effect.label for k in d.effects) or "none")
+          + (f"; {len(d.predictive)} predictive term(s) not named" if d.predictive else "")
+          + ")")
     if bootstrap:
         _bootstrap(robot, train, meas.subset(test), bootstrap)
 
@@ -179,7 +181,11 @@ def report(path: str, robot, folds: int) -> None:
     print(f"  nominal (registered)      {nominal_heldout(robot, meas, folds) * 1e3:8.4f} mm")
     print(f"  geometric                 {d.geometric.heldout_rms * 1e3:8.4f} mm")
     print(f"  named effects             {d.extended.heldout_rms * 1e3:8.4f} mm: "
-          + (", ".join(k.effect.label for k in d.effects) or "none"))
+          + (", ".join(k.effect.label for k in d.effects) or "none")
+          + (f"; with {len(d.predictive)} predictive term{'s' if len(d.predictive) > 1 else ''} "
+             f"not named (hints: "
+             + ", ".join(f"{t.unnamed.label} s = {t.unnamed.separability:.3f}"
+                         for t in d.predictive) + ")" if d.predictive else ""))
     print(f"  predictable remainder     {rem.rms_after * 1e3:8.4f} mm (from joints "
           f"{', '.join(str(j + 1) for j in rem.joints) or 'none'}; {rem.model}); independent peer "
           f"(k-nearest neighbours) {min(peer, rem.rms_before) * 1e3:.4f} mm")

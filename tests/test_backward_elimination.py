@@ -7,9 +7,11 @@ a cyclic error keeps both. The truth is the virtual robot (pinocchio on its URDF
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from olp_compensate.calibration.cross_validation import time_blocked_folds
-from olp_compensate.calibration.diagnose import diagnose, diagnosis_to_dict, summary
+from olp_compensate.calibration.diagnose import (DiagnoseOptions, diagnose, diagnosis_to_dict,
+                                                 summary)
 from olp_compensate.calibration.simulate import (CYCLIC_KIND, HiddenEffect, make_virtual_robot,
                                                  random_joints, scaled_effect)
 from olp_compensate.kinematics.robot import load_robot
@@ -26,13 +28,13 @@ def band(peak: int, rng: np.random.Generator) -> tuple:
                   float(rng.uniform(-np.pi, np.pi))) for k in range(2, 41))
 
 
-def case(seed: int, backlash_noise: float = 0.0, backlash_joint: int = 1):
-    """(virtual robot, joints, rng): 800 poses, joint 2's cyclic error moving the point by
+def case(seed: int, backlash_noise: float = 0.0, backlash_joint: int = 1, poses: int = 800):
+    """(virtual robot, joints, rng): ``poses`` poses, joint 2's cyclic error moving the point by
     12x the noise (RMS), and with ``backlash_noise`` > 0 a backlash of ``backlash_joint``
     (0-based) moving it by that many times the noise."""
     rng = np.random.default_rng([77, seed])
     virtual = make_virtual_robot(ROBOT, 7700 + seed)
-    joints = random_joints(ROBOT, 800, rng)
+    joints = random_joints(ROBOT, poses, rng)
     hidden = [scaled_effect(virtual, HiddenEffect(CYCLIC_KIND, 1, 1e-4, band=band(20, rng)),
                             joints, 12 * NOISE)]
     if backlash_noise:
@@ -91,3 +93,25 @@ def test_with_acquisition_times_the_elimination_runs_on_the_time_blocks():
                for eq, block in zip(result.bands.scan.fold_eq, blocks))
     assert [(k.effect.kind, k.effect.joint) for k in result.effects] == [(CYCLIC_KIND, 1)]
     assert any(s.dropped for s in result.elimination)
+
+
+@pytest.mark.slow
+def test_a_weaker_backlash_beside_a_band_is_named_by_the_scan_after_the_bands():
+    """A 6x-noise backlash of joint 3 beside a 12x-noise cyclic error of joint 2: before
+    the bands it is not significant (the band's error dominates), and without the scan
+    after the bands a high-order band of joint 3 stood in for it (checked on these 400
+    poses, backlash candidates only, with the scan after the bands switched off: bands of
+    joints 2 and 3 named). Now it is named, within 20 % of its true gap, and joint 3 gets
+    no band. (Backlash candidates only: the same outcome at half the time.)"""
+    virtual, joints, rng = case(2, backlash_noise=6.0, backlash_joint=2, poses=400)
+    result = diagnose(ROBOT, virtual.measure(joints, NOISE, rng),
+                      DiagnoseOptions(kinds=("backlash",)))
+    kept = {(k.effect.kind, k.effect.joint) for k in result.effects}
+    assert kept == {("backlash", 2), (CYCLIC_KIND, 1)}, kept
+    assert any(r.chosen is not None and r.chosen.kind == "backlash" for r in result.after_bands)
+    backlash = next(k.effect for k in result.effects if k.effect.kind == "backlash")
+    true_gap = next(e.value for e in virtual.effects if e.kind == "backlash")
+    assert abs(backlash.values[0] / true_gap - 1) < 0.2, (backlash.values, true_gap)
+    doc = diagnosis_to_dict(result)
+    assert doc["effect_scan_after_bands"][0]["chosen"] == "backlash j3"
+    assert "effect scan after the bands, round 1" in summary(result)

@@ -36,6 +36,8 @@ from .cyclic_scan import BandOutcome, BandScan, apply_bands
 from .effect_scan import EffectScan
 from .effects import Effect
 from .identify import IdentificationResult, identify
+from .after_bands import AfterBandsRound, confounded_bands, scan_after_bands
+from .separability import Refusal
 from .time_blocks import BlockedFigures, scan_bands_blocked
 
 
@@ -67,6 +69,16 @@ class BandStage:
     bands: BandOutcome | None = None
     blocked: BlockedFigures | None = None
     steps: list[EliminationStep] = field(default_factory=list)
+    refused: list[Refusal] = field(default_factory=list)
+    """Effects significant in the scan after the bands but not separable."""
+    after_bands: list[AfterBandsRound] = field(default_factory=list)
+    """The rounds of the classic candidates scanned again with the bands in."""
+    added: list[tuple[Effect, float, Refusal | None]] = field(default_factory=list)
+    """Effects kept by those rounds, in the order added: (effect, p-value, why it is not
+    named or None)."""
+    confounded: list[Refusal] = field(default_factory=list)
+    """Kept bands the data cannot tell from a significant inseparable effect not in the
+    model (:func:`.after_bands.confounded_bands`): kept, not named."""
 
     @property
     def dropped(self) -> list[Effect]:
@@ -130,11 +142,17 @@ def _bands(scan: EffectScan, robot, meas, inputs, options, folds_k: int):
 
 
 def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
-               thresholds: list[float], options, base_options) -> BandStage:
+               thresholds: list[float], options, base_options,
+               candidates: list[Effect] = (), inseparable: list[Effect] = ()) -> BandStage:
     """The bands at the scan's model (the geometry and the named ``effects``, each with
     the threshold of the forward round that kept it), then the backward elimination of
-    the effects the bands make unneeded (module docstring); ``options``: DiagnoseOptions,
-    ``base_options``: the identification's."""
+    the effects the bands make unneeded (module docstring), then the ``candidates`` not
+    kept scanned forward again with the bands in (:mod:`.after_bands`): one kept is
+    added, the model refitted, the bands scanned and the elimination run again; last,
+    a kept band the data cannot tell from one of the ``inseparable`` effects (significant,
+    not separable, not in the model) is marked not to be named (``stage.confounded``;
+    :func:`.after_bands.confounded_bands`; with pose folds only); ``options``:
+    DiagnoseOptions, ``base_options``: the identification's."""
     current, folds = scan.result, scan.folds
     stage = BandStage(current=current, scan=scan, extended=current)
     if not options.cyclic:
@@ -142,6 +160,47 @@ def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
     folds_k = len(folds)
     bands, blocked = _bands(scan, robot, meas, inputs, options, folds_k)
     threshold_of = dict(zip([e.key for e in effects], thresholds))
+    effects, tried = list(effects), set()
+    while True:
+        current, scan, bands, blocked, effects = _eliminate_all(
+            stage, robot, meas, inputs, options, base_options, threshold_of,
+            (current, scan, bands, blocked, effects))
+        if not bands.bands or not candidates or len(effects) >= options.max_effects:
+            break
+        round_ = scan_after_bands(scan, bands, [c for c in candidates if c.key not in tried],
+                                  robot, options.alpha, options.prefer_simpler_alpha)
+        if round_ is None:
+            break
+        stage.after_bands.append(round_)
+        stage.refused += round_.refused
+        if round_.chosen is None:
+            break
+        tried.add(round_.chosen.key)
+        refit = identify(robot, meas, dataclasses.replace(
+            base_options, effects=tuple(effects) + (round_.chosen,)))
+        if refit.dropped_effects:  # the non-linear fit disagrees: keep the model before
+            round_.chosen, round_.unnamed = None, None
+            break
+        chosen = next(c for c in round_.candidates if c.effect.key == round_.chosen.key)
+        stage.added.append((round_.chosen, chosen.p_value, round_.unnamed))
+        threshold_of[round_.chosen.key] = round_.threshold
+        effects.append(round_.chosen)
+        current, scan = refit, EffectScan(refit, meas, inputs, folds)
+        bands, blocked = _bands(scan, robot, meas, inputs, options, folds_k)
+    if inseparable and blocked is None:  # bands standing in for an inseparable effect
+        stage.confounded = confounded_bands(scan, bands, list(inseparable), robot,
+                                            options.prefer_simpler_alpha)
+    stage.current, stage.scan, stage.bands, stage.blocked = current, scan, bands, blocked
+    stage.extended = apply_bands(current, scan, bands) if bands.bands else current
+    return stage
+
+
+def _eliminate_all(stage: BandStage, robot, meas, inputs, options, base_options,
+                   threshold_of: dict, state: tuple) -> tuple:
+    """Backward elimination rounds until nothing is dropped (steps recorded in
+    ``stage``); ``state`` and the return: (current, scan, bands, blocked, effects)."""
+    current, scan, bands, blocked, effects = state
+    folds_k = len(scan.folds)
     while bands.bands and effects:
         kept = [(b.joint, b.ridge) for b in bands.bands]
         steps = eliminate(bands.scan, kept, list(effects), [threshold_of[e.key] for e in effects],
@@ -150,17 +209,17 @@ def band_stage(robot, meas, inputs, scan: EffectScan, effects: list[Effect],
         dropped = {s.effect.key for s in steps if s.dropped}
         if not dropped:
             break
-        effects = [e for e in effects if e.key not in dropped]
-        refit = identify(robot, meas, dataclasses.replace(base_options, effects=tuple(effects)))
+        remaining = [e for e in effects if e.key not in dropped]
+        refit = identify(robot, meas, dataclasses.replace(base_options,
+                                                          effects=tuple(remaining)))
         if refit.dropped_effects:  # the non-linear fit disagrees: keep the model before
             stage.steps = [dataclasses.replace(s, dropped=False) if s.effect.key in dropped
                            else s for s in stage.steps]
             break
-        current, scan = refit, EffectScan(refit, meas, inputs, folds)
+        effects = remaining
+        current, scan = refit, EffectScan(refit, meas, inputs, scan.folds)
         bands, blocked = _bands(scan, robot, meas, inputs, options, folds_k)
-    stage.current, stage.scan, stage.bands, stage.blocked = current, scan, bands, blocked
-    stage.extended = apply_bands(current, scan, bands) if bands.bands else current
-    return stage
+    return current, scan, bands, blocked, effects
 
 
 def elimination_entry(steps: list[EliminationStep]) -> list[dict]:

@@ -39,6 +39,7 @@ from .effect_scan import EffectScan, Heldout
 from .problem import problem_at
 from .identify import IdentificationResult
 from .effects import CyclicError
+from .separability import separability_from_gram
 from .moment_arms import MIN_LEVER_M, moment_arms  # noqa: F401  (MIN_LEVER_M: re-exported)
 from ..kinematics.robot import Robot
 
@@ -89,6 +90,14 @@ class BandResult:
     moves: float = 0.0
     """RMS of how far the fitted band moves the measured points over the current model's
     held-out RMS (above ``MAX_MOVES``: it cancels against other terms, not kept)."""
+    moves_m: float = float("nan")
+    """RMS of how far the fitted band moves the measured points, m (weighted units)."""
+    separability: float = float("nan")
+    """Share of the band's motion distinct from the unpenalized unknowns (the geometry and
+    the named effects; the kept bands are penalized and tested again by the elimination)
+    (:mod:`.separability`; below ``MIN_SEPARABILITY``: kept when significant, not named)."""
+    base_rms_m: float = float("nan")
+    """Held-out RMS (3-D per row, m, weighted) of the model the band was tested against."""
 
 
 @dataclass
@@ -175,7 +184,9 @@ class BandScan:
         a = np.hstack([scan.scaled] + blocks)
         self.a = a
         r = self.residual = scan.residual
-        self.fold_eq = [np.repeat(test, 3) for test in (scan.folds if folds is None else folds)]
+        self.fold_rows = list(scan.folds if folds is None else folds)
+        """The folds' row masks (the scan's, or the time blocks given)."""
+        self.fold_eq = [np.repeat(test, 3) for test in self.fold_rows]
         self.grams = [a[eq].T @ a[eq] for eq in self.fold_eq]
         self.rhs = [a[eq].T @ r[eq] for eq in self.fold_eq]
         self.rr = [float(r[eq] @ r[eq]) for eq in self.fold_eq]
@@ -259,10 +270,11 @@ class BandScan:
         return float(grid[int(np.argmin(sse))])
 
     def evaluate(self, joint: int, kept: list[tuple[int, float]]
-                 ) -> tuple[Heldout, float, float]:
+                 ) -> tuple[Heldout, float, float, float]:
         """Nested-CV held-out residuals of the current model plus band ``joint``, the
-        penalty ordinary CV chooses on all rows and the band's RMS move of the measured
-        points at that penalty (weighted units, as the residuals)."""
+        penalty ordinary CV chooses on all rows, the band's RMS move of the measured
+        points at that penalty (weighted units, as the residuals) and its separability
+        from the other columns (:func:`.separability.separability_from_gram`)."""
         layout = self._layout(kept, joint)
         cols, penalty, n_u = layout
         key = (tuple(kept), joint)
@@ -279,7 +291,11 @@ class BandScan:
         sigma2 = rss / max(n_eq - n_u - full.dof(lam_all), 1.0)
         n_band = len(self.columns[joint])
         move = self.a[:, self.columns[joint]] @ x[-n_band:]
-        return self._heldout(fits, cols, sigma2), lam_all, float(np.sqrt(3 * np.mean(move**2)))
+        own = n_u - sum(len(self.columns[j]) for j, _ in kept)  # unpenalized columns
+        share, _ = separability_from_gram(self._training(frozenset())[0], cols[:own],
+                                          cols[n_u:], x[n_u:])
+        return (self._heldout(fits, cols, sigma2), lam_all,
+                float(np.sqrt(3 * np.mean(move**2))), share)
 
     def gain_test(self, reference: Heldout, candidate: Heldout,
                   kept: list[tuple[int, float]], drop=()) -> tuple[float, float, float]:
@@ -335,11 +351,13 @@ def scan_bands(scan: EffectScan, robot: Robot, q_ctrl: np.ndarray, alpha: float,
         for j in bands.joints:
             if j in dict(kept):
                 continue
-            held, lam, move = bands.evaluate(j, kept)
+            held, lam, move, share = bands.evaluate(j, kept)
             gain, z, p = bands.gain_test(base, held, kept)
             held_of[j] = held
             results.append(BandResult(effect=bands.templates[j], gain=gain / base.sse, z=z,
-                                      p_value=p, ridge=lam, moves=float(move / base_rms)))
+                                      p_value=p, ridge=lam, moves=float(move / base_rms),
+                                      moves_m=float(move), separability=share,
+                                      base_rms_m=float(base_rms)))
         if not results:
             break
         threshold = alpha / len(results)

@@ -28,7 +28,12 @@
    reported as alternatives. The chosen effect is added, the model refitted (non-linear,
    geometry and effects together) and the scan repeated until no candidate is significant.
 6. The cyclic bands (:mod:`.cyclic_scan`), then every effect kept above tested again with
-   them in and dropped when no longer needed (:mod:`.backward_elimination`).
+   them in and dropped when no longer needed (:mod:`.backward_elimination`), then the
+   classic candidates scanned again with the bands in (:mod:`.after_bands`).
+7. Naming (:mod:`.separability`): every term the tests keep stays in the extended model;
+   it is named only when separable from the geometry and distinguishable from every
+   significant candidate that is not. The others are "predictive terms, not named"
+   (their held-out gain is kept, their names and sizes withheld).
 """
 
 from __future__ import annotations
@@ -38,18 +43,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import (CyclicError, Effect, EffectInputs, GearHarmonic, JointCompliance,
-                      ThermalExpansion)
+from .effects import Effect, EffectInputs, JointCompliance, ThermalExpansion
 from ..errors import DataError
-from .backward_elimination import (EliminationStep, band_stage, elimination_entry,
-                                   elimination_lines)
+from .after_bands import AfterBandsRound, after_bands_entry
+from .backward_elimination import EliminationStep, band_stage, elimination_entry
 from .cross_validation import pose_folds
-from .cyclic_scan import BandOutcome, band_text
-from .diagnose_account import account, account_lines, band_round_lines, band_rounds, cyclic_entry
+from .cyclic_scan import BandOutcome
+from .diagnose_entries import candidate_entry, effect_entry
+from .diagnose_text import account_of, summary
+from .diagnose_account import band_refusal, band_rounds, refusals_with_bands
 from .remainder import Predictability, predictability
-from .time_blocks import BlockedFigures, blocked_entry, blocked_line
+from .separability import Refusal, predictive_entries, refusal_entries, separable
+from .time_blocks import BlockedFigures, blocked_entry
 from .effect_scan import (CandidateResult, EffectScan, candidate_effects, choose_candidate,
-                          drift_warning)
+                          drift_warning, naming_refusal)
 from .identify import (IdentificationOptions, IdentificationResult, identify,
                        measurement_inputs)
 from .problem import problem_at
@@ -107,6 +114,10 @@ class Round:
     chosen: Effect | None
     alternatives: list[str] = field(default_factory=list)
     heldout_sse: float = float("nan")
+    refused: list[Refusal] = field(default_factory=list)
+    """Candidates significant by the test but not separable from the geometry."""
+    unnamed: Refusal | None = None
+    """Why the chosen candidate, kept in the model, is not named (None: named)."""
 
 
 @dataclass(frozen=True)
@@ -122,6 +133,8 @@ class KeptEffect:
     alternatives: list[str] = field(default_factory=list)
     displacement: np.ndarray | None = None
     """(m, 3) how the effect moves each measured point, device frame, m."""
+    unnamed: Refusal | None = None
+    """Set for a predictive term kept in the model but not named: why, and its gain."""
 
 
 @dataclass(frozen=True)
@@ -163,10 +176,23 @@ class Diagnosis:
     """Held-out figures by blocks of time (rows with time_s; :mod:`.time_blocks`)."""
     elimination: list[EliminationStep] = field(default_factory=list)
     """The named effects re-tested once the bands were in (:mod:`.backward_elimination`)."""
+    refused: list[Refusal] = field(default_factory=list)
+    """Effects significant by the test but not named: not separable from the geometry
+    (:mod:`.separability`), first refusal of each effect at each stage."""
+    after_bands: list[AfterBandsRound] = field(default_factory=list)
+    """The classic candidates scanned again once the bands were in (:mod:`.after_bands`)."""
+    predictive: list[KeptEffect] = field(default_factory=list)
+    """Terms kept in the extended model but not named (``unnamed`` says why)."""
 
     @property
     def found(self) -> bool:
+        """Named effects found (the predictive terms not named do not count)."""
         return bool(self.effects)
+
+    @property
+    def extends(self) -> bool:
+        """The extended model differs from the geometric one (named or unnamed terms)."""
+        return bool(self.effects or self.predictive)
 
 
 def noise_floor(meas: Measurements, noise_m: float | None, residual_sigma: float,
@@ -206,10 +232,21 @@ def _checked_folds(meas: Measurements, options: DiagnoseOptions) -> int:
     return folds_k
 
 
+def _inseparable(rounds: list[Round]) -> list[Effect]:
+    """The candidates the forward scan refused as not separable (significant ones)."""
+    labels = {r.label for round_ in rounds for r in round_.refused if not r.confounded_with}
+    out = {c.effect.key: c.effect for round_ in rounds for c in round_.candidates
+           if c.effect.label in labels}
+    return list(out.values())
+
+
 def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: float,
-                prefer_simpler_alpha: float) -> tuple[Round, CandidateResult | None, dict]:
+                prefer_simpler_alpha: float, stage: str = "effect scan"
+                ) -> tuple[Round, CandidateResult | None, dict]:
     """One round: every candidate not in ``skip`` (keys) tested at the scan's model;
-    (the round, the chosen candidate or None, label -> reason of the untestable ones)."""
+    (the round, the chosen candidate or None, label -> reason of the untestable ones).
+    Significant: p below alpha / K and separable from the geometry (:mod:`.separability`;
+    the refused ones are listed in the round)."""
     results, tested, untestable = [], [], {}
     for candidate in candidates:
         if candidate.key in skip:
@@ -221,19 +258,26 @@ def _scan_round(scan: EffectScan, candidates: list[Effect], skip: set, alpha: fl
         else:
             untestable[candidate.label] = result.reason
     threshold = alpha / max(len(tested), 1)
-    marked = {id(r): dataclasses.replace(r, significant=r.p_value < threshold)
+    marked = {id(r): dataclasses.replace(r, significant=bool(r.p_value < threshold))
               for r, _ in tested}
+    refused = [Refusal(label=r.effect.label, kind=r.effect.kind, joint=r.effect.joint,
+                       stage=stage, p_value=r.p_value, separability=r.separability,
+                       moves_m=r.moves_m, gain=r.gain)
+               for r, _ in tested if r.p_value < threshold and not separable(r.separability)]
     results = [marked.get(id(r), r) for r in results]
     tested = [(marked[id(r)], held) for r, held in tested]
     chosen, alternatives = choose_candidate(scan, tested, threshold, prefer_simpler_alpha)
+    unnamed = None if chosen is None else naming_refusal(
+        scan, tested, chosen, threshold, prefer_simpler_alpha, stage)
     round_ = Round(threshold=threshold, candidates=results,
                    chosen=None if chosen is None else chosen.effect,
-                   alternatives=alternatives, heldout_sse=scan.base.sse)
+                   alternatives=alternatives, heldout_sse=scan.base.sse, refused=refused,
+                   unnamed=unnamed)
     return round_, chosen, untestable
 
 
 def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
-                  kept: list[tuple[Effect, float, list[str]]]) -> list[KeptEffect]:
+                  kept: list[tuple]) -> list[KeptEffect]:
     """Each kept effect with how far it alone moves the measured points: the extended
     problem ``after`` at ``x_after`` with only that effect switched on, minus with none."""
     x_plain = x_after.copy()  # the extended model with its effects switched off
@@ -241,7 +285,7 @@ def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
         x_plain[cols] = 0.0
     plain = after.predict(x_plain, jacobian=False)[-1]
     out = []
-    for cols, fitted, (_, p_value, alternatives) in zip(
+    for cols, fitted, (_, p_value, alternatives, unnamed) in zip(
             after.layout.effects, extended.calibration.effects, kept):
         x_one = x_plain.copy()
         x_one[cols] = x_after[cols]
@@ -250,8 +294,31 @@ def _kept_effects(after, x_after: np.ndarray, extended: IdentificationResult,
         out.append(KeptEffect(effect=fitted, p_value=p_value,
                               point_rms_m=float(np.sqrt(np.mean(moved**2))),
                               point_max_m=float(moved.max()), alternatives=alternatives,
-                              displacement=displacement))
+                              displacement=displacement, unnamed=unnamed))
     return out
+
+
+def _candidates(robot: Robot, meas: Measurements, options: DiagnoseOptions) -> list[Effect]:
+    """The classic candidates of the options' kinds (thermal expansion referred to the
+    mean measured temperature)."""
+    candidates = [c for c in candidate_effects(robot, meas.temperature_c is not None)
+                  if options.kinds is None or c.kind in options.kinds]
+    return [dataclasses.replace(c, reference_temperature_c=float(np.mean(meas.temperature_c)))
+            if isinstance(c, ThermalExpansion) else c for c in candidates]
+
+
+def _final_terms(kept: list[tuple], stage) -> list[tuple]:
+    """The terms of the extended model, (effect, p-value, alternatives, why not named or
+    None): the forward scan's ``kept`` less those the bands made unneeded, those the scan
+    after the bands added, then the kept bands (:class:`.backward_elimination.BandStage`)."""
+    gone = {e.key for e in stage.dropped}
+    kept = [k for k in kept + [(e, p, [], u) for e, p, u in stage.added] if k[0].key not in gone]
+    bands = stage.bands
+    if bands is not None:
+        confounded = {r.joint: r.confounded_with for r in stage.confounded}
+        kept += [(b, p, [], band_refusal(bands, b, confounded.get(b.joint, "")))
+                 for b, p in zip(bands.bands, bands.p_values)]
+    return kept
 
 
 def diagnose(robot: Robot, meas: Measurements,
@@ -263,44 +330,39 @@ def diagnose(robot: Robot, meas: Measurements,
     tools = {n: t.xyz_m for n, t in geometric.calibration.tools.items()}
     inputs = measurement_inputs(robot, meas, tools, [JointCompliance(joint=0)])
     folds = pose_folds(meas.pose_ids, folds_k)
-    candidates = [c for c in candidate_effects(robot, meas.temperature_c is not None)
-                  if options.kinds is None or c.kind in options.kinds]
-    candidates = [dataclasses.replace(c, reference_temperature_c=float(np.mean(meas.temperature_c)))
-                  if isinstance(c, ThermalExpansion) else c for c in candidates]
+    candidates = _candidates(robot, meas, options)
 
     current = geometric
-    kept: list[tuple[Effect, float, list[str]]] = []
+    kept: list[tuple] = []  # (effect, p-value, alternatives, why not named or None)
     rounds: list[Round] = []
     untestable: dict[str, str] = {}
     scan = EffectScan(current, meas, inputs, folds)
     while len(kept) < options.max_effects:
         round_, chosen, not_testable = _scan_round(
-            scan, candidates, {e.key for e, _, _ in kept}, options.alpha,
+            scan, candidates, {k[0].key for k in kept}, options.alpha,
             options.prefer_simpler_alpha)
         if not rounds:
             untestable = not_testable
         rounds.append(round_)
         if chosen is None:
             break
-        effects = tuple(e for e, _, _ in kept) + (chosen.effect,)
+        effects = tuple(k[0] for k in kept) + (chosen.effect,)
         refit = identify(robot, meas, dataclasses.replace(base_options, effects=effects))
         if refit.dropped_effects:  # the non-linear fit disagrees with the scan: stop here
             rounds[-1] = dataclasses.replace(rounds[-1], chosen=None)
             break
-        kept.append((chosen.effect, chosen.p_value, round_.alternatives))
+        kept.append((chosen.effect, chosen.p_value, round_.alternatives, round_.unnamed))
         current = refit
         scan = EffectScan(current, meas, inputs, folds)
 
     # the bands (with time_s chosen on blocks of time), then the named effects they make
     # unneeded dropped (:mod:`.backward_elimination`)
-    stage = band_stage(robot, meas, inputs, scan, [e for e, _, _ in kept],
-                       [r.threshold for r in rounds[:len(kept)]], options, base_options)
-    gone = {e.key for e in stage.dropped}
-    kept = [k for k in kept if k[0].key not in gone]
+    stage = band_stage(robot, meas, inputs, scan, [k[0] for k in kept],
+                       [r.threshold for r in rounds[:len(kept)]], options, base_options,
+                       candidates, _inseparable(rounds))
+    kept = _final_terms(kept, stage)
     scan, extended, bands, blocked = stage.scan, stage.extended, stage.bands, stage.blocked
     drift = drift_warning(scan, options.alpha)
-    if bands is not None:
-        kept += [(b, p, []) for b, p in zip(bands.bands, bands.p_values)]
     target = bands.heldout if bands is not None and bands.bands else scan.base
     before, x_before = problem_at(geometric.calibration, meas, inputs)
     after, x_after = problem_at(extended.calibration, meas, inputs)
@@ -322,8 +384,10 @@ def diagnose(robot: Robot, meas: Measurements,
         residual_sigma = float(np.sqrt(np.sum(residual_after**2) / dof))
         source = "residual of the final model (an upper bound: measure some poses twice)"
     flange = np.einsum("ij,mj->mi", rotation, chain.flange[:, :3, 3])
+    terms = _kept_effects(after, x_after, extended, kept)
     return Diagnosis(robot=robot, measurements=meas, geometric=geometric, extended=extended,
-                     effects=_kept_effects(after, x_after, extended, kept), rounds=rounds,
+                     effects=[t for t in terms if t.unnamed is None], rounds=rounds,
+                     predictive=[t for t in terms if t.unnamed is not None],
                      noise=noise_floor(meas, options.noise_m, residual_sigma, source),
                      untestable=untestable, drift=drift,
                      residual_before=before.measured - predicted_before,
@@ -331,44 +395,15 @@ def diagnose(robot: Robot, meas: Measurements,
                      predicted_change=predicted_after - predicted_before,
                      dpoint_dq=dpoint_dq, flange_device=flange, inputs=inputs,
                      alpha=options.alpha, candidates_tried=len(candidates), bands=bands,
-                     remainder=remainder, blocked=blocked, elimination=stage.steps)
+                     remainder=remainder, blocked=blocked, elimination=stage.steps,
+                     after_bands=stage.after_bands,
+                     refused=[r for r in refusals_with_bands(
+                         [r for round_ in rounds for r in round_.refused] + stage.refused, bands)
+                         if r.label not in {k[0].label for k in kept}])
 
 
 def _mm(value_m: float | None) -> float | None:
     return None if value_m is None else value_m * 1e3
-
-
-def effect_entry(kept: KeptEffect) -> dict:
-    """The JSON entry of a kept effect (SI values; see :func:`diagnosis_to_dict`)."""
-    e = kept.effect
-    value, std, unit = e.headline()
-    entry = {"kind": e.kind, "joint": None if e.joint is None else e.joint + 1,
-             "value": value, "std": None if not np.isfinite(std) else std, "unit": unit,
-             "parameters": dict(zip(e.parameter_names, e.values)),
-             "parameter_std": {k: (None if not np.isfinite(v) else v)
-                               for k, v in zip(e.parameter_names, e.std)},
-             "units": dict(zip(e.parameter_names, e.units)),
-             "p_value": kept.p_value, "point_rms_mm": kept.point_rms_m * 1e3,
-             "point_max_mm": kept.point_max_m * 1e3, "alternatives": kept.alternatives}
-    if isinstance(e, GearHarmonic):
-        entry["order"] = e.order
-        entry["phase_rad"] = e.phase_rad
-    if isinstance(e, ThermalExpansion):
-        entry["reference_temperature_c"] = e.reference_temperature_c
-    if isinstance(e, CyclicError):
-        entry.update(cyclic_entry(e), text=band_text(e))
-    return entry
-
-
-def _finite(value: float) -> float | None:
-    return None if not np.isfinite(value) else float(value)
-
-
-def _candidate_entry(c: CandidateResult) -> dict:
-    return {"effect": c.effect.label, "kind": c.effect.kind,
-            "joint": None if c.effect.joint is None else c.effect.joint + 1,
-            "status": c.status, "reason": c.reason or None, "heldout_gain": _finite(c.gain),
-            "z": _finite(c.t), "p_value": _finite(c.p_value), "significant": c.significant}
 
 
 def diagnosis_to_dict(d: Diagnosis) -> dict:
@@ -389,7 +424,7 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
                            "extended": _mm(d.extended.heldout_rms),
                            "predictable": _mm(None if d.remainder is None
                                               else d.remainder.rms_after)},
-        "account": _account(d),
+        "account": account_of(d),
         "cyclic_bands": band_rounds(d.bands),
         "cyclic_short_lever_joints": [j + 1 for j in (d.bands.short_lever if d.bands else [])],
         **blocked_entry(d.blocked),
@@ -399,85 +434,15 @@ def diagnosis_to_dict(d: Diagnosis) -> dict:
         "test": {"description": d.test, "alpha": d.alpha,
                  "rounds": [{"threshold": r.threshold,
                              "chosen": None if r.chosen is None else r.chosen.label,
+                             "chosen_named": r.chosen is not None and r.unnamed is None,
                              "alternatives": r.alternatives,
-                             "candidates": [_candidate_entry(c) for c in r.candidates]}
+                             "candidates": [candidate_entry(c) for c in r.candidates]}
                             for r in d.rounds]},
         "backward_elimination": elimination_entry(d.elimination),
+        "not_named": refusal_entries(d.refused),
+        "predictive_not_named": predictive_entries([t.unnamed for t in d.predictive]),
+        "effect_scan_after_bands": after_bands_entry(d.after_bands),
         "untestable": d.untestable,
         "drift": d.drift,
         "conclusion": summary(d).splitlines()[-1],
     }
-
-
-def _account(d: Diagnosis) -> dict:
-    return account(d.geometric.heldout_rms, d.extended.heldout_rms, d.remainder,
-                   d.noise.sigma_m, d.noise.source)
-
-
-def _value_text(effect: Effect) -> str:
-    value, std, unit = effect.headline()
-    name = "amplitude" if isinstance(effect, GearHarmonic) else effect.parameter_names[0]
-    text = f"{name} = {value:.3g} +- {std:.2g} {unit}"
-    if unit == "rad":
-        text += f" ({np.degrees(value) * 1e3:.3g} mdeg)"
-    if isinstance(effect, GearHarmonic):
-        text += f", phase {np.degrees(effect.phase_rad):.0f} deg"
-    if isinstance(effect, ThermalExpansion):
-        text += f", reference {effect.reference_temperature_c:.1f} C"
-    return text
-
-
-def summary(d: Diagnosis) -> str:
-    """The diagnosis in words, as printed by ``olp-cal diagnose``; the last line concludes."""
-    sigma3 = d.noise.sigma_m * np.sqrt(3)
-    g, x = d.geometric, d.extended
-    lines = [f"robot {d.robot.name}: {d.measurements.n_poses} poses, {d.measurements.n_rows} "
-             f"measured points",
-             f"noise floor: {d.noise.sigma_m * 1e3:.4f} mm per axis ({sigma3 * 1e3:.4f} mm 3-D "
-             f"RMS), from {d.noise.source}",
-             f"geometric model: held-out RMS {g.heldout_rms * 1e3:.4f} mm "
-             f"({g.heldout_rms / sigma3:.2f}x the noise), max {g.heldout_max * 1e3:.4f} mm "
-             f"({g.calibration.validation.method})"]
-    first = d.rounds[0]
-    tested = sorted((c for c in first.candidates if c.status == "tested"), key=lambda c: c.p_value)
-    lines.append(f"residual structure: {len(tested)} candidate terms tested, share of the "
-                 f"geometric model's held-out squared error each removes (best first):")
-    for c in tested[:5]:
-        mark = "significant" if c.significant else "not significant"
-        lines.append(f"  {c.effect.label:<24} {100 * c.gain:6.1f} %   z = {c.t:6.2f}, "
-                     f"p = {c.p_value:.1e} ({mark})")
-    if d.untestable:
-        lines.append("not testable with these data: " + "; ".join(
-            f"{label} ({why})" for label, why in d.untestable.items()))
-    lines.append(f"test: {d.test}; alpha = {d.alpha}")
-    for number, r in enumerate(d.rounds, start=1):
-        if r.chosen is not None:
-            chosen = next(c for c in r.candidates if c.effect is r.chosen)
-            alt = (f"; the data cannot tell it from {', '.join(r.alternatives)}"
-                   if r.alternatives else "")
-            lines.append(f"round {number}: kept {r.chosen.label} (p = {chosen.p_value:.1e} < "
-                         f"{r.threshold:.1e}){alt}")
-        else:
-            lines.append(f"round {number}: no further term is significant (threshold "
-                         f"{r.threshold:.1e})")
-    lines += band_round_lines(d.bands) + elimination_lines(d.elimination)
-    if d.drift:
-        lines.append(f"WARNING: {d.drift}")
-    lines += account_lines(_account(d)) + ([blocked_line(d.blocked)] if d.blocked else [])
-    if not d.found:
-        lines.append(f"no effect found: no candidate lowers the held-out error significantly; "
-                     f"the geometric model stands (held-out RMS {g.heldout_rms * 1e3:.4f} mm, "
-                     f"{g.heldout_rms / sigma3:.2f}x the noise)")
-        return "\n".join(lines)
-    lines.append(f"found {len(d.effects)} effect{'s' if len(d.effects) > 1 else ''}:")
-    for k in d.effects:
-        text = (band_text(k.effect) if isinstance(k.effect, CyclicError)
-                else f"{_value_text(k.effect)}; {k.effect.description}")
-        lines.append(f"  {k.effect.label}: {text}; "
-                     f"moves the measured point by {k.point_rms_m * 1e3:.3f} mm RMS, "
-                     f"{k.point_max_m * 1e3:.3f} mm max")
-    lines.append(f"held-out RMS {g.heldout_rms * 1e3:.4f} -> {x.heldout_rms * 1e3:.4f} mm "
-                 f"({g.heldout_rms / sigma3:.2f}x -> {x.heldout_rms / sigma3:.2f}x the noise), "
-                 f"max {g.heldout_max * 1e3:.4f} -> {x.heldout_max * 1e3:.4f} mm: found "
-                 + ", ".join(k.effect.label for k in d.effects))
-    return "\n".join(lines)

@@ -14,6 +14,7 @@ import numpy as np
 from .cyclic_scan import MAX_MOVES, MIN_LEVER_M, BandOutcome, dominant_orders, order_resolution
 from .effects import CyclicError
 from .remainder import Predictability
+from .separability import MIN_SEPARABILITY, Refusal, separable
 
 
 def _quadrature(big: float, small: float) -> float:
@@ -21,12 +22,15 @@ def _quadrature(big: float, small: float) -> float:
 
 
 def account(geometric_m: float, extended_m: float, remainder: Predictability | None,
-            noise_sigma_m: float, noise_source: str) -> dict:
-    """The JSON account, mm (3-D RMS except ``noise_per_axis_mm``)."""
+            noise_sigma_m: float, noise_source: str, predictive_terms: int = 0) -> dict:
+    """The JSON account, mm (3-D RMS except ``noise_per_axis_mm``); the extended model
+    holds the named effects and ``predictive_terms`` terms kept but not named (what
+    ``explained_by_named_effects_mm`` counts with them)."""
     predictable = extended_m if remainder is None else remainder.rms_after
     return {"geometric_heldout_mm": geometric_m * 1e3,
             "explained_by_named_effects_mm": _quadrature(geometric_m, extended_m) * 1e3,
             "extended_heldout_mm": extended_m * 1e3,
+            "predictive_terms_in_extended": predictive_terms,
             "predictable_not_named_mm": _quadrature(extended_m, predictable) * 1e3,
             "predictable_from_joints": [] if remainder is None
             else [j + 1 for j in remainder.joints],
@@ -44,7 +48,10 @@ def account_lines(doc: dict) -> list[str]:
     joints = doc["predictable_from_joints"]
     where = (f" from joint{'s' if len(joints) > 1 else ''} "
              + " and ".join(str(j) for j in joints)) if joints else ""
-    return [f"what remains: named effects explain {doc['explained_by_named_effects_mm']:.4f} "
+    n = doc.get("predictive_terms_in_extended", 0)
+    terms = (f" and {n} predictive term{'s' if n > 1 else ''} not named" if n else "")
+    return [f"what remains: named effects{terms} explain "
+            f"{doc['explained_by_named_effects_mm']:.4f} "
             f"mm of the {doc['geometric_heldout_mm']:.4f} mm (held-out RMS, in quadrature); "
             f"{doc['predictable_not_named_mm']:.4f} mm more is predictable{where} but not "
             f"named; the rest ({doc['remaining_mm']:.4f} mm 3-D RMS) is the noise floor, "
@@ -74,6 +81,8 @@ def band_rounds(bands: BandOutcome | None) -> list[dict]:
                         "min_order": r.effect.min_order,
                         "heldout_gain": r.gain, "z": r.z, "p_value": r.p_value,
                         "ridge": r.ridge, "moves_over_heldout_rms": r.moves,
+                        "separability": None if not np.isfinite(r.separability)
+                        else r.separability,
                         "significant": r.significant} for r in results]}
             for threshold, results in zip(bands.thresholds, bands.rounds)]
 
@@ -91,11 +100,49 @@ def band_round_lines(bands: BandOutcome | None) -> list[str]:
         tested = ", ".join(f"j{r.effect.joint + 1} (orders {r.effect.min_order}-"
                            f"{r.effect.max_order}: {100 * r.gain:.1f} %, p = {r.p_value:.1e}"
                            + (f", moves the points {r.moves:.1f}x the held-out RMS: cancels "
-                              f"against other terms" if r.moves > MAX_MOVES else "") + ")"
+                              f"against other terms" if r.moves > MAX_MOVES else "")
+                           + (f", separability {r.separability:.3f} < {MIN_SEPARABILITY}: not "
+                              f"separable from the geometry over these poses"
+                              if not separable(r.separability) else "") + ")"
                            for r in results)
         kept = [r for r in results if r.significant]
-        verdict = (f"kept the band of joint {min(kept, key=lambda r: -r.gain).effect.joint + 1}"
-                   if kept else "no band is significant")
+        best = min(kept, key=lambda r: -r.gain) if kept else None
+        verdict = ("no band is significant" if best is None
+                   else f"kept the band of joint {best.effect.joint + 1}"
+                   + ("" if separable(best.separability)
+                      else " (not separable: a predictive term, not named)"))
         lines.append(f"cyclic band round {number} (threshold {threshold:.1e}): {tested}; "
                      f"{verdict}")
     return lines
+
+
+def refusals_with_bands(refused: list[Refusal], bands: BandOutcome | None) -> list[Refusal]:
+    """The refusals of the effect scans and the bands' (a band passing the test and the
+    move rule but not separable), the first of each effect at each stage."""
+    for threshold, results in zip(bands.thresholds if bands else [], bands.rounds if bands else []):
+        refused += [Refusal(label=r.effect.label, kind=r.effect.kind, joint=r.effect.joint,
+                            stage="cyclic bands", p_value=r.p_value,
+                            separability=r.separability, moves_m=r.moves_m)
+                    for r in results if r.p_value < threshold and r.moves <= MAX_MOVES
+                    and not separable(r.separability)]
+    out: dict[tuple, Refusal] = {}
+    for r in refused:
+        out.setdefault((r.label, r.stage), r)
+    return list(out.values())
+
+
+def band_refusal(bands: BandOutcome, band: CyclicError, confounded_with: str = ""
+                 ) -> Refusal | None:
+    """Why the kept ``band`` is not named (None: it is named): not separable from the
+    unpenalized unknowns in the round that kept it, or ``confounded_with`` a significant
+    inseparable effect (:func:`.after_bands.confounded_bands`). Carries its held-out gain
+    in that round."""
+    result = next((r for results in reversed(bands.rounds) for r in results
+                   if r.significant and r.effect.joint == band.joint), None)
+    if result is None or (separable(result.separability) and not confounded_with):
+        return None
+    drop = result.base_rms_m * (1.0 - np.sqrt(max(1.0 - result.gain, 0.0)))
+    return Refusal(label=result.effect.label, kind=result.effect.kind, joint=band.joint,
+                   stage="cyclic bands", p_value=result.p_value,
+                   separability=result.separability, moves_m=result.moves_m,
+                   gain=result.gain, gain_m=float(drop), confounded_with=confounded_with)

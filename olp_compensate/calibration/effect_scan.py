@@ -15,6 +15,7 @@ from .effects import (Backlash, Effect, EffectInputs, GearHarmonic, JointComplia
 from .identifiability import effect_separation
 from .identify import IdentificationResult
 from .problem import problem_at
+from .separability import Refusal, separability, separable
 from .measurements import Measurements
 from ..kinematics.robot import Robot
 
@@ -34,6 +35,11 @@ class CandidateResult:
     t: float = float("nan")
     p_value: float = float("nan")
     significant: bool = False
+    separability: float = float("nan")
+    """Share of the fitted effect's motion distinct from the current model's columns
+    (:mod:`.separability`); below ``MIN_SEPARABILITY`` it is not named."""
+    moves_m: float = float("nan")
+    """RMS per measured point of the fitted effect's motion, m (weighted units)."""
 
 
 
@@ -50,6 +56,8 @@ class Heldout:
 
     residuals: np.ndarray
     sigma2: float
+    solution: np.ndarray | None = None
+    """The full-data solution of the fit (unit-scaled columns), when computed."""
 
     @property
     def sse(self) -> float:
@@ -93,7 +101,16 @@ class EffectScan:
         dx, *_ = np.linalg.lstsq(jac, -self.residual, rcond=1e-10)
         rss = float(np.sum((self.residual + jac @ dx) ** 2))
         return Heldout(residuals=out.reshape(-1, 3),
-                       sigma2=rss / max(len(self.residual) - jac.shape[1], 1))
+                       sigma2=rss / max(len(self.residual) - jac.shape[1], 1), solution=dx)
+
+    def separability(self, unit_block: np.ndarray, values: np.ndarray) -> tuple[float, float]:
+        """(separability, RMS move per point) of the effect of unit-scaled columns
+        ``unit_block`` at ``values`` beside the current model's columns."""
+        if getattr(self, "_basis", None) is None:
+            self._basis = np.linalg.qr(self.scaled)[0]
+        motion = unit_block @ values
+        moves = float(np.sqrt(3.0 * np.mean(motion**2)))
+        return separability(self._basis, motion), moves
 
     def gain_test(self, reference: Heldout, candidate: Heldout) -> tuple[float, float, float]:
         """(gain, z, p): the held-out gain G = SSE(reference) - SSE(candidate), m^2, and the
@@ -126,10 +143,13 @@ class EffectScan:
         if reason is not None:
             status = "no effect" if reason.startswith("has no effect") else "inseparable"
             return CandidateResult(effect=effect, status=status, reason=reason), None
-        held = self.heldout(np.hstack([self.scaled, block / np.linalg.norm(block, axis=0)]))
+        unit = block / np.linalg.norm(block, axis=0)
+        held = self.heldout(np.hstack([self.scaled, unit]))
         gain, z, p = self.gain_test(self.base, held)
+        share, moves = self.separability(unit, held.solution[-unit.shape[1]:])
         return CandidateResult(effect=effect, status="tested", heldout_sse=held.sse,
-                               gain=gain / self.base.sse, t=z, p_value=p), held
+                               gain=gain / self.base.sse, t=z, p_value=p,
+                               separability=share, moves_m=moves), held
 
 
 def candidate_effects(robot: Robot, has_temperature: bool) -> list[Effect]:
@@ -167,6 +187,35 @@ def choose_candidate(scan: EffectScan, tested: list[tuple[CandidateResult, Heldo
     alternatives = [c.effect.label for c, held in significant
                     if c is not chosen[0] and not_better(chosen, (c, held))]
     return chosen[0], alternatives
+
+
+def heldout_rms_drop(reference: Heldout, candidate: Heldout) -> float:
+    """How much the held-out RMS (3-D per row, m, weighted as the fit) falls from
+    ``reference`` to ``candidate``."""
+    n = max(len(reference.residuals), 1)
+    return float(np.sqrt(reference.sse / n) - np.sqrt(candidate.sse / n))
+
+
+def naming_refusal(scan: EffectScan, tested: list, chosen: CandidateResult, threshold: float,
+                   prefer_simpler_alpha: float, stage: str) -> Refusal | None:
+    """Why the ``chosen`` candidate, kept in the model, is not named (None: it is named).
+    Not named when it is not separable (:mod:`.separability`), or when the data cannot
+    tell it from a significant candidate that is not (it is not significantly better than
+    it, :meth:`EffectScan.gain_test` at ``prefer_simpler_alpha``: it may be that one's
+    proxy). The refusal carries its held-out gain (share and RMS drop, m)."""
+    held = next(h for r, h in tested if r is chosen)
+    fields = dict(label=chosen.effect.label, kind=chosen.effect.kind, joint=chosen.effect.joint,
+                  stage=stage, p_value=chosen.p_value, separability=chosen.separability,
+                  moves_m=chosen.moves_m, gain=chosen.gain,
+                  gain_m=heldout_rms_drop(scan.base, held))
+    if not separable(chosen.separability):
+        return Refusal(**fields)
+    confounded = [r for r, h in tested if r is not chosen and r.p_value < threshold
+                  and not separable(r.separability)
+                  and scan.gain_test(h, held)[2] >= prefer_simpler_alpha]
+    if confounded:
+        return Refusal(**fields, confounded_with=confounded[0].effect.label)
+    return None
 
 
 def drift_warning(scan: EffectScan, alpha: float) -> str | None:

@@ -102,7 +102,7 @@ def run(args) -> int:
         if args.residual_map:
             calibration = _with_map(result, calibration)
         write_calibration(args.output, calibration)
-        print(f"wrote the {'extended' if result.found else 'geometric'} model to {args.output}")
+        print(f"wrote the {'extended' if result.extends else 'geometric'} model to {args.output}")
     if args.json:
         write_text_atomic(args.json, json.dumps(diagnosis_to_dict(result), indent=2) + "\n")
         print(f"wrote {args.json}")

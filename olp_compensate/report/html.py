@@ -159,7 +159,7 @@ def histogram_figure(d: Diagnosis):
     bins = np.linspace(0.0, top * 1.05, 30)
     ax.hist(before[np.isfinite(before)], bins=bins, color=BEFORE, alpha=0.7,
             label=f"geometric model (RMS {d.geometric.heldout_rms * 1e3:.3f} mm)")
-    if d.found:
+    if d.extends:
         ax.hist(after[np.isfinite(after)], bins=bins, color=AFTER, alpha=0.6,
                 label=f"extended model (RMS {d.extended.heldout_rms * 1e3:.3f} mm)")
     sigma = d.noise.sigma_m * 1e3
@@ -214,7 +214,7 @@ def figures(d: Diagnosis) -> list[tuple[str, str, object]]:
     if d.geometric.heldout_errors is not None:
         out.append(("histogram", "held-out error per measured point, before and after",
                     histogram_figure(d)))
-    if d.found:
+    if d.extends:
         out.append(("measured_vs_predicted", "measured against predicted error per measured "
                                              "point", prediction_figure(d)))
     return out
