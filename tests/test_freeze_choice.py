@@ -81,6 +81,7 @@ def test_virtual_robot_with_a_still_joint_freezes_the_same_set_for_any_noise():
         sets.append(sorted(frozen))
         assert result.residual_rms < 1.5 * NOISE * np.sqrt(3)  # the rest is separable
     assert sets[0] and sets.count(sets[0]) == len(sets), sets
+    assert any("a tie within" in why for why in frozen.values()), frozen  # ties are said
     order = list(result.calibration.model.names)
     for name, why in frozen.items():
         if "a tie within" in why:
