@@ -4,8 +4,11 @@ Parameters redundant by construction are frozen with the reason (:func:`structur
 the first joint's zero and height define the base frame; the last joint's zero turns
 everything after its axis, which the unknown tool points and tool rotations absorb). Then
 the SVD of the column-scaled Jacobian over the actual poses finds combinations the data
-cannot separate; the pivoted QR chooses which parameter of each to freeze, and the report
-names the combination (:func:`analyse_identifiability`). Effects come after the geometry:
+cannot separate (singular values below ``RANK_TOLERANCE``); which parameters to freeze for
+them is chosen from that null space by :func:`~.freeze_choice.choose_frozen` (largest part
+in it first; near ties, within ``TIE_MARGIN``, by the fixed order: the model's parameters in
+its order, then the tool points, then the device frame), and the report names the
+combination and any tie (:func:`analyse_identifiability`). Effects come after the geometry:
 an effect whose columns the kept geometry (and the effects before it) nearly spans
 (relative singular value of its projected columns below ``EFFECT_SEPARATION``) is reported
 and not fitted (:func:`effect_separation`), so an effect never displaces geometry.
@@ -20,6 +23,7 @@ import numpy as np
 from ..errors import DataError
 from ..kinematics.model import KinematicModel
 from .factorizations import pivoted_cholesky_diagonal, pivoted_qr_r
+from .freeze_choice import TIE_MARGIN, choose_frozen
 from .measurements import Measurements
 from .problem import IdentificationProblem
 
@@ -126,8 +130,9 @@ def analyse_identifiability(problem: IdentificationProblem, x: np.ndarray,
     geo = np.flatnonzero(keep[:n_geo])
     rank = _geometric_rank(jac, normal, norms, geo)
     if rank.rank < len(geo):
-        frozen.update(_inseparable(rank, geo, names))
-        keep[geo[rank.pivots[rank.rank:]]] = False
+        inseparable = _inseparable(rank, geo, names, freeze_preference(problem.layout))
+        frozen.update(inseparable)
+        keep[[names.index(name) for name in inseparable]] = False
     for effect, cols in zip(problem.effects, problem.layout.effects):
         reason = effect_separation(jac[:, np.flatnonzero(keep)], jac[:, cols],
                                    [names[k] for k in np.flatnonzero(keep)])
@@ -147,13 +152,17 @@ def analyse_identifiability(problem: IdentificationProblem, x: np.ndarray,
 class _Rank:
     """Rank of the unit-scaled geometric columns: ``scaled`` is their J^T J when the
     pivoted Cholesky proved full rank (else None); otherwise ``r`` and ``pivots`` are the
-    pivoted QR's (R factor and column order) and ``norms`` the column norms it used."""
+    pivoted QR's (R factor and column order), ``norms`` the column norms it used, ``rank``
+    the number of R's singular values above ``RANK_TOLERANCE`` times the largest and
+    ``null`` (k, k - rank) the right singular vectors below it (rows in the order of
+    ``geo``)."""
 
     rank: int
     scaled: np.ndarray | None = None
     r: np.ndarray | None = None
     pivots: np.ndarray | None = None
     norms: np.ndarray | None = None
+    null: np.ndarray | None = None
 
 
 def _geometric_rank(jac: np.ndarray, normal: np.ndarray | None, norms: np.ndarray,
@@ -167,25 +176,46 @@ def _geometric_rank(jac: np.ndarray, normal: np.ndarray | None, norms: np.ndarra
             return _Rank(rank=len(geo), scaled=scaled)
         norms = np.sqrt(np.einsum("ij,ij->j", jac, jac))  # the QR's own (J^T J's agree)
     r, pivots = pivoted_qr_r(unit_columns(jac, geo, norms))
-    diag = np.abs(np.diag(r))
-    return _Rank(rank=int(np.sum(diag > RANK_TOLERANCE * diag[0])), r=r, pivots=pivots,
-                 norms=norms)
+    # J P = Q R, so the singular values of J are R's and its right singular vectors R's
+    # with rows un-pivoted. The rank counts singular values, as RANK_TOLERANCE states (R's
+    # diagonal only brackets them: on a line path it sat at 1e-8 over singular values of
+    # 2e-9, and noise decided the count).
+    _, s, vt_r = np.linalg.svd(r)
+    rank = int(np.sum(s > RANK_TOLERANCE * s[0]))
+    vt = np.empty_like(vt_r)
+    vt[:, pivots] = vt_r
+    return _Rank(rank=rank, r=r, pivots=pivots, norms=norms, null=vt[rank:].T)
 
 
-def _inseparable(rank: _Rank, geo: np.ndarray, names: list[str]) -> dict[str, str]:
-    """Name -> reason for the columns the pivoted QR puts beyond the rank, each with the
-    null-space combination it takes most part in."""
-    # J P = Q R, so the right singular vectors of J are those of R with rows un-pivoted.
-    _, _, vt_r = np.linalg.svd(rank.r)
-    vt_all = np.empty_like(vt_r)
-    vt_all[:, rank.pivots] = vt_r
-    null = vt_all[rank.rank:]
+def freeze_preference(layout) -> np.ndarray:
+    """Order in which tied unknowns are frozen (lower first), over the unknowns before the
+    effects: the model's parameters in the model's order, then the tool points and
+    rotations, then the device frame (which every measured point is expressed in: kept
+    free longest, as :func:`structural_freeze` keeps it over j1.theta and j1.d)."""
+    n = layout.n_geometric
+    preference = np.arange(n) + 2 * n  # the device frame: last
+    preference[layout.geometry] = np.arange(n)[layout.geometry]
+    tools = slice(layout.tool_points.start, layout.tool_rotations.stop)
+    preference[tools] = np.arange(n)[tools] + n
+    return preference
+
+
+def _inseparable(rank: _Rank, geo: np.ndarray, names: list[str],
+                 preference: np.ndarray) -> dict[str, str]:
+    """Name -> reason for the columns frozen for the null space (:func:`choose_frozen`),
+    each with the null-space combination it takes most part in and the unknowns it tied
+    with (those that take part in that combination)."""
     sub_names = [names[k] for k in geo]
     frozen = {}
-    for col in rank.pivots[rank.rank:]:
-        v = null[int(np.argmax(np.abs(null[:, col])))]
-        frozen[names[geo[col]]] = (f"cannot be separated with these poses (combination "
-                                   f"{describe_combination(v, sub_names)})")
+    for choice in choose_frozen(rank.null, preference[geo]):
+        v = choice.direction
+        reason = (f"cannot be separated with these poses (combination "
+                  f"{describe_combination(v, sub_names)}")
+        tied = [sub_names[t] for t in choice.tied if abs(v[t]) > 0.15 * np.abs(v).max()]
+        if tied:
+            reason += (f"; a tie within {TIE_MARGIN:.0%} with {', '.join(tied)}, decided by "
+                       f"the fixed order: model parameters, tools, device frame")
+        frozen[sub_names[choice.index]] = reason + ")"
     return frozen
 
 
