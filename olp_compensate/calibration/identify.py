@@ -137,20 +137,21 @@ def solve(problem: IdentificationProblem, x0: np.ndarray, options: Identificatio
     of the last step is below STEP_TOLERANCE_SIGMA^2 / dof of the cost: with
     sigma^2 = 2 cost / dof, a step shorter than STEP_TOLERANCE_SIGMA standard deviations of
     the estimate (Mahalanobis length), far below what the data resolve."""
+    view = problem.held_view(x0)  # held unknowns (problem.held) stay at their x0 values
     if options.solver == "lm":
         dof = 3 * len(problem.measured) + 3 * problem.n_oriented - problem.n_unknowns
-        result = levenberg_marquardt(problem.residuals_and_jacobian, x0,
+        result = levenberg_marquardt(view.residuals_and_jacobian, view.reduce(x0),
                                      max_iterations=options.max_iterations,
                                      ftol=STEP_TOLERANCE_SIGMA**2 / max(dof, 1),
-                                     residuals=problem.residuals, initial=initial)
-        return Fit(x=result.x, iterations=result.iterations, message=result.message,
+                                     residuals=view.residuals, initial=view.cut(initial))
+        return Fit(x=view.full(result.x), iterations=result.iterations, message=result.message,
                    evaluation=(result.residuals, result.jacobian, result.normal))
     from scipy.optimize import least_squares  # only for --solver trf: 0.2 s of import saved
 
-    result = least_squares(problem.residuals, x0,
-                           jac=lambda x: problem.residuals_and_jacobian(x)[1],
+    result = least_squares(view.residuals, view.reduce(x0),
+                           jac=lambda x: view.residuals_and_jacobian(x)[1],
                            method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12)
-    return Fit(x=result.x, iterations=int(result.nfev), message=result.message,
+    return Fit(x=view.full(result.x), iterations=int(result.nfev), message=result.message,
                evaluation=None)
 
 
@@ -197,11 +198,9 @@ class _Refrozen:
 def _check_options(options: IdentificationOptions) -> None:
     """DataError for an option out of its domain, naming the option's field."""
     if options.solver not in ("lm", "trf"):
-        raise DataError(f"IdentificationOptions.solver must be 'lm' or 'trf', got "
-                        f"{options.solver!r}")
+        raise DataError(f"IdentificationOptions.solver must be 'lm' or 'trf', got {options.solver!r}")
     if options.convention not in ("auto", "dh"):
-        raise DataError(f"IdentificationOptions.convention must be 'auto' or 'dh', got "
-                        f"{options.convention!r}")
+        raise DataError(f"IdentificationOptions.convention must be 'auto' or 'dh', got {options.convention!r}")
     if not (options.position_sigma_mm > 0 and options.orientation_sigma_deg > 0):
         raise DataError(f"the position and orientation sigmas must be positive, got "
                         f"{options.position_sigma_mm} mm and {options.orientation_sigma_deg} deg")
@@ -281,8 +280,9 @@ def _problem(setup: _Setup, start: _Start, free: np.ndarray, effects: tuple[Effe
 def _refreeze(setup: _Setup, start: _Start, frozen: dict[str, str]) -> _Refrozen:
     """Stage 4, identifiability and refreeze: the SVD of the scaled Jacobian at the start
     (:func:`analyse_identifiability`) over every candidate unknown; what the data cannot
-    separate is frozen (effects: dropped) and the problem rebuilt without it, with the
-    start's evaluation cut to the remaining columns."""
+    separate is frozen (effects: dropped; device-frame and tool unknowns: held at their start
+    values, ``problem.held``) and the problem rebuilt without it, with the start's
+    evaluation cut to the remaining columns."""
     model = setup.model
     candidate = np.array([k for k, p in enumerate(model.parameters) if p.name not in frozen],
                          dtype=int)
@@ -291,7 +291,6 @@ def _refreeze(setup: _Setup, start: _Start, frozen: dict[str, str]) -> _Refrozen
                       [np.zeros(e.n_parameters) for e in setup.effects])
     residual0, jac0 = problem.residuals_and_jacobian(x0)  # for the analysis and the fit
     at_x0 = (residual0, jac0, jac0.T @ jac0)
-    del residual0, jac0
     ident, keep = analyse_identifiability(problem, x0, at_x0[1], at_x0[2])
     dropped = {e.label: ident.frozen.pop(e.label) for e in setup.effects
                if e.label in ident.frozen}
@@ -300,8 +299,8 @@ def _refreeze(setup: _Setup, start: _Start, frozen: dict[str, str]) -> _Refrozen
     effects = tuple(e for e in setup.effects if e.label not in dropped)
     names_all = problem.names()
     problem = _problem(setup, start, free, effects)
-    # The same state (effects at zero) with fewer unknowns: x0 and the start's Jacobian with
-    # the remaining columns.
+    problem.held = np.isin(problem.names(), [n for n in ident.frozen if n in names_all])
+    # The same state (effects at zero), fewer unknowns: x0, the start's Jacobian cut to them.
     column = {name: k for k, name in enumerate(names_all)}
     columns = [column[n] for n in problem.names()]
     x0 = x0[columns]
@@ -333,7 +332,9 @@ def _cross_validation(setup: _Setup, start: _Start, problem: IdentificationProbl
         return None
 
     def subproblem(rows: np.ndarray, reference: np.ndarray) -> IdentificationProblem:
-        return _problem(setup, start, problem.free, tuple(problem.effects), rows, reference)
+        sub = _problem(setup, start, problem.free, tuple(problem.effects), rows, reference)
+        sub.held = problem.held  # the folds hold what the full fit holds
+        return sub
 
     def refit(sub: IdentificationProblem, x0: np.ndarray) -> np.ndarray:
         return solve(sub, x0, setup.options).x
@@ -398,8 +399,9 @@ def _calibration(setup: _Setup, problem: IdentificationProblem, x: np.ndarray,
     values, pose, tools = problem.unpack(x)
     std = np.full(setup.model.n_parameters, np.nan)
     std[problem.free] = std_unknowns[layout.geometry]
-    tool_std = std_unknowns[layout.tool_points].reshape(-1, 3)
-    rotation_std = std_unknowns[layout.tool_rotations].reshape(-1, 3)
+    held_zero = np.where(problem.held, 0.0, std_unknowns)  # held: listed in frozen, std 0
+    tool_std = held_zero[layout.tool_points].reshape(-1, 3)
+    rotation_std = held_zero[layout.tool_rotations].reshape(-1, 3)
     rotations = problem.tool_rotations(x)
     tool_points = {}
     for t, name in enumerate(setup.tool_names):
@@ -448,9 +450,7 @@ def _check_data(robot: Robot, meas: Measurements) -> None:
     if meas.joints.shape[1] != robot.n_joints:
         raise DataError(f"{meas.source}: {meas.joints.shape[1]} joint columns, but "
                         f"{robot.name} has {robot.n_joints} joints")
-    lower, upper = robot.lower_limits, robot.upper_limits
-    slack = 1e-6
-    outside = (meas.joints < lower - slack) | (meas.joints > upper + slack)
+    outside = (meas.joints < robot.lower_limits - 1e-6) | (meas.joints > robot.upper_limits + 1e-6)
     if np.any(outside):
         row, joint = np.argwhere(outside)[0]
         line = meas.rows[row] if meas.rows is not None else row + 1

@@ -149,10 +149,18 @@ class IdentificationProblem:
             geometry_names=[model.parameters[k].name for k in self.free],
             tool_names=self.tool_names, rotated_tools=self.rotated_tools,
             effect_names=[[f"{e.label}.{p}" for p in e.parameter_names] for e in self.effects])
+        self.held = np.zeros(self.layout.size, dtype=bool)
+        """(n,) True for a registration or tool unknown frozen by the identifiability
+        analysis: held at its value in the start vector, not fitted (:meth:`held_view`)."""
 
     @property
     def n_unknowns(self) -> int:
-        return self.layout.size
+        """The fitted unknowns (the layout's, less the held ones)."""
+        return self.layout.size - int(self.held.sum())
+
+    def held_view(self, x0: np.ndarray) -> "HeldView":
+        """The problem over its fitted unknowns, the held ones at their values in x0."""
+        return HeldView(self, x0)
 
     @property
     def n_oriented(self) -> int:
@@ -299,7 +307,7 @@ class IdentificationProblem:
         jr_inv = _so3_right_jacobian_inverse(errors)
         to_error = jr_inv @ np.swapaxes(turn, 1, 2) @ np.swapaxes(chain.flange[rows, :3, :3], 1, 2)
         layout = self.layout
-        jac = np.zeros((k, 3, self.n_unknowns))
+        jac = np.zeros((k, 3, self.layout.size))
         rotation = layout.registration_rotation
         jac[:, :, rotation] = to_error @ _so3_right_jacobian(x[rotation])
         jac[:, :, layout.geometry] = to_error @ chain.drot_dparam[rows][:, :, self.free]
@@ -339,7 +347,7 @@ class IdentificationProblem:
         rotation = pose[:3, :3]
         layout = self.layout
         # refilled at every evaluation of a fit: a released buffer is reused (page faults)
-        jac = reusable_array("jacobian", (m, 3, self.n_unknowns), slots=3)
+        jac = reusable_array("jacobian", (m, 3, self.layout.size), slots=3)
         jac.fill(0.0)
         jac[:, :, layout.registration_translation] = self.r0
         # -R [p]x J_r(phi): column l is a_l x (R p), a_l = R J_r(phi) e_l; as p @ (3, 9)
@@ -373,6 +381,46 @@ class IdentificationProblem:
             residual_o, jac_o = self.orientation_rows(x, pose, chain, jacobian=True)
             residual, jac = np.concatenate([residual, residual_o]), np.vstack([jac, jac_o])
         return residual, jac
+
+
+class HeldView:
+    """An :class:`IdentificationProblem` over its fitted unknowns only (those not in
+    ``problem.held``), the held ones at their values in ``x0``: reduced vectors xr,
+    residuals and Jacobian columns of the fitted unknowns. Without held unknowns every
+    method passes the problem's own arrays through."""
+
+    def __init__(self, problem: IdentificationProblem, x0: np.ndarray):
+        self.problem, self.x0 = problem, np.asarray(x0, dtype=float)
+        self.any = bool(problem.held.any())
+        self.columns = np.flatnonzero(~problem.held)
+
+    def full(self, xr: np.ndarray) -> np.ndarray:
+        """The whole unknown vector for the fitted unknowns xr."""
+        if not self.any:
+            return xr
+        x = self.x0.copy()
+        x[self.columns] = xr
+        return x
+
+    def reduce(self, x: np.ndarray) -> np.ndarray:
+        """The fitted unknowns of a whole vector."""
+        return x[self.columns] if self.any else x
+
+    def cut(self, evaluation: tuple | None) -> tuple | None:
+        """(residuals, Jacobian[, J^T J]) of the whole vector cut to the fitted columns."""
+        if evaluation is None or not self.any:
+            return evaluation
+        cols = self.columns
+        cut = (evaluation[0], evaluation[1][:, cols])
+        if len(evaluation) > 2 and evaluation[2] is not None:
+            cut += (evaluation[2][np.ix_(cols, cols)],)
+        return cut
+
+    def residuals(self, xr: np.ndarray) -> np.ndarray:
+        return self.problem.residuals(self.full(xr))
+
+    def residuals_and_jacobian(self, xr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.cut(self.problem.residuals_and_jacobian(self.full(xr)))
 
 
 def problem_at(calibration: Calibration, meas: Measurements, inputs: EffectInputs | None,

@@ -30,10 +30,11 @@ class FitStatistics:
     """The statistics of a fit at its solution x.
 
     ``n_equations``: equations of the rows in use; ``std``: (n,) standard deviation of each
-    unknown (units of the unknown: m, rad, or the effect's); ``singular_values`` of the
-    unit-scaled Jacobian (descending), ``weak``: descriptions of combinations below
-    ``WEAK_TOLERANCE``; ``residual_rms``/``residual_max``: 3-D position error over the rows
-    in use, m; ``orientation_rms``/``orientation_max``: rad, None without orientation rows;
+    unknown, NaN for a held one (units of the unknown: m, rad, or the effect's);
+    ``singular_values`` of the unit-scaled Jacobian of the fitted unknowns (descending),
+    ``weak``: descriptions of combinations below ``WEAK_TOLERANCE``;
+    ``residual_rms``/``residual_max``: 3-D position error over the rows in use, m;
+    ``orientation_rms``/``orientation_max``: rad, None without orientation rows;
     ``n_orientation_rows``: orientation rows in use."""
 
     n_equations: int
@@ -80,6 +81,9 @@ def fit_statistics(problem: IdentificationProblem, x: np.ndarray,
     """Statistics at the solution ``x``; ``evaluation``: (residuals, Jacobian, J^T J or
     None) at x, as the solver left them."""
     residual, jac, normal = evaluation
+    fitted = np.flatnonzero(~problem.held)  # held unknowns: std NaN, not in the spectrum
+    if jac.shape[1] != len(fitted):  # a whole-vector evaluation (trf's): cut it
+        jac, normal = jac[:, fitted], None if normal is None else normal[np.ix_(fitted, fitted)]
     used = problem.row_weight > 0
     n_oriented = int(used[problem.oriented_rows].sum())
     m_eq = 3 * int(used.sum()) + 3 * n_oriented
@@ -89,8 +93,9 @@ def fit_statistics(problem: IdentificationProblem, x: np.ndarray,
     # (J^T J)^-1 = V S^-2 V^T on the scaled columns; pseudo-inverse guards near-rank loss.
     inv_s2 = np.where(s > RANK_TOLERANCE * s[0], 1.0 / np.maximum(s, 1e-300) ** 2, 0.0)
     cov_scaled = (vt.T * inv_s2) @ vt
-    std = np.sqrt(np.clip(np.diag(cov_scaled), 0, None) * sigma2) / norms
-    names = problem.names()
+    std = np.full(problem.layout.size, np.nan)
+    std[fitted] = np.sqrt(np.clip(np.diag(cov_scaled), 0, None) * sigma2) / norms
+    names = [problem.names()[k] for k in fitted]
     weak = [f"{describe_combination(vt[k], names)} (relative singular value {s[k] / s[0]:.1e})"
             for k in range(len(s)) if s[k] < WEAK_TOLERANCE * s[0]]
     m_rows = len(problem.measured)

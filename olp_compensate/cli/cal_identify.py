@@ -114,14 +114,15 @@ def report(result) -> str:
     """The identification report, as printed."""
     cal = result.calibration
     ident = result.identifiability
-    n_tool = (sum(n.startswith("tool.") for n in result.unknown_names) if result.unknown_names
-              else 3 * len(cal.tools))
+    n_tool = (sum(n.startswith("tool.") and n not in cal.frozen for n in result.unknown_names)
+              if result.unknown_names else 3 * len(cal.tools))
+    n_frame = 6 - sum(n.startswith("base.") and n in cal.frozen for n in result.unknown_names)
     orientations = (f" ({result.n_orientation_rows} rows with orientation)"
                     if result.n_orientation_rows else "")
     lines = [
         f"robot {cal.robot.name}: {result.n_poses} poses, {result.n_equations} equations"
-        f"{orientations}, {result.n_unknowns} unknowns (6 device registration + "
-        f"{result.n_unknowns - 6 - n_tool} geometric + {n_tool} tool)",
+        f"{orientations}, {result.n_unknowns} unknowns ({n_frame} device registration + "
+        f"{result.n_unknowns - n_frame - n_tool} geometric + {n_tool} tool)",
         "links: " + ", ".join(f"{k + 1}-{k + 2} {c}" for k, c in enumerate(cal.model.conventions)),
         f"solver: {result.message} after {result.iterations} iterations",
         f"condition number (unit-scaled Jacobian): {ident.condition_number:.1f}",
@@ -137,11 +138,13 @@ def report(result) -> str:
                      f"{(cal.values[k] - p.nominal) * s:>12.4f}{cal.std[k] * s:>10.4f}  {p.display_unit}")
     for name, tool in cal.tools.items():
         xyz = ", ".join(f"{v:.3f}" for v in tool.xyz_m * 1e3)
-        std = ", ".join(f"{v:.3f}" for v in tool.std_m * 1e3)
+        std = ", ".join("frozen" if f"tool.{name}.{a}" in cal.frozen else f"{v:.3f}"
+                        for a, v in zip("xyz", tool.std_m * 1e3))
         lines.append(f"tool {name}: ({xyz}) mm in the flange frame, std ({std}) mm")
         if tool.quat_wxyz is not None and tool.rot_std_rad is not None:
             quat = ", ".join(f"{v:.6f}" for v in tool.quat_wxyz)
-            rot_std = ", ".join(f"{v:.4f}" for v in np.degrees(tool.rot_std_rad))
+            rot_std = ", ".join("frozen" if f"tool.{name}.r{a}" in cal.frozen else f"{v:.4f}"
+                                for a, v in zip("xyz", np.degrees(tool.rot_std_rad)))
             lines.append(f"tool {name} frame: quaternion (w, x, y, z) ({quat}) in the flange "
                          f"frame, std ({rot_std}) deg about its axes")
     lines.append("")
