@@ -83,6 +83,30 @@ def _with_candidates(scan: EffectScan, effects: list[Effect]) -> EffectScan:
                       scan.inputs, scan.folds)
 
 
+@dataclass(frozen=True)
+class _BandsWithCandidates:
+    """The band scan of the scan's model with ``effects`` appended at zero: ``own[i]``, the
+    positions of effect i's columns among the kept unknowns; ``every``, all of them;
+    ``kept``, the kept bands as (joint, ridge)."""
+
+    band_scan: BandScan
+    own: list[np.ndarray]
+    every: np.ndarray
+    kept: list[tuple[int, float]]
+
+
+def _bands_with(scan: EffectScan, bands: BandOutcome, effects: list[Effect],
+                robot) -> _BandsWithCandidates:
+    wide = _with_candidates(scan, effects)
+    positions = np.arange(len(wide.x))
+    n_old = len(wide.problem.layout.effects) - len(effects)
+    own = [np.flatnonzero(np.isin(wide.kept, positions[cols]))
+           for cols in wide.problem.layout.effects[n_old:]]
+    return _BandsWithCandidates(BandScan(wide, robot, scan.inputs.q, bands.scan.fold_rows),
+                                own, np.concatenate(own),
+                                [(b.joint, b.ridge) for b in bands.bands])
+
+
 def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effect],
                      robot, alpha: float, prefer_simpler_alpha: float = 0.05
                      ) -> AfterBandsRound | None:
@@ -96,14 +120,8 @@ def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effe
                 and effect_separation(scan.jac, scan.columns(c), scan.names) is None]
     if not testable or not bands.bands:
         return None
-    wide = _with_candidates(scan, testable)
-    positions = np.arange(len(wide.x))
-    n_old = len(wide.problem.layout.effects) - len(testable)
-    own = [np.flatnonzero(np.isin(wide.kept, positions[cols]))
-           for cols in wide.problem.layout.effects[n_old:]]
-    band_scan = BandScan(wide, robot, scan.inputs.q, bands.scan.fold_rows)
-    kept = [(b.joint, b.ridge) for b in bands.bands]
-    every = np.concatenate(own)
+    setup = _bands_with(scan, bands, testable, robot)
+    band_scan, own, every, kept = setup.band_scan, setup.own, setup.every, setup.kept
     n_bands = sum(len(band_scan.columns[j]) for j, _ in kept)
     reference, _ = band_scan.current(kept, every)
     gram = band_scan._training(frozenset())[0]
@@ -156,14 +174,8 @@ def confounded_bands(scan: EffectScan, bands: BandOutcome, inseparable: list[Eff
     effects = [e for e in inseparable if e.key not in named]
     if not effects or not bands.bands:
         return []
-    wide = _with_candidates(scan, effects)
-    positions = np.arange(len(wide.x))
-    n_old = len(wide.problem.layout.effects) - len(effects)
-    own = [np.flatnonzero(np.isin(wide.kept, positions[cols]))
-           for cols in wide.problem.layout.effects[n_old:]]
-    band_scan = BandScan(wide, robot, scan.inputs.q, bands.scan.fold_rows)
-    kept = [(b.joint, b.ridge) for b in bands.bands]
-    every = np.concatenate(own)
+    setup = _bands_with(scan, bands, effects, robot)
+    band_scan, own, every, kept = setup.band_scan, setup.own, setup.every, setup.kept
     with_bands, _ = band_scan.current(kept, every)
     out = []
     for band, p_band in zip(bands.bands, bands.p_values):
