@@ -39,6 +39,7 @@ from ..kinematics.robot import Robot
 from .calibration import Calibration, ToolPoint, Validation
 from .cross_validation import HeldOut, cross_validate, pose_folds
 from .identifiability import Identifiability, analyse_identifiability, structural_freeze
+from .identify_checks import check_data, check_effects, check_options
 from .lm import levenberg_marquardt
 from .measurements import Measurements, check_spread, row_sigma_scales
 from .problem import IdentificationProblem, oriented_rows, point_index, tool_rotation_start
@@ -195,24 +196,13 @@ class _Refrozen:
     dropped: dict[str, str]
 
 
-def _check_options(options: IdentificationOptions) -> None:
-    """DataError for an option out of its domain, naming the option's field."""
-    if options.solver not in ("lm", "trf"):
-        raise DataError(f"IdentificationOptions.solver must be 'lm' or 'trf', got {options.solver!r}")
-    if options.convention not in ("auto", "dh"):
-        raise DataError(f"IdentificationOptions.convention must be 'auto' or 'dh', got {options.convention!r}")
-    if not (options.position_sigma_mm > 0 and options.orientation_sigma_deg > 0):
-        raise DataError(f"the position and orientation sigmas must be positive, got "
-                        f"{options.position_sigma_mm} mm and {options.orientation_sigma_deg} deg")
-
-
 def _checked_setup(robot: Robot, meas: Measurements, options: IdentificationOptions) -> _Setup:
     """Stage 1, check the data: options, effects against the columns, joints within the
     limits; the model; the measured tools."""
-    _check_options(options)
-    effects = _check_effects(robot, meas, options.effects)
+    check_options(options)
+    effects = check_effects(robot, meas, options.effects)
     meas_urdf = dataclasses.replace(meas, joints=robot.joints_from_controller(meas.joints))
-    _check_data(robot, meas_urdf)
+    check_data(robot, meas_urdf)
     return _Setup(robot=robot, meas=meas_urdf, meas_controller=meas,
                   model=build_model(robot, options.convention), options=options,
                   effects=effects, tool_names=sorted(set(meas_urdf.point_names)),
@@ -444,43 +434,6 @@ def _result(setup: _Setup, problem: IdentificationProblem, fit: Fit,
         heldout_orientation_rms=None if heldout is None else heldout.orientation_rms,
         heldout_orientation_max=None if heldout is None else heldout.orientation_max,
         n_orientation_rows=statistics.n_orientation_rows, layout=problem.layout)
-
-
-def _check_data(robot: Robot, meas: Measurements) -> None:
-    if meas.joints.shape[1] != robot.n_joints:
-        raise DataError(f"{meas.source}: {meas.joints.shape[1]} joint columns, but "
-                        f"{robot.name} has {robot.n_joints} joints")
-    outside = (meas.joints < robot.lower_limits - 1e-6) | (meas.joints > robot.upper_limits + 1e-6)
-    if np.any(outside):
-        row, joint = np.argwhere(outside)[0]
-        line = meas.rows[row] if meas.rows is not None else row + 1
-        value = robot.to_degrees_or_mm(meas.joints[row])[joint]
-        raise DataError(f"{meas.source}:{line}: q{joint + 1} = {value:.3f} is outside the joint "
-                        f"limits of {robot.name}; wrong robot for these measurements?")
-
-
-def _check_effects(robot: Robot, meas: Measurements, effects) -> tuple[Effect, ...]:
-    """Validate the effects against the data; fix thermal expansion's reference temperature
-    (the mean of the measurements) when it is not given."""
-    if not effects:
-        return ()
-    from .effects import ThermalExpansion
-
-    out = []
-    for effect in effects:
-        if effect.joint is not None and not 0 <= effect.joint < robot.n_joints:
-            raise DataError(f"{effect.label}: {robot.name} has joints 1..{robot.n_joints}")
-        if isinstance(effect, ThermalExpansion):
-            if meas.temperature_c is None:
-                raise DataError(f"{meas.source}: thermal_expansion needs the 'temperature_c' "
-                                f"column, which the measurements do not have")
-            if effect.reference_temperature_c is None:
-                effect = dataclasses.replace(
-                    effect, reference_temperature_c=float(np.mean(meas.temperature_c)))
-        if effect.key in {e.key for e in out}:
-            raise DataError(f"{effect.label} is asked for twice")
-        out.append(effect)
-    return tuple(out)
 
 
 def measurement_inputs(robot: Robot, meas: Measurements, tools: dict[str, np.ndarray],
