@@ -11,6 +11,7 @@ from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.calibration.problem import point_index
 from olp_compensate.calibration.registration import _linear_start, register_device
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
+from olp_compensate.cli.cal_identify import report
 from olp_compensate.kinematics.conventions import rotation_angle_between, rotvec_from_rotation
 from olp_compensate.kinematics.model import build_model, forward
 from olp_compensate.kinematics.robot import load_robot
@@ -96,6 +97,7 @@ def test_a_fixed_orientation_refuses_the_linear_start_and_holds_a_tool_at_zero()
     cal = result.calibration
     assert {"tool.tcp.x", "tool.tcp.y", "tool.tcp.z"} <= set(cal.frozen)
     assert np.linalg.norm(cal.tools["tcp"].xyz_m) < 1e-6
+    assert "tool tcp: (0.000, 0.000, 0.000) mm" in report(result)  # no "-0.000"
     assert np.degrees(rotation_angle_between(cal.device_T_base[:3, :3], truth[:3, :3])) < 1.0
     assert np.linalg.norm(cal.device_T_base[:3, 3] - seen) < 10e-3
     # the model predicts the truth on new poses of the same kind, to the noise level
