@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from olp_compensate.calibration.calibration import ToolPoint
 from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.calibration.simulate import make_virtual_robot
 from olp_compensate.cli.cal_identify import _unsigned_zero, report
@@ -121,3 +122,12 @@ def test_a_held_zero_prints_without_a_sign(held_result):
     result = dataclasses.replace(
         held_result, calibration=dataclasses.replace(cal, tools={"tcp": tool}))
     assert "tool tcp: (0.000, 0.000, 200.000) mm" in report(result)
+
+
+def test_a_tool_calibrated_for_programs_in_place_of_a_held_point_holds_nothing(held_result):
+    # olp-cal tool --name tcp on this file replaces the point by a tool measured on its own
+    cal = held_result.calibration
+    tools = {"tcp": ToolPoint(xyz_m=np.array([0.0, 0.0, 0.1]), std_m=np.full(3, 1e-5),
+                              for_programs=True)}
+    doc = json.loads(dumps_calibration(dataclasses.replace(cal, tools=tools)))
+    assert "held" not in doc["tools"]["tcp"]

@@ -123,7 +123,8 @@ def _model_to_dict(cal: Calibration) -> dict:
             tools[name]["rot_std_deg"] = np.degrees(np.asarray(t.rot_std_rad)).tolist()
         if t.for_programs:
             tools[name]["for_programs"] = True
-        _put_held(tools[name], cal.frozen, f"tool.{name}.", TOOL_COMPONENTS)
+        if not t.for_programs:  # a tool of `olp-cal tool` replacing a held point holds none
+            _put_held(tools[name], cal.frozen, f"tool.{name}.", TOOL_COMPONENTS)
     validation = None
     if cal.validation is not None:
         v = cal.validation
