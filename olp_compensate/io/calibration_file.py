@@ -121,9 +121,9 @@ def _model_to_dict(cal: Calibration) -> dict:
     for name, t in cal.tools.items():
         if t.rot_std_rad is not None:
             tools[name]["rot_std_deg"] = np.degrees(np.asarray(t.rot_std_rad)).tolist()
-        if t.for_programs:
+        if t.for_programs:  # (a tool of `olp-cal tool` in place of a held point holds none)
             tools[name]["for_programs"] = True
-        if not t.for_programs:  # a tool of `olp-cal tool` replacing a held point holds none
+        else:
             _put_held(tools[name], cal.frozen, f"tool.{name}.", TOOL_COMPONENTS)
     validation = None
     if cal.validation is not None:
