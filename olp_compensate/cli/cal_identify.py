@@ -137,7 +137,7 @@ def report(result) -> str:
         lines.append(f"{p.name:<12}{p.nominal * s:>14.4f}{cal.values[k] * s:>14.4f}"
                      f"{(cal.values[k] - p.nominal) * s:>12.4f}{cal.std[k] * s:>10.4f}  {p.display_unit}")
     for name, tool in cal.tools.items():
-        xyz = ", ".join(f"{v:.3f}" for v in tool.xyz_m * 1e3)
+        xyz = ", ".join(_unsigned_zero(f"{v:.3f}") for v in tool.xyz_m * 1e3)
         std = ", ".join("frozen" if f"tool.{name}.{a}" in cal.frozen else f"{v:.3f}"
                         for a, v in zip("xyz", tool.std_m * 1e3))
         lines.append(f"tool {name}: ({xyz}) mm in the flange frame, std ({std}) mm")
@@ -171,6 +171,12 @@ def report(result) -> str:
     else:
         lines.append("held-out: not computed (too few poses or --folds 0)")
     return "\n".join(lines)
+
+
+def _unsigned_zero(text: str) -> str:
+    """A formatted number without the sign of a zero ("-0.000" -> "0.000": a component held
+    at a zero start, or one below the last digit, is printed as the zero it is)."""
+    return text[1:] if text[:1] == "-" and not text.strip("-0.") else text
 
 
 def _optional_mm(value: float | None) -> str:

@@ -17,6 +17,13 @@ tool replaces a program's tool of its name in olp-fix. A tool without the key (e
 of an identification, and every file written before the key existed) is a measured point,
 never a program's tool.
 
+A tool point's or the device frame's component that the poses cannot separate from the rest
+(``olp-cal identify``: held at its start value, not fitted) is named in the tool's, or in
+``device_T_base``'s, ``"held"``: ``{component: why}``, components ``x y z rx ry rz`` of a
+tool and ``tx ty tz rx ry rz`` of the device frame. Such a component's std in ``std_mm`` or
+``rot_std_deg`` is 0, which is not an uncertainty: the data did not determine it. Files
+without the key hold nothing; they read as before.
+
 A calibration with local models per region (``olp-cal identify --per-region``) also has
 ``"regions"``: a list of ``{"name", "volume": {"min_mm", "max_mm", "margin_mm"} (an
 axis-aligned box in the base frame of the global calibration), "model", "device_T_base",
@@ -47,6 +54,7 @@ import numpy as np
 
 from ..calibration.calibration import (Calibration, RegionBox, RegionCalibration, ToolPoint,
                                        Validation)
+from ..calibration.unknowns import REGISTRATION_NAMES
 from ..kinematics.conventions import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from ..errors import DataError, ModelError
 from ..kinematics.model import build_model
@@ -67,6 +75,11 @@ PLAUSIBLE_PATHS = (_MODEL_PATHS + ("robot/axis_ranges_deg/*/*", "regions/*/volum
                                    "regions/*/volume/max_mm/*")
                    + tuple("regions/*/" + path for path in _MODEL_PATHS))
 """JSON paths (``*``: any key or index) whose numbers are lengths or angles."""
+
+TOOL_COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
+"""A tool's components that can be held (``tool.NAME.x`` ... among a calibration's frozen)."""
+DEVICE_COMPONENTS = tuple(name.split(".", 1)[1] for name in REGISTRATION_NAMES)
+"""The device frame's components that can be held (``base.tx`` ... ``base.rz``)."""
 
 FORMAT = "olp-compensate calibration"
 VERSION = 1
@@ -108,8 +121,10 @@ def _model_to_dict(cal: Calibration) -> dict:
     for name, t in cal.tools.items():
         if t.rot_std_rad is not None:
             tools[name]["rot_std_deg"] = np.degrees(np.asarray(t.rot_std_rad)).tolist()
-        if t.for_programs:
+        if t.for_programs:  # (a tool of `olp-cal tool` in place of a held point holds none)
             tools[name]["for_programs"] = True
+        else:
+            _put_held(tools[name], cal.frozen, f"tool.{name}.", TOOL_COMPONENTS)
     validation = None
     if cal.validation is not None:
         v = cal.validation
@@ -121,15 +136,38 @@ def _model_to_dict(cal: Calibration) -> dict:
                               orientation_max_deg=v.orientation_max_deg,
                               heldout_orientation_rms_deg=v.heldout_orientation_rms_deg,
                               heldout_orientation_max_deg=v.heldout_orientation_max_deg)
+    device = {"xyz_mm": (cal.device_T_base[:3, 3] * 1e3).tolist(),
+              "quat_wxyz": quat_wxyz_from_matrix(cal.device_T_base[:3, :3]).tolist()}
+    _put_held(device, cal.frozen, "base.", DEVICE_COMPONENTS)
     return {
         "model": {"convention": cal.model.convention,
                   "links": list(cal.model.conventions), "parameters": params},
-        "device_T_base": {"xyz_mm": (cal.device_T_base[:3, 3] * 1e3).tolist(),
-                          "quat_wxyz": quat_wxyz_from_matrix(cal.device_T_base[:3, :3]).tolist()},
+        "device_T_base": device,
         "tools": tools,
         "effects": [effect.to_dict() for effect in cal.effects],
         "validation": validation,
     }
+
+
+def _put_held(entry: dict, frozen: dict[str, str], prefix: str, components) -> None:
+    """``entry["held"]``: ``{component: why}`` of the frozen ``prefix + component`` names, in
+    the order of ``components``; no key when none is held (files stay as they were)."""
+    held = {c: frozen[prefix + c] for c in components if prefix + c in frozen}
+    if held:
+        entry["held"] = held
+
+
+def _held(entry: dict, prefix: str, components, where: str) -> dict[str, str]:
+    """The frozen names (``prefix + component``: why) of ``entry``'s ``"held"``;
+    :class:`ModelError` when it is not ``{component: why}``."""
+    held = entry.get("held")
+    if held is None:
+        return {}
+    if not isinstance(held, dict) or any(
+            c not in components or not isinstance(why, str) for c, why in held.items()):
+        raise ModelError(f"{where}/held: expected {{component: reason}} with components among "
+                         f"{', '.join(components)}")
+    return {prefix + c: why for c, why in held.items()}
 
 
 def _region_to_dict(region: RegionCalibration) -> dict:
@@ -284,12 +322,15 @@ def _model_from_dict(doc: dict, embedded: Robot, source: str) -> Calibration:
     pose[:3, 3] = np.array(doc["device_T_base"]["xyz_mm"]) * 1e-3
     tools = {}
     for name, t in doc["tools"].items():
+        frozen.update(_held(t, f"tool.{name}.", TOOL_COMPONENTS, f"{source}: tools/{name}"))
         tools[name] = ToolPoint(
             xyz_m=np.array(t["xyz_mm"]) * 1e-3,
             std_m=None if t.get("std_mm") is None else np.array(t["std_mm"]) * 1e-3,
             quat_wxyz=None if t.get("quat_wxyz") is None else np.array(t["quat_wxyz"]),
             rot_std_rad=None if t.get("rot_std_deg") is None else np.radians(t["rot_std_deg"]),
             for_programs=bool(t.get("for_programs", False)))
+    frozen.update(_held(doc["device_T_base"], "base.", DEVICE_COMPONENTS,
+                        f"{source}: device_T_base"))
     v = doc.get("validation")
     validation = None if v is None else Validation(
         method=v["method"], poses=v["poses"], residual_rms_mm=v["residual_rms_mm"],
