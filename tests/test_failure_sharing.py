@@ -133,6 +133,35 @@ def test_turn_toward_ranges_is_the_enumeration_of_turns(name):
                           got)
 
 
+@pytest.mark.parametrize("name", ["abb_irb2400", "ur5e", "staubli_tx2_60", "kuka_kr16_2"])
+def test_turn_toward_ranges_near_zero_and_at_the_range_ends_is_the_enumeration(name):
+    """The values a search's candidates mostly hold (inside their ranges, under 3 rad,
+    left as they are by a shortcut) and those at the shortcut's and the ranges' edges:
+    bit for bit the enumeration of the seven turns (the turn nearest zero of those that
+    fit, the first on a tie; else wrapped), -0.0 included."""
+    robot = load_robot(name)
+    ranges = robot.controller_ranges
+    rng = np.random.default_rng(5)
+    edges = np.r_[ranges[np.isfinite(ranges)], 3.0, -3.0, np.pi, -np.pi, 0.0, -0.0,
+                  2 * np.pi, -2 * np.pi]
+    nudges = np.r_[0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1.0000001e-9, -1.0000001e-9]
+    values = np.r_[rng.uniform(-3.5, 3.5, 600), (edges[:, None] + nudges).ravel(), -0.0]
+    n = robot.n_joints
+    q = np.stack([np.roll(values, 37 * a) for a in range(n)], axis=1)
+    got = turn_toward_ranges(robot, q)
+    for i in range(len(q)):
+        for a, joint in enumerate(robot.joints):
+            value = q[i, a]
+            if joint.kind != "revolute":
+                continue
+            lo, hi = ranges[a]
+            fits = [value + 2 * np.pi * t for t in range(-3, 4)
+                    if np.isfinite(lo) and np.isfinite(hi)
+                    and lo - 1e-9 <= value + 2 * np.pi * t <= hi + 1e-9]
+            want = min(fits, key=abs) if fits else (value + np.pi) % (2 * np.pi) - np.pi
+            assert np.float64(got[i, a]).tobytes() == np.float64(want).tobytes(), (i, a)
+
+
 @pytest.mark.parametrize("pool", [1, 5, 64])
 def test_pooled_newton_gives_each_row_what_the_whole_batch_gives(world, pool):
     """Newton on a pool of rows, a finished row's place taken by the next (the search's,
