@@ -133,6 +133,35 @@ def test_turn_toward_ranges_is_the_enumeration_of_turns(name):
                           got)
 
 
+@pytest.mark.parametrize("name", ["abb_irb2400", "ur5e", "staubli_tx2_60", "kuka_kr16_2"])
+def test_turn_toward_ranges_near_zero_and_at_the_range_ends_is_the_enumeration(name):
+    """The values a search's candidates mostly hold (inside their ranges, under 3 rad,
+    left as they are by a shortcut) and those at the shortcut's and the ranges' edges:
+    bit for bit the enumeration of the seven turns (the turn nearest zero of those that
+    fit, the first on a tie; else wrapped), -0.0 included."""
+    robot = load_robot(name)
+    ranges = robot.controller_ranges
+    rng = np.random.default_rng(5)
+    edges = np.r_[ranges[np.isfinite(ranges)], 3.0, -3.0, np.pi, -np.pi, 0.0, -0.0,
+                  2 * np.pi, -2 * np.pi]
+    nudges = np.r_[0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1.0000001e-9, -1.0000001e-9]
+    values = np.r_[rng.uniform(-3.5, 3.5, 600), (edges[:, None] + nudges).ravel(), -0.0]
+    n = robot.n_joints
+    q = np.stack([np.roll(values, 37 * a) for a in range(n)], axis=1)
+    got = turn_toward_ranges(robot, q)
+    for i in range(len(q)):
+        for a, joint in enumerate(robot.joints):
+            value = q[i, a]
+            if joint.kind != "revolute":
+                continue
+            lo, hi = ranges[a]
+            fits = [value + 2 * np.pi * t for t in range(-3, 4)
+                    if np.isfinite(lo) and np.isfinite(hi)
+                    and lo - 1e-9 <= value + 2 * np.pi * t <= hi + 1e-9]
+            want = min(fits, key=abs) if fits else (value + np.pi) % (2 * np.pi) - np.pi
+            assert np.float64(got[i, a]).tobytes() == np.float64(want).tobytes(), (i, a)
+
+
 @pytest.mark.parametrize("pool", [1, 5, 64])
 def test_pooled_newton_gives_each_row_what_the_whole_batch_gives(world, pool):
     """Newton on a pool of rows, a finished row's place taken by the next (the search's,
@@ -163,3 +192,47 @@ def test_pooled_newton_gives_each_row_what_the_whole_batch_gives(world, pool):
             assert np.array_equal(a, b), name
     converged, stalled, iterations = whole[4], whole[5], whole[3]
     assert converged.any() and stalled[far].any() and (iterations == 30).any()
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "abb_irb6400", "ur5e"])
+def test_range_words_name_each_axis_past_its_range_then_each_urdf_joint(name):
+    """The words of a failure note for joints outside the ranges, row by row: each
+    controller axis outside its range in axis order (value, how far, which side, the
+    range; deg), then each URDF joint outside its limits that no axis named, from the
+    robot's own numbers (not the code's tables)."""
+    from olp_compensate.compensation.failures import _Ranges, _range_words
+
+    robot = load_robot(name)
+    ranges = robot.controller_ranges
+    rng = np.random.default_rng(7)
+    span = np.where(np.isfinite(ranges), ranges, np.sign(ranges) * 4.0)
+    q = rng.uniform(span[:, 0] - 0.6, span[:, 1] + 0.6, (400, robot.n_joints))
+    q[::7] = np.clip(q[::7], span[:, 0], span[:, 1])        # rows with nothing to name
+    got = _range_words(_Ranges.of(robot), q)
+    assert len(got) == len(q)
+    lo_deg, hi_deg = np.degrees(ranges[:, 0]), np.degrees(ranges[:, 1])
+    some = 0
+    for i in range(len(q)):
+        want = []
+        named = set()
+        for a in range(robot.n_joints):
+            if ranges[a, 0] - 1e-9 <= q[i, a] <= ranges[a, 1] + 1e-9:
+                continue
+            named.add(a)
+            v = float(np.degrees(q[i, a]))
+            below = v < lo_deg[a]
+            past = lo_deg[a] - v if below else v - hi_deg[a]
+            want.append(f"axis {a + 1} = {v:.2f} deg is {past:.2f} deg "
+                        f"{'below' if below else 'above'} the controller's range "
+                        f"{lo_deg[a]:g}..{hi_deg[a]:g} deg")
+        joints = robot.joints_from_controller(q[i][None])[0]
+        for j, joint in enumerate(robot.joints):
+            if j in named or (robot.lower_limits[j] - 1e-9 <= joints[j]
+                              <= robot.upper_limits[j] + 1e-9):
+                continue
+            want.append(f"URDF {joint.name} = {np.degrees(joints[j]):.2f} deg is outside its "
+                        f"limits {np.degrees(robot.lower_limits[j]):.2f}.."
+                        f"{np.degrees(robot.upper_limits[j]):.2f} deg")
+        assert got[i] == want, (i, got[i], want)
+        some += bool(want)
+    assert some > 100

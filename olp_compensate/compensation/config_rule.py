@@ -103,7 +103,10 @@ class Candidates:
 def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
     """``q_ctrl (..., n)`` rad with each revolute axis turned by whole turns into its
     controller range (the turn nearest zero where several fit), or, where no turn fits and
-    for axes without a finite range, wrapped to [-180, 180) deg."""
+    for axes without a finite range, wrapped to [-180, 180) deg. A value already inside its
+    range and under :data:`_UNTURNED` in size stays (plus 0.0, as the turns add it): any
+    other turn is over 2 pi - 3 > 3 from zero, so it is the one nearest zero; only the
+    others try the turns."""
     q = np.array(q_ctrl, dtype=float, copy=True)
     ranges = robot.controller_ranges
     turns = 2 * np.pi * np.arange(-3, 4)
@@ -114,13 +117,30 @@ def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
         if not (np.isfinite(lo) and np.isfinite(hi)):
             q[..., a] = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
             continue
-        values = q[..., a, None] + turns                              # (..., 7)
-        inside = (values >= lo - 1e-9) & (values <= hi + 1e-9)
-        pick = np.argmin(np.where(inside, np.abs(values), np.inf), axis=-1)
-        turned = np.take_along_axis(values, pick[..., None], axis=-1)[..., 0]
-        wrapped = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
-        q[..., a] = np.where(np.any(inside, axis=-1), turned, wrapped)
+        value = q[..., a]
+        stays = (np.abs(value) < _UNTURNED) & (value >= lo - 1e-9) & (value <= hi + 1e-9)
+        out = value + 0.0
+        if not np.all(stays):
+            other = ~stays
+            out[other] = _turned(value[other], turns, lo, hi)
+        q[..., a] = out
     return q
+
+
+_UNTURNED = 3.0
+"""rad: an axis value inside its range and smaller than this is its own nearest turn to
+zero (every other turn is at least 2 pi - 3 from zero)."""
+
+
+def _turned(value: np.ndarray, turns: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """``value (r,)`` rad turned by one of ``turns`` into [lo, hi] (the one nearest zero),
+    else wrapped to [-pi, pi)."""
+    values = value[:, None] + turns                                   # (r, 7)
+    inside = (values >= lo - 1e-9) & (values <= hi + 1e-9)
+    pick = np.argmin(np.where(inside, np.abs(values), np.inf), axis=-1)
+    turned = np.take_along_axis(values, pick[:, None], axis=-1)[:, 0]
+    wrapped = (value + np.pi) % (2 * np.pi) - np.pi
+    return np.where(np.any(inside, axis=-1), turned, wrapped)
 
 
 def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None

@@ -38,6 +38,15 @@ def _config_words(conf) -> str:
     return "[" + ",".join(str(int(c)) for c in conf) + "]"
 
 
+class _ConfigWords(dict):
+    """:func:`_config_words` of configurations (tuples of ints), each written once: a
+    batch's failed rows share a few dozen."""
+
+    def __missing__(self, conf) -> str:
+        words = self[conf] = _config_words(conf)
+        return words
+
+
 @dataclass(frozen=True)
 class _Ranges:
     """A robot's controller ranges and URDF limits as the notes write them (deg, mm)."""
@@ -75,18 +84,17 @@ def _range_words(limits: _Ranges, q_ctrl: np.ndarray) -> list[list[str]]:
         & ~listed                          # an axis already named is not named again
     edge = robot.to_degrees_or_mm(q_ctrl)
     joint_edge = robot.to_degrees_or_mm(joints)
-    for k in np.flatnonzero(listed.any(axis=1) | outside.any(axis=1)).tolist():
-        words = out[k]
-        for a in np.flatnonzero(listed[k]).tolist():
-            value = edge[k, a]
-            past = lo[a] - value if value < lo[a] else value - hi[a]
-            side = "below" if value < lo[a] else "above"
-            words.append(f"axis {a + 1} = {value:.2f} {unit[a]} is {past:.2f} {unit[a]} "
-                         f"{side} the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
-        for j in np.flatnonzero(outside[k]).tolist():
-            words.append(f"URDF {robot.joints[j].name} = {joint_edge[k, j]:.2f} {unit[j]} is "
-                         f"outside its limits {limits.jlo[j]:.2f}..{limits.jhi[j]:.2f} "
-                         f"{unit[j]}")
+    rows, axes = np.nonzero(listed)                # row by row, axes in order
+    for k, a, value in zip(rows.tolist(), axes.tolist(), edge[rows, axes].tolist()):
+        past = lo[a] - value if value < lo[a] else value - hi[a]
+        side = "below" if value < lo[a] else "above"
+        out[k].append(f"axis {a + 1} = {value:.2f} {unit[a]} is {past:.2f} {unit[a]} "
+                      f"{side} the controller's range {lo[a]:g}..{hi[a]:g} {unit[a]}")
+    rows, axes = np.nonzero(outside)               # after a row's axes: its URDF joints
+    for k, j, value in zip(rows.tolist(), axes.tolist(), joint_edge[rows, axes].tolist()):
+        out[k].append(f"URDF {robot.joints[j].name} = {value:.2f} {unit[j]} is "
+                      f"outside its limits {limits.jlo[j]:.2f}..{limits.jhi[j]:.2f} "
+                      f"{unit[j]}")
     return out
 
 
@@ -130,8 +138,9 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
     on_asked = solution.on_asked[failed].tolist()
     dist_m = solution.position_error_m[failed].tolist()
     dist_rad = solution.rotation_error_rad[failed].tolist()
+    written = _ConfigWords()
     asked_words = None if words is not None or confdata is None else \
-        [_config_words(c) for c in np.asarray(confdata)[failed].tolist()]
+        [written[tuple(c)] for c in np.asarray(confdata)[failed].tolist()]
     for k, row in enumerate(failed.tolist()):
         reason = str(reasons[k])
         q_ctrl, config = q_ctrl_of[k], config_of[k]
@@ -141,7 +150,7 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
             found = words(row, q_ctrl) if has_q else "none"
         else:
             asked = None if asked_words is None else asked_words[k]
-            found = _config_words(config) if config is not None else "none"
+            found = written[config] if config is not None else "none"
         note = _note(reason, range_words[k], has_q, bool(on_asked[k]), asked, found,
                      float(dist_m[k]), float(dist_rad[k]))
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
