@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+import re
 from array import array
-from itertools import repeat
+from itertools import islice, repeat
 
 import numpy as np
 
@@ -71,6 +72,25 @@ class TargetTable:
         literal, kind = regs[4], regs[2]
         self.offsets.append(regs[3][0])
         self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
+
+    def run(self, regex: re.Pattern, text: str, pos: int, end: int,
+            routine: str | None = None) -> int:
+        """Add a row for each match of ``regex`` (a :meth:`append` form) that follows the
+        previous one from ``pos`` on, without a gap, in batches (:func:`matches_in_turn`):
+        the rows :meth:`append` gives of the same matches. Returns where they end."""
+        add_names, add_storage, words = self.names.extend, self.storage.extend, self._words
+        for ms in matches_in_turn(regex, text, pos, end):
+            add_names(map(_GROUP, ms, repeat(3)))
+            written = list(map(_GROUP, ms, repeat(1)))
+            for word in set(written).difference(words):
+                words[word] = word.upper()
+            add_storage(map(words.__getitem__, written))
+            self.routines.extend(repeat(routine, len(ms)))
+            self.offsets.extend(map(_START, ms, repeat(3)))
+            _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
+                                       (_START, 5), (_END, 6)))
+            pos = ms[-1].end()
+        return pos
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
@@ -171,6 +191,27 @@ class MoveTable:
         self.indices.append(-1 if index is None else int(index))
         self.spans.extend(spans)
 
+    def run(self, regex: re.Pattern, text: str, pos: int, end: int,
+            routine: str | None) -> int:
+        """Add a row for each match of ``regex`` (fast.py ``_SIMPLE_MOVE``) that follows
+        the previous one from ``pos`` on, without a gap, in batches
+        (:func:`matches_in_turn`): the rows :meth:`append` gives of the same matches.
+        Returns where they end."""
+        words = self._words
+        for ms in matches_in_turn(regex, text, pos, end):
+            instructions, names, indices, tools, wobjs = (
+                list(map(_GROUP, ms, repeat(k))) for k in (1, 3, 4, 5, 6))
+            self.instructions.extend(map(words.setdefault, instructions, instructions))
+            self.target_names.extend(names)
+            self.tools.extend(map(words.setdefault, tools, tools))
+            self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
+            self.routines.extend(repeat(routine, len(ms)))
+            self.indices.extend(-1 if k is None else int(k) for k in indices)
+            _add_rows(self.spans, ms, ((_START, 1), (_END, 1), (_START, 0), (_START, 7),
+                                       (_START, 2), (_END, 2)))
+            pos = ms[-1].end()
+        return pos
+
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
         self.line, self.column = lines_and_columns(self.spans[4::6], line_starts)
@@ -232,6 +273,43 @@ class ModuleColumns:
         self.moves.place(starts)
         if displaced is not None:
             displaced.place(starts)
+
+
+_GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
+
+
+def matches_in_turn(regex: re.Pattern, text: str, pos: int, end: int):
+    """The matches of ``regex`` in ``text[pos:end]`` each starting where the previous one
+    ends, the first at ``pos`` (what ``regex.match`` from ``pos`` on, one after the other,
+    finds), as lists: a batch of 16, then each twice the last (to 8,192), as long as no
+    gap is found. A search finds at each start what an anchored match finds there; the
+    matches searched past a gap (at most about the number before it, or 16) are left."""
+    found = regex.finditer(text, pos, end)
+    size = 16
+    while True:
+        batch = list(islice(found, size))
+        n = len(batch)
+        if not n:
+            return
+        starts = np.fromiter(map(_START, batch), np.int64, n)
+        ends = np.fromiter(map(_END, batch), np.int64, n)
+        gaps = np.flatnonzero(starts[1:] != ends[:-1])
+        if starts[0] != pos:
+            return
+        k = int(gaps[0]) + 1 if len(gaps) else n
+        yield batch if k == n else batch[:k]
+        if k < n or n < size:
+            return
+        pos = int(ends[-1])
+        size = min(2 * size, 8192)
+
+
+def _add_rows(spans: array, matches: list, fields) -> None:
+    """Append to ``spans`` one row per match: for each ``(method, group)`` of ``fields``,
+    ``method(match, group)`` (start or end)."""
+    columns = [np.fromiter(map(method, matches, repeat(group)), np.int64, len(matches))
+               for method, group in fields]
+    spans.frombytes(np.column_stack(columns).astype(np.int64, copy=False).tobytes())
 
 
 def lines_and_columns(offsets, line_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
