@@ -265,3 +265,24 @@ def test_calls_parsed_again_keep_their_lines_in_a_long_module():
     program = loads(head + body, "rapid", "m.mod")
     runtime = [u for u in program.motions if u.runtime is not None]
     assert [u.source[1:] for u in runtime] == [(303, 11), (304, 11)]
+
+
+def test_matches_in_turn_are_the_anchored_matches_one_after_the_other():
+    """columns.matches_in_turn (the column parse's batches) against regex.match from the
+    start, one match after the other: the same matches, cut at the first gap, whatever
+    the batch sizes (16, 32, ...) and wherever the gap falls."""
+    from olp_compensate.programs.rapid.columns import matches_in_turn
+
+    rx = re.compile(r"p(\d+);[ \n]*")
+    for n, gap in [(0, None), (1, None), (15, None), (16, None), (17, None), (100, 48),
+                   (100, 16), (100, 15), (100, 0), (300, 250)]:
+        items = [f"p{k};\n" if k != gap else "q;\n" for k in range(n)]
+        text = "x" + "".join(items) + "p9;"
+        anchored, pos = [], 1
+        while (m := rx.match(text, pos, len(text) - 3)) is not None:
+            anchored.append(m.span())
+            pos = m.end()
+        got = [m.span() for batch in matches_in_turn(rx, text, 1, len(text) - 3)
+               for m in batch]
+        assert got == anchored, (n, gap)
+        assert len(got) == (gap if gap is not None else n)
