@@ -286,3 +286,24 @@ def test_matches_in_turn_are_the_anchored_matches_one_after_the_other():
                for m in batch]
         assert got == anchored, (n, gap)
         assert len(got) == (gap if gap is not None else n)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_table_values_are_float_of_each_number_as_written(seed):
+    """TargetTable.values (the column path's batch conversion, any rows a:b) against
+    float() of each number's text of the object the row stands for, on modules mixing
+    blank-free and spaced literals, unusual numbers among them."""
+    import numpy as np
+
+    text = _module(seed, 80)
+    for k, token in enumerate(["0.5e-3", "+7", ".25", "-0.0", "12.", "1E+2"]):
+        text = text.replace(LITERAL, LITERAL.replace("1.5", token).replace(
+            "[0,-1,2,1]", f"[0,-1,{k},1]"), 1)
+    _, columns = parse_rapid_columns(text, "m.mod")
+    table = columns.targets
+    assert len(table) > 20
+    expected = np.array([[float(x) for x in table.target(i, text, "m.mod").texts]
+                         for i in range(len(table))])
+    assert np.array_equal(table.values(text), expected)
+    for a, b in [(0, 1), (3, 11), (len(table) - 1, len(table))]:
+        assert np.array_equal(table.values(text, a, b), expected[a:b])

@@ -20,7 +20,7 @@ import dataclasses
 import heapq
 import re
 from array import array
-from itertools import islice, repeat
+from itertools import count, islice, repeat
 
 import numpy as np
 
@@ -109,13 +109,21 @@ class TargetTable:
         n = stop - start
         if n <= 0:
             return np.zeros((0, NUMBERS))
-        spans = self.spans
-        joined = ",".join([text[spans[k]:spans[k + 1]] for k in range(
-            SPANS * start, SPANS * stop, SPANS)]).translate(_BRACKETS)
-        values = np.fromstring(joined, sep=",")
-        if values.shape != (NUMBERS * n,):   # cannot be: each literal holds 17 numbers
-            raise AssertionError("robtarget literals do not hold 17 numbers each")
-        return values.reshape(n, NUMBERS)
+        spans, rows = self.spans, range(SPANS * start, SPANS * stop, SPANS)
+        values = np.empty((n, NUMBERS))
+        # the position and quaternion (7 numbers) of each literal, in one batch
+        values[:, :7] = _numbers(",".join([text[spans[k + 4]:spans[k + 5]] for k in rows]),
+                                 7 * n).reshape(n, 7)
+        # the rest (confdata, external axes: 10 numbers) once per distinct text: a
+        # module repeats a few ("],[0,-1,0,1],[9E9,9E9,9E9,9E9,9E9,9E9]]")
+        codes: dict[str, int] = {}
+        code = np.fromiter(map(codes.setdefault, [text[spans[k + 5]:spans[k + 1]] for k in rows],
+                               count()), np.intp, n)
+        rests = np.empty((n, NUMBERS - 7))
+        for rest, k in codes.items():
+            rests[k] = _numbers(rest.translate(_BRACKETS).strip().lstrip(","), NUMBERS - 7)
+        values[:, 7:] = rests[code]
+        return values
 
     def subset(self, keep: np.ndarray) -> TargetTable:
         """A table of the rows where ``keep`` (n,) bool is true, in order."""
@@ -276,6 +284,15 @@ class ModuleColumns:
 
 
 _GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
+
+
+def _numbers(joined: str, n: int) -> np.ndarray:
+    """(n,) the numbers of ``joined`` (numbers of robtarget literals between commas, their
+    brackets left), converted in one batch (the same floats as ``float()`` of each)."""
+    values = np.fromstring(joined.translate(_BRACKETS), sep=",")
+    if values.shape != (n,):   # cannot be: each literal holds 17 numbers
+        raise AssertionError("robtarget literals do not hold 17 numbers each")
+    return values
 
 
 def matches_in_turn(regex: re.Pattern, text: str, pos: int, end: int):
