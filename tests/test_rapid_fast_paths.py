@@ -275,7 +275,7 @@ def test_matches_in_turn_are_the_anchored_matches_one_after_the_other():
 
     rx = re.compile(r"p(\d+);[ \n]*")
     for n, gap in [(0, None), (1, None), (15, None), (16, None), (17, None), (100, 48),
-                   (100, 16), (100, 15), (100, 0), (300, 250)]:
+                   (100, 16), (100, 15), (100, 0), (100, 47), (300, 250), (40, 1)]:
         items = [f"p{k};\n" if k != gap else "q;\n" for k in range(n)]
         text = "x" + "".join(items) + "p9;"
         anchored, pos = [], 1

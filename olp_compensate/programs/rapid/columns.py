@@ -80,6 +80,11 @@ class TargetTable:
         the rows :meth:`append` gives of the same matches. Returns where they end."""
         add_names, add_storage, words = self.names.extend, self.storage.extend, self._words
         for ms in matches_in_turn(regex, text, pos, end):
+            pos = ms[-1].end()
+            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
+                for m in ms:
+                    self.append(m.group(3), m.group(1), m.regs, routine)
+                continue
             add_names(map(_GROUP, ms, repeat(3)))
             written = list(map(_GROUP, ms, repeat(1)))
             for word in set(written).difference(words):
@@ -89,7 +94,6 @@ class TargetTable:
             self.offsets.extend(map(_START, ms, repeat(3)))
             _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
                                        (_START, 5), (_END, 6)))
-            pos = ms[-1].end()
         return pos
 
     def place(self, line_starts: np.ndarray) -> None:
@@ -207,6 +211,13 @@ class MoveTable:
         Returns where they end."""
         words = self._words
         for ms in matches_in_turn(regex, text, pos, end):
+            pos = ms[-1].end()
+            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
+                for m in ms:
+                    regs = m.regs
+                    self.append(*m.group(1, 3, 4, 5, 6), routine,
+                                (*regs[1], regs[0][0], regs[7][0], *regs[2]))
+                continue
             instructions, names, indices, tools, wobjs = (
                 list(map(_GROUP, ms, repeat(k))) for k in (1, 3, 4, 5, 6))
             self.instructions.extend(map(words.setdefault, instructions, instructions))
@@ -217,7 +228,6 @@ class MoveTable:
             self.indices.extend(-1 if k is None else int(k) for k in indices)
             _add_rows(self.spans, ms, ((_START, 1), (_END, 1), (_START, 0), (_START, 7),
                                        (_START, 2), (_END, 2)))
-            pos = ms[-1].end()
         return pos
 
     def place(self, line_starts: np.ndarray) -> None:
@@ -298,12 +308,24 @@ def _numbers(joined: str, n: int) -> np.ndarray:
 def matches_in_turn(regex: re.Pattern, text: str, pos: int, end: int):
     """The matches of ``regex`` in ``text[pos:end]`` each starting where the previous one
     ends, the first at ``pos`` (what ``regex.match`` from ``pos`` on, one after the other,
-    finds), as lists: a batch of 16, then each twice the last (to 8,192), as long as no
-    gap is found. A search finds at each start what an anchored match finds there; the
-    matches searched past a gap (at most about the number before it, or 16) are left."""
+    finds), as lists: the first 16 read one by one (a gap stops them at once: statements
+    of other kinds in between cost one search each), then batches of 32, each twice the
+    last (to 8,192), as long as no gap is found. A search finds at each start what an
+    anchored match finds there; the matches searched past a gap (at most about the
+    number before it) are left."""
     found = regex.finditer(text, pos, end)
-    size = 16
-    while True:
+    head = []
+    for m in found:
+        if m.start() != pos:
+            break
+        head.append(m)
+        pos = m.end()
+        if len(head) == 16:
+            break
+    if head:
+        yield head
+    size = 32
+    while len(head) == 16:
         batch = list(islice(found, size))
         n = len(batch)
         if not n:
