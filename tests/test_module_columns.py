@@ -496,3 +496,27 @@ def test_the_realistic_modules_displaced_motions_are_rows(comp):
     rows, objects = _displaced_rows(text)
     assert objects == []
     assert len(rows) == text.count("Offs(") + text.count("RelTool(") > 0
+
+
+def test_load_notes_leave_the_displaced_motions_in_their_table(comp):
+    """A load-sensitive model's notes (cli/fix_models.with_load_notes) on the column path's
+    report: the CSV is that of the object path's report noted the same way, and the
+    Offs()/RelTool() rows stay rows of their table (not one object each)."""
+    from olp_compensate.cli.fix_models import with_load_notes
+    from olp_compensate.programs.rapid.displaced import RowsWithDisplaced
+
+    text = SPECIAL.replace("  ENDPROC", (
+        "    MoveL Offs(pA,0,0,10),v500,z10,tGun;\n"
+        "    MoveL RelTool(pTable, 0, 0, -20),v500,z10,tGun\\WObj:=wTable;\n"
+        "    MoveJ Offs(pNever,0,0,50),v500,z10,tGun\\WObj:=wTable;\n"
+        "  ENDPROC"))
+    (_,), report = compensate_task([loads(text, "rapid", "special.mod")], comp, unused="skip")
+    _, columns_report = compensate_rapid_module(text, "special.mod", comp, unused="skip")
+    assert isinstance(columns_report.rows.others, RowsWithDisplaced)
+    noted = with_load_notes(columns_report, None, [], True)
+    expected = with_load_notes(report, None, [], True)
+    assert isinstance(noted.rows.others, RowsWithDisplaced)
+    assert noted.rows.others.table is columns_report.rows.others.table
+    assert noted.to_csv() == expected.to_csv()
+    assert "compensated with no payload" in noted.to_csv()
+    assert noted.to_csv() != columns_report.to_csv()

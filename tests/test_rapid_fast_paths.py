@@ -265,3 +265,45 @@ def test_calls_parsed_again_keep_their_lines_in_a_long_module():
     program = loads(head + body, "rapid", "m.mod")
     runtime = [u for u in program.motions if u.runtime is not None]
     assert [u.source[1:] for u in runtime] == [(303, 11), (304, 11)]
+
+
+def test_matches_in_turn_are_the_anchored_matches_one_after_the_other():
+    """columns.matches_in_turn (the column parse's batches) against regex.match from the
+    start, one match after the other: the same matches, cut at the first gap, whatever
+    the batch sizes (16, 32, ...) and wherever the gap falls."""
+    from olp_compensate.programs.rapid.columns import matches_in_turn
+
+    rx = re.compile(r"p(\d+);[ \n]*")
+    for n, gap in [(0, None), (1, None), (15, None), (16, None), (17, None), (100, 48),
+                   (100, 16), (100, 15), (100, 0), (100, 47), (300, 250), (40, 1)]:
+        items = [f"p{k};\n" if k != gap else "q;\n" for k in range(n)]
+        text = "x" + "".join(items) + "p9;"
+        anchored, pos = [], 1
+        while (m := rx.match(text, pos, len(text) - 3)) is not None:
+            anchored.append(m.span())
+            pos = m.end()
+        got = [m.span() for batch in matches_in_turn(rx, text, 1, len(text) - 3)
+               for m in batch]
+        assert got == anchored, (n, gap)
+        assert len(got) == (gap if gap is not None else n)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_table_values_are_float_of_each_number_as_written(seed):
+    """TargetTable.values (the column path's batch conversion, any rows a:b) against
+    float() of each number's text of the object the row stands for, on modules mixing
+    blank-free and spaced literals, unusual numbers among them."""
+    import numpy as np
+
+    text = _module(seed, 80)
+    for k, token in enumerate(["0.5e-3", "+7", ".25", "-0.0", "12.", "1E+2"]):
+        text = text.replace(LITERAL, LITERAL.replace("1.5", token).replace(
+            "[0,-1,2,1]", f"[0,-1,{k},1]"), 1)
+    _, columns = parse_rapid_columns(text, "m.mod")
+    table = columns.targets
+    assert len(table) > 20
+    expected = np.array([[float(x) for x in table.target(i, text, "m.mod").texts]
+                         for i in range(len(table))])
+    assert np.array_equal(table.values(text), expected)
+    for a, b in [(0, 1), (3, 11), (len(table) - 1, len(table))]:
+        assert np.array_equal(table.values(text, a, b), expected[a:b])

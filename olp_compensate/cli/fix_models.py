@@ -124,8 +124,12 @@ def _noted(rows, words: str):
     if isinstance(rows, ReportRows):
         columns = rows.columns
         notes = [note(n) if s in COMPENSATED else n for n, s in zip(columns.note, columns.status)]
+        # the others renoted where they are held: rows a table holds (Offs/RelTool
+        # motions) stay in their table, not one object each
         return ReportRows(dataclasses.replace(columns, note=notes),
-                          list(_noted(tuple(rows.others), words)), rows.order)
+                          rows.others.renoted(
+                              lambda r: dataclasses.replace(r, note=note(r.note))),
+                          rows.order)
     if isinstance(rows, ChainedRows):
         return ChainedRows([_noted(part, words) for part in rows.parts])
     return tuple(dataclasses.replace(r, note=note(r.note)) if r.status in COMPENSATED else r

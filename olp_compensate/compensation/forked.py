@@ -16,7 +16,7 @@ child is raised again in the parent by :meth:`ForkedItems.items`.
 
 from __future__ import annotations
 
-import multiprocessing
+import os
 import pickle
 import signal
 import sys
@@ -34,10 +34,11 @@ def can_fork() -> bool:
     """Whether this process can fork a child that inherits its memory: Linux (macOS
     forks too, but its system libraries, Accelerate's BLAS among them, are not safe in a
     child forked without exec) and not a daemonic process (a multiprocessing.Pool worker
-    may not have children)."""
-    return (sys.platform.startswith("linux")
-            and "fork" in multiprocessing.get_all_start_methods()
-            and not multiprocessing.current_process().daemon)
+    may not have children; one has imported multiprocessing, which olp-fix does not: its
+    import, 10-20 ms, is left to those who use it)."""
+    pool = sys.modules.get("multiprocessing")
+    return (sys.platform.startswith("linux") and hasattr(os, "fork")
+            and not (pool is not None and pool.current_process().daemon))
 
 
 class ForkedItems:
@@ -48,14 +49,22 @@ class ForkedItems:
 
     def __init__(self, function: Callable[..., Iterable], *args):
         self._file = tempfile.TemporaryFile()
-        context = multiprocessing.get_context("fork")
-        self._process = context.Process(target=_child, args=(self._file, function, args),
-                                        daemon=True)
+        for stream in (sys.stdout, sys.stderr):   # else the child holds their buffers too
+            if stream is not None:
+                stream.flush()
         try:
-            self._process.start()
+            pid = os.fork()
         except BaseException:   # no process to be had (OSError: a limit, memory)
             self._file.close()
             raise
+        if pid == 0:            # the child: never returns into the parent's code
+            code = 1
+            try:
+                _child(self._file, function, args)
+                code = 0
+            finally:
+                os._exit(code)
+        self._process = _Process(pid)
 
     def items(self) -> Iterator:
         """The function's items in order, read one at a time once the child has ended
@@ -85,6 +94,34 @@ class ForkedItems:
         self._file.close()
 
 
+class _Process:
+    """The forked child (what multiprocessing.Process says of one): ``pid``,
+    ``exitcode`` (None while it runs; -N: ended by signal N)."""
+
+    def __init__(self, pid: int):
+        self.pid, self.exitcode = pid, None
+
+    def join(self) -> None:
+        if self.exitcode is None:
+            self._ended(os.waitpid(self.pid, 0)[1])
+
+    def is_alive(self) -> bool:
+        if self.exitcode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self._ended(status)
+        return self.exitcode is None
+
+    def kill(self) -> None:
+        try:
+            os.kill(self.pid, signal.SIGKILL)
+        except ProcessLookupError:   # already reaped
+            pass
+
+    def _ended(self, status: int) -> None:
+        self.exitcode = os.waitstatus_to_exitcode(status)
+
+
 def _child(file, function, args) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -107,7 +144,6 @@ def _end_with_parent() -> None:
     """Have the kernel kill this (child) process when its parent dies, even by SIGKILL
     (Linux ``prctl(PR_SET_PDEATHSIG)``): a killed olp-fix leaves nothing running."""
     import ctypes
-    import os
 
     PR_SET_PDEATHSIG = 1
     try:

@@ -320,6 +320,11 @@ class RowSource(Sequence):
         """The CSV lines (each ending in a line break) of rows ``rows``, in that order."""
         return [writer.line(self[j]) + "\n" for j in rows]
 
+    def renoted(self, change) -> RowSource:
+        """These rows with each compensated row replaced by ``change(row)`` (the same row,
+        its note changed), in order."""
+        return ListedRows([change(r) if r.status in COMPENSATED else r for r in self])
+
 
 class ListedRows(RowSource):
     """A list of :class:`TargetReport` (in text order) as a :class:`RowSource`."""

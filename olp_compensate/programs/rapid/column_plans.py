@@ -5,6 +5,7 @@ they resolve (:class:`Plan`). A target that is not plain goes to the object mode
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import count, repeat
 
 import numpy as np
 
@@ -72,14 +73,12 @@ def plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = N
     """The resolution of the table targets of module ``m`` (``resolver``: of the task's
     modules, default of this one alone), or None where their meaning is not plain."""
     table, moves = columns.targets, columns.moves
-    row_of = {name if name.islower() else name.lower(): k for k, name in enumerate(table.names)}
+    row_of = _first_rows(_lower(table.names))
     if len(row_of) < len(table) or any(k >= 0 for k in moves.indices):
         return None
     if not named_elsewhere(program, displaced=False).isdisjoint(row_of):
         return None
-    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
-                        for name in moves.target_names),
-                       np.intp, len(moves))
+    rows = _rows_of(row_of, moves.target_names)
     if np.any(rows < 0):
         return None
     if outside_their_routine(table.routines, moves.routines, rows):
@@ -91,18 +90,15 @@ def plan(program: Program, columns: ModuleColumns, resolver: Resolver | None = N
     resolver = Resolver([program]) if resolver is None else resolver
     keys: dict = {}    # pair key -> index into pairs
     infos: list = []
-    memo: dict = {}    # (tool, wobj, routine) -> pair index
-    move_pair = np.empty(len(moves), np.intp)
-    for k, triple in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
-        p = memo.get(triple)
-        if p is None:
-            tool, wobj, routine = triple
-            key, info = resolver.frames_of(MotionUse(instruction="MoveL", source=(
-                program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), m)
-            p = memo[triple] = keys.setdefault(key, len(keys))
-            if p == len(infos):
-                infos.append(info)
-        move_pair[k] = p
+    triples, codes = _triple_codes(moves)   # (tool, wobj, routine) in order of first use
+    pair_of_code = np.zeros(len(moves) + 1, np.intp)
+    for (tool, wobj, routine), code in triples.items():
+        key, info = resolver.frames_of(MotionUse(instruction="MoveL", source=(
+            program.file, 0, 0), tool=tool, wobj=wobj, routine=routine), m)
+        p = pair_of_code[code] = keys.setdefault(key, len(keys))
+        if p == len(infos):
+            infos.append(info)
+    move_pair = pair_of_code[codes]
     uses = np.bincount(rows, minlength=len(table))
     pair = np.full(len(table), -1, np.intp)
     pair[rows[::-1]] = move_pair[::-1]     # each target's first motion's pair
@@ -171,16 +167,16 @@ def plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = 
     ``displaced``: the lower-case names Offs()/RelTool() motions held as rows displace;
     such a motion stays a row where its target is a plain table target."""
     table, moves = columns.targets, columns.moves
-    lower = [name if name.islower() else name.lower() for name in table.names]
-    row_of: dict[str, int] = {}
+    lower = _lower(table.names)
+    row_of = _first_rows(lower)
     twice = set()
-    for k, name in enumerate(lower):
-        if row_of.setdefault(name, k) != k:
-            twice.add(name)
+    if len(row_of) < len(lower):
+        twice = {name for k, name in enumerate(lower) if row_of[name] != k}
     named = (twice | named_elsewhere(program, displaced=False)) & row_of.keys()
-    keep_targets = np.fromiter((name not in named for name in lower), bool, len(lower))
-    rows = np.fromiter((row_of.get(name if name.islower() else name.lower(), -1)
-                        for name in moves.target_names), np.intp, len(moves))
+    keep_targets = np.ones(len(lower), bool)
+    if named:
+        keep_targets &= ~np.fromiter(map(named.__contains__, lower), bool, len(lower))
+    rows = _rows_of(row_of, moves.target_names)
     indexed = np.frombuffer(moves.indices, np.int64) >= 0 if len(moves) else \
         np.zeros(0, bool)
     keep_targets[rows[indexed & (rows >= 0)]] = False
@@ -191,13 +187,44 @@ def plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = 
     for name in (displaced_names(program) | set(displaced)) & row_of.keys():
         if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
             keep_targets[row_of[name]] = False
-    pair_of = {}
-    for k, key in enumerate(zip(moves.tools, moves.wobjs, moves.routines)):
-        if rows[k] >= 0 and pair_of.setdefault(rows[k], key) != key:
-            keep_targets[rows[k]] = False     # its first motion's pair is another
+    codes = _triple_codes(moves)[1][rows >= 0]
+    moving = rows[rows >= 0]
+    first = np.full(len(lower), -1, np.int64)
+    first[moving[::-1]] = codes[::-1]         # each target's first motion's (tool, wobj, routine)
+    keep_targets[moving[codes != first[moving]]] = False   # another in a later motion
     keep_moves = (rows >= 0) & ~indexed
     keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
     bases = np.fromiter((row_of.get(name, -1) for name in displaced), np.intp, len(displaced))
     keep_displaced = bases >= 0
     keep_displaced[keep_displaced] = keep_targets[bases[keep_displaced]]
     return keep_targets, keep_moves, keep_displaced
+
+
+def _lower(names: list[str]) -> list[str]:
+    """``names`` in lower case (a name already so is the same string)."""
+    return [name if name.islower() else name.lower() for name in names]
+
+
+def _first_rows(lower: list[str]) -> dict[str, int]:
+    """Each name of ``lower`` -> the row where it is first."""
+    n = len(lower)
+    return dict(zip(reversed(lower), range(n - 1, -1, -1)))
+
+
+def _rows_of(row_of: dict[str, int], names: list[str]) -> np.ndarray:
+    """(k,) the row of each of ``names`` (any case) in ``row_of`` (lower-case names),
+    -1 where none."""
+    rows = np.fromiter(map(row_of.get, names, repeat(-1)), np.intp, len(names))
+    missing = np.flatnonzero(rows < 0).tolist()   # a name not in lower case, or none
+    if missing:
+        rows[missing] = [row_of.get(names[k].lower(), -1) for k in missing]
+    return rows
+
+
+def _triple_codes(moves) -> tuple[dict, np.ndarray]:
+    """({(tool, wobj, routine): code} in order of first use, (k,) each motion's code):
+    the same code for the same three words."""
+    triples: dict = {}
+    codes = np.fromiter(map(triples.setdefault, zip(moves.tools, moves.wobjs, moves.routines),
+                            count()), np.int64, len(moves))
+    return triples, codes

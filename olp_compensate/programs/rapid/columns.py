@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+import re
 from array import array
-from itertools import repeat
+from itertools import count, islice, repeat
 
 import numpy as np
 
@@ -72,6 +73,29 @@ class TargetTable:
         self.offsets.append(regs[3][0])
         self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
 
+    def run(self, regex: re.Pattern, text: str, pos: int, end: int,
+            routine: str | None = None) -> int:
+        """Add a row for each match of ``regex`` (a :meth:`append` form) that follows the
+        previous one from ``pos`` on, without a gap, in batches (:func:`matches_in_turn`):
+        the rows :meth:`append` gives of the same matches. Returns where they end."""
+        add_names, add_storage, words = self.names.extend, self.storage.extend, self._words
+        for ms in matches_in_turn(regex, text, pos, end):
+            pos = ms[-1].end()
+            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
+                for m in ms:
+                    self.append(m.group(3), m.group(1), m.regs, routine)
+                continue
+            add_names(map(_GROUP, ms, repeat(3)))
+            written = list(map(_GROUP, ms, repeat(1)))
+            for word in set(written).difference(words):
+                words[word] = word.upper()
+            add_storage(map(words.__getitem__, written))
+            self.routines.extend(repeat(routine, len(ms)))
+            self.offsets.extend(map(_START, ms, repeat(3)))
+            _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
+                                       (_START, 5), (_END, 6)))
+        return pos
+
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
         self.line, self.column = lines_and_columns(self.offsets, line_starts)
@@ -89,13 +113,21 @@ class TargetTable:
         n = stop - start
         if n <= 0:
             return np.zeros((0, NUMBERS))
-        spans = self.spans
-        joined = ",".join([text[spans[k]:spans[k + 1]] for k in range(
-            SPANS * start, SPANS * stop, SPANS)]).translate(_BRACKETS)
-        values = np.fromstring(joined, sep=",")
-        if values.shape != (NUMBERS * n,):   # cannot be: each literal holds 17 numbers
-            raise AssertionError("robtarget literals do not hold 17 numbers each")
-        return values.reshape(n, NUMBERS)
+        spans, rows = self.spans, range(SPANS * start, SPANS * stop, SPANS)
+        values = np.empty((n, NUMBERS))
+        # the position and quaternion (7 numbers) of each literal, in one batch
+        values[:, :7] = _numbers(",".join([text[spans[k + 4]:spans[k + 5]] for k in rows]),
+                                 7 * n).reshape(n, 7)
+        # the rest (confdata, external axes: 10 numbers) once per distinct text: a
+        # module repeats a few ("],[0,-1,0,1],[9E9,9E9,9E9,9E9,9E9,9E9]]")
+        codes: dict[str, int] = {}
+        code = np.fromiter(map(codes.setdefault, [text[spans[k + 5]:spans[k + 1]] for k in rows],
+                               count()), np.intp, n)
+        rests = np.empty((n, NUMBERS - 7))
+        for rest, k in codes.items():
+            rests[k] = _numbers(rest.translate(_BRACKETS).strip().lstrip(","), NUMBERS - 7)
+        values[:, 7:] = rests[code]
+        return values
 
     def subset(self, keep: np.ndarray) -> TargetTable:
         """A table of the rows where ``keep`` (n,) bool is true, in order."""
@@ -171,6 +203,33 @@ class MoveTable:
         self.indices.append(-1 if index is None else int(index))
         self.spans.extend(spans)
 
+    def run(self, regex: re.Pattern, text: str, pos: int, end: int,
+            routine: str | None) -> int:
+        """Add a row for each match of ``regex`` (fast.py ``_SIMPLE_MOVE``) that follows
+        the previous one from ``pos`` on, without a gap, in batches
+        (:func:`matches_in_turn`): the rows :meth:`append` gives of the same matches.
+        Returns where they end."""
+        words = self._words
+        for ms in matches_in_turn(regex, text, pos, end):
+            pos = ms[-1].end()
+            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
+                for m in ms:
+                    regs = m.regs
+                    self.append(*m.group(1, 3, 4, 5, 6), routine,
+                                (*regs[1], regs[0][0], regs[7][0], *regs[2]))
+                continue
+            instructions, names, indices, tools, wobjs = (
+                list(map(_GROUP, ms, repeat(k))) for k in (1, 3, 4, 5, 6))
+            self.instructions.extend(map(words.setdefault, instructions, instructions))
+            self.target_names.extend(names)
+            self.tools.extend(map(words.setdefault, tools, tools))
+            self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
+            self.routines.extend(repeat(routine, len(ms)))
+            self.indices.extend(-1 if k is None else int(k) for k in indices)
+            _add_rows(self.spans, ms, ((_START, 1), (_END, 1), (_START, 0), (_START, 7),
+                                       (_START, 2), (_END, 2)))
+        return pos
+
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
         self.line, self.column = lines_and_columns(self.spans[4::6], line_starts)
@@ -232,6 +291,64 @@ class ModuleColumns:
         self.moves.place(starts)
         if displaced is not None:
             displaced.place(starts)
+
+
+_GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
+
+
+def _numbers(joined: str, n: int) -> np.ndarray:
+    """(n,) the numbers of ``joined`` (numbers of robtarget literals between commas, their
+    brackets left), converted in one batch (the same floats as ``float()`` of each)."""
+    values = np.fromstring(joined.translate(_BRACKETS), sep=",")
+    if values.shape != (n,):   # cannot be: each literal holds 17 numbers
+        raise AssertionError("robtarget literals do not hold 17 numbers each")
+    return values
+
+
+def matches_in_turn(regex: re.Pattern, text: str, pos: int, end: int):
+    """The matches of ``regex`` in ``text[pos:end]`` each starting where the previous one
+    ends, the first at ``pos`` (what ``regex.match`` from ``pos`` on, one after the other,
+    finds), as lists: the first 16 read one by one (a gap stops them at once: statements
+    of other kinds in between cost one search each), then batches of 32, each twice the
+    last (to 8,192), as long as no gap is found. A search finds at each start what an
+    anchored match finds there; the matches searched past a gap (at most about the
+    number before it) are left."""
+    found = regex.finditer(text, pos, end)
+    head = []
+    for m in found:
+        if m.start() != pos:
+            break
+        head.append(m)
+        pos = m.end()
+        if len(head) == 16:
+            break
+    if head:
+        yield head
+    size = 32
+    while len(head) == 16:
+        batch = list(islice(found, size))
+        n = len(batch)
+        if not n:
+            return
+        starts = np.fromiter(map(_START, batch), np.int64, n)
+        ends = np.fromiter(map(_END, batch), np.int64, n)
+        gaps = np.flatnonzero(starts[1:] != ends[:-1])
+        if starts[0] != pos:
+            return
+        k = int(gaps[0]) + 1 if len(gaps) else n
+        yield batch if k == n else batch[:k]
+        if k < n or n < size:
+            return
+        pos = int(ends[-1])
+        size = min(2 * size, 8192)
+
+
+def _add_rows(spans: array, matches: list, fields) -> None:
+    """Append to ``spans`` one row per match: for each ``(method, group)`` of ``fields``,
+    ``method(match, group)`` (start or end)."""
+    columns = [np.fromiter(map(method, matches, repeat(group)), np.int64, len(matches))
+               for method, group in fields]
+    spans.frombytes(np.column_stack(columns).astype(np.int64, copy=False).tobytes())
 
 
 def lines_and_columns(offsets, line_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

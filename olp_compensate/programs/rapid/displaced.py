@@ -11,6 +11,7 @@ row are made on access, exactly as the object parse makes them.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import heapq
 from array import array
@@ -177,6 +178,13 @@ class RowsWithDisplaced(RowSource, MergedRows):
     def compensated_rows(self):
         """The compensated rows (objects all: a run-time motion is not one), any order."""
         return (r for r in self.objects if r.status in COMPENSATED)
+
+    def renoted(self, change) -> RowsWithDisplaced:
+        """:meth:`RowSource.renoted` with the table's rows left rows of the table (none is
+        compensated): the objects changed, the order kept."""
+        out = copy.copy(self)
+        out.objects = [change(r) if r.status in COMPENSATED else r for r in self.objects]
+        return out
 
     def problem_rows(self) -> Sequence:
         """The rows neither compensated nor needing none, in order, made on access (a

@@ -26,8 +26,7 @@ from .instructions import RUNTIME_FUNCS
 from .records import Arg, Decl, Ex, Opt, Sink, call_record_of
 
 
-# ---- the two hot-path tokens ----------------------------------------------------------
-# The runs are split in the whole program text (offsets are then the program's own),
+# ---- the two hot-path tokens: runs split in the whole program text (offsets are then its own),
 # between the token's start and end; each statement's pattern takes the blanks and
 # comments after it too, so the next statement starts where its match ends.
 
@@ -121,8 +120,8 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
                 first, second = second, first
             if sink.depth and (m.start(1) != pos or m.group(1).upper() == "PERS"):
                 return pos   # not a routine's data (LOCAL, TASK, PERS): the builder says
-            add(m.group(3), m.group(1), m.regs, routine)
-            pos = m.end()
+            add(m.group(3), m.group(1), m.regs, routine)   # then the run it starts, at once
+            pos = m.end() if sink.depth else sink.columns.targets.run(m.re, text, m.end(), end)
     first, second = (rx.match for rx in robtarget_regexes(rows=False))
     append, file = sink.targets.append, sink.file
     count, rfind = text.count, text.rfind
@@ -322,14 +321,15 @@ def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
         add, table = sink.columns.moves.append, sink.displaced
         displaced = (_NO_MATCH if table is None else _DISPLACED_MOVE).match
         while True:
-            if (m := match(text, pos, end)) is not None:
+            if (m := match(text, pos, end)) is not None:   # then the run it starts, at once
                 regs = m.regs
                 add(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
+                pos = sink.columns.moves.run(m.re, text, m.end(), end, routine)
             elif (m := displaced(text, pos, end)) is not None:
                 table.add(m.regs, *m.group(1, 3, 5, 6), routine)   # (lines: table.place)
+                pos = m.end()
             else:
                 return pos
-            pos = m.end()
     append, file = sink.motions.append, sink.file
     count, rfind = text.count, text.rfind
     index = sink.index

@@ -367,9 +367,9 @@ class _TablePart:
         :meth:`retry_failed`)."""
         table, pairs, robot = self.table, self.plan.pairs, self.comp.robot
         pair = self.plan.pair[rows]
-        notes = [solved_note(n, tn) if n else tn for n, tn in zip(
-            (self.notes(k, p) for k, p in zip(rows.tolist(), pair.tolist())),
-            solved.tool_note)]
+        # the note of each row, made once per (unused, pair, real-tool note)
+        notes = list(map(functools.lru_cache(None)(self._solved_note),
+                         (self.plan.uses[rows] == 0).tolist(), pair.tolist(), solved.tool_note))
         ok = solved.ok
         for i in np.flatnonzero(~ok).tolist() if failures else ():
             k, p = int(rows[i]), int(pair[i])
@@ -398,6 +398,11 @@ class _TablePart:
         edits = self._edits(mine, keep, solved, values[keep])
         self.edits.append(EditColumns(array("q", [e[0] for e in edits]),
                                       array("q", [e[1] for e in edits]), [e[2] for e in edits]))
+
+    def _solved_note(self, unused: bool, pair: int, tool_note: str) -> str:
+        """The note of a solved row (:meth:`notes` of a row moved to ``unused`` or not)."""
+        notes = (("unused",) if unused else ()) + self._notes[pair]
+        return solved_note(notes, tool_note) if notes else tool_note
 
     def _edits(self, mine: np.ndarray, keep: np.ndarray, solved, values: np.ndarray) -> list:
         """The edits writing the compensated table targets ``mine`` (job rows ``keep``,
