@@ -29,9 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .band_solves import bordered
 from .cyclic_scan import BandOutcome, BandScan
-from .effect_scan import EffectScan, Heldout
+from .effect_scan import EffectScan
 from .effects import Effect
 from .identifiability import effect_separation
 from .separability import Refusal, separability_from_gram, separable
@@ -108,32 +107,6 @@ def _bands_with(scan: EffectScan, bands: BandOutcome, effects: list[Effect],
                                 [(b.joint, b.ridge) for b in bands.bands])
 
 
-def beside(band_scan: BandScan, kept: list[tuple[int, float]], every: np.ndarray,
-           cols: np.ndarray) -> tuple[Heldout, np.ndarray]:
-    """``band_scan.current(kept, setdiff(every, cols))``: the model without the candidates'
-    columns ``every`` but for ``cols`` (one candidate's, unpenalized), each training set's
-    system solved by adding ``cols`` to the factored system without any candidate
-    (:func:`.band_solves.bordered`, shared by every candidate) instead of factoring it
-    whole; the direct solve when that does not apply."""
-    drop = np.setdiff1d(every, cols)
-    base, penalty, _ = band_scan._layout(kept, None, every)
-    layout, _, n_u = band_scan._layout(kept, None, drop)
-    order = np.concatenate([base, cols])
-    sorter = np.argsort(order)
-    to_layout = sorter[np.searchsorted(order, layout, sorter=sorter)]
-    solutions = []
-    for excluded in [frozenset({f}) for f in range(len(band_scan.grams))] + [frozenset()]:
-        factored = band_scan._factored(excluded, base, penalty)
-        gram, rhs = band_scan._training(excluded)
-        x_b = -factored.solve(rhs[base])
-        parts = bordered(factored, gram[np.ix_(base, cols)], gram[np.ix_(cols, cols)], x_b,
-                         rhs[cols])
-        if parts is None:
-            return band_scan.current(kept, drop)
-        solutions.append(np.concatenate(parts)[to_layout])
-    return band_scan.fitted(layout, n_u, solutions[:-1], solutions[-1])
-
-
 def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effect],
                      robot, alpha: float, prefer_simpler_alpha: float = 0.05
                      ) -> AfterBandsRound | None:
@@ -156,7 +129,7 @@ def scan_after_bands(scan: EffectScan, bands: BandOutcome, candidates: list[Effe
     held_of = {}
     for effect, cols in zip(testable, own):
         drop = np.setdiff1d(every, cols)
-        held, x = beside(band_scan, kept, every, cols)
+        held, x = band_scan.current(kept, drop)
         gain, z, p = band_scan.gain_test(reference, held, kept, every)
         layout, _, _ = band_scan._layout(kept, None, drop)
         at = np.flatnonzero(np.isin(layout, cols))

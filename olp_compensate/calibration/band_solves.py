@@ -85,22 +85,3 @@ def other_block(gram_uu: np.ndarray, penalty_u: np.ndarray):
     guu[np.diag_indices(nu)] += 1e-12 * np.trace(guu) / max(nu, 1)
     return linalg.cho_factor(guu)
 
-
-def bordered(base: Factored, g_bc: np.ndarray, g_cc: np.ndarray, x_b: np.ndarray,
-             h_c: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """The solution (x_b', x_c) of ``[[G_bb, G_bc], [G_cb, G_cc]] [x_b'; x_c] = -[h_b; h_c]``
-    from ``base`` (G_bb factored) and its own solution ``x_b = -G_bb^-1 h_b``: a few
-    columns c added to a factored system by the Schur complement
-    ``S = G_cc - G_cb G_bb^-1 G_bc``, ``x_c = -S^-1 (h_c + G_cb x_b)``,
-    ``x_b' = x_b - G_bb^-1 G_bc x_c``. None when G_bb was not Cholesky-factored or S is
-    not positive definite (the caller then solves the whole system directly)."""
-    if base.factor is None:
-        return None
-    z = base.solve(g_bc)
-    schur = g_cc - g_bc.T @ z
-    try:
-        factor = linalg.cho_factor(0.5 * (schur + schur.T))
-    except linalg.LinAlgError:
-        return None
-    x_c = -linalg.cho_solve(factor, h_c + g_bc.T @ x_b)
-    return x_b - z @ x_c, x_c

@@ -325,10 +325,10 @@ class BandScan:
                 self._training(frozenset({f}))[1][cols]) for f in range(len(self.grams))]
             x = -self._factored(frozenset(), cols, penalty).solve(
                 self._training(frozenset())[1][cols])
-            self._current[key] = self.fitted(cols, n_u, fits, x)
+            self._current[key] = self._fitted(cols, n_u, fits, x)
         return self._current[key]
 
-    def fitted(self, cols: np.ndarray, n_u: int, fits: list[np.ndarray], x: np.ndarray
+    def _fitted(self, cols: np.ndarray, n_u: int, fits: list[np.ndarray], x: np.ndarray
                ) -> tuple[Heldout, np.ndarray]:
         """(held-out residuals, x) of the per-fold solutions ``fits`` and the full-data
         solution ``x`` in ``cols`` (the first ``n_u`` of them fitted: the noise estimate's
