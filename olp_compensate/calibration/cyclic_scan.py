@@ -33,8 +33,9 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
+from .band_solves import Factored, ProfiledBand, Recent, other_block
 from .effect_scan import EffectScan, Heldout
 from .problem import problem_at
 from .identify import IdentificationResult
@@ -121,39 +122,6 @@ class BandOutcome:
     elimination of :mod:`.backward_elimination`."""
 
 
-def _solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """matrix^-1 rhs for a symmetric positive (semi-)definite matrix: Cholesky, or least
-    squares when it is singular."""
-    try:
-        return linalg.cho_solve(linalg.cho_factor(matrix), rhs)
-    except linalg.LinAlgError:
-        return np.linalg.lstsq(matrix, rhs, rcond=1e-12)[0]
-
-
-class _Schur:
-    """The band's problem on one training set with the other unknowns profiled out:
-    ``c(lam) = -V (V'h / (d + lam))`` and ``u = -(y + X c)``."""
-
-    def __init__(self, gram: np.ndarray, rhs: np.ndarray, nu: int, penalty_u: np.ndarray):
-        guu = gram[:nu, :nu] + np.diag(penalty_u)
-        guu[np.diag_indices(nu)] += 1e-12 * np.trace(guu) / max(nu, 1)
-        factor = linalg.cho_factor(guu)
-        guc = gram[:nu, nu:]
-        self.x_uc = linalg.cho_solve(factor, guc)
-        self.y = linalg.cho_solve(factor, rhs[:nu])
-        schur = gram[nu:, nu:] - guc.T @ self.x_uc
-        self.d, self.v = np.linalg.eigh(0.5 * (schur + schur.T))
-        self.d = np.clip(self.d, 0.0, None)
-        self.hv = self.v.T @ (rhs[nu:] - guc.T @ self.y)
-
-    def solution(self, lam: float) -> np.ndarray:
-        c = -self.v @ (self.hv / (self.d + lam))
-        return np.concatenate([-(self.y + self.x_uc @ c), c])
-
-    def dof(self, lam: float) -> float:
-        return float(np.sum(self.d / (self.d + lam)))
-
-
 class BandScan:
     """The cyclic bands of every joint the data resolve, at one model (an EffectScan)."""
 
@@ -194,6 +162,12 @@ class BandScan:
         self.scale = {j: float(np.mean(np.diag(total)[cols])) for j, cols in self.columns.items()}
         self._cache: dict = {}
         self._sums: dict = {}
+        self._current: dict = {}
+        self._factors = Recent()
+        """Factored matrices by (training set, columns, penalties): they depend on the Gram
+        matrices only, so :meth:`shifted` copies share them (as ``_fold_grams``, the
+        folds' Gram matrices on the columns of the last layouts)."""
+        self._fold_grams = Recent(2 * len(self.grams))
 
     @property
     def joints(self) -> list[int]:
@@ -208,7 +182,7 @@ class BandScan:
         out.rhs = [rhs + gram @ step for rhs, gram in zip(self.rhs, self.grams)]
         out.rr = [rr + 2.0 * float(step @ rhs) + float(step @ gram @ step)
                   for rr, rhs, gram in zip(self.rr, self.rhs, self.grams)]
-        out._cache, out._sums = {}, {}
+        out._cache, out._sums, out._current = {}, {}, {}
         return out
 
     def _layout(self, kept: list[tuple[int, float]], joint: int | None, drop=()):
@@ -232,26 +206,45 @@ class BandScan:
                                     sum(self.rhs[f] for f in train))
         return self._sums[excluded]
 
-    def _schur(self, key, excluded: frozenset, cols, penalty, n_u) -> _Schur:
+    def _schur(self, key, excluded: frozenset, cols, penalty, n_u) -> ProfiledBand:
         cache_key = (key, excluded)
         if cache_key not in self._cache:
             gram, rhs = self._training(excluded)
-            self._cache[cache_key] = _Schur(gram[np.ix_(cols, cols)], rhs[cols], n_u, penalty)
+            gram = gram[np.ix_(cols, cols)]
+            block = ("other", excluded, cols[:n_u].tobytes(), penalty.tobytes())
+            factor = self._factors.get_or_make(
+                block, lambda: other_block(gram[:n_u, :n_u], penalty))
+            self._cache[cache_key] = ProfiledBand(gram, rhs[cols], n_u, factor)
         return self._cache[cache_key]
+
+    def _factored(self, excluded: frozenset, cols: np.ndarray, penalty: np.ndarray
+                  ) -> Factored:
+        """The training Gram matrix of the folds not in ``excluded`` on ``cols`` plus
+        ``diag(penalty)``, factored (cached)."""
+        return self._factors.get_or_make(
+            (excluded, cols.tobytes(), penalty.tobytes()),
+            lambda: Factored(self._training(excluded)[0][np.ix_(cols, cols)] + np.diag(penalty)))
 
     def _sse(self, fold: int, cols, x: np.ndarray) -> float:
         return self._sses(fold, cols, x[:, None])[0]
 
     def _sses(self, fold: int, cols, xs: np.ndarray) -> np.ndarray:
         """Held-out sums of squares on ``fold`` of the solutions in the columns of xs."""
-        g = self.grams[fold][np.ix_(cols, cols)]
+        g = self._fold_grams.get_or_make((fold, cols.tobytes()),
+                                         lambda: self.grams[fold][np.ix_(cols, cols)])
         return (self.rr[fold] + 2.0 * self.rhs[fold][cols] @ xs
                 + np.einsum("ij,ij->j", xs, g @ xs))
 
     def _heldout(self, fits: list[np.ndarray], cols, sigma2: float) -> Heldout:
-        out = np.empty(len(self.scan.residual))
-        for eq, x in zip(self.fold_eq, fits):
-            out[eq] = self.residual[eq] + self.a[np.ix_(eq, cols)] @ x
+        """Held-out residuals (m, 3) of the per-fold solutions ``fits`` in ``cols``: each
+        fold's rows moved by its own fit (one product of ``a`` with every fit)."""
+        xs = np.zeros((self.a.shape[1], len(fits)))
+        for f, x in enumerate(fits):
+            xs[cols, f] = x
+        moved = self.a @ xs
+        out = self.residual.copy()
+        for f, eq in enumerate(self.fold_eq):
+            out[eq] += moved[eq, f]
         return Heldout(residuals=out.reshape(-1, 3), sigma2=sigma2)
 
     def _best_lambda(self, key, outer: frozenset, layout, joint: int) -> float:
@@ -307,11 +300,14 @@ class BandScan:
         cols, penalty, _ = self._layout(kept, None, drop)
         delta = (reference.residuals - candidate.residuals).ravel()
         gain = reference.sse - candidate.sse
-        leverage = 0.0
+        per_fold = np.zeros((len(delta), len(self.fold_eq)))
         for f, eq in enumerate(self.fold_eq):
-            gram = self._training(frozenset({f}))[0][np.ix_(cols, cols)]
-            v = self.a[np.ix_(eq, cols)].T @ delta[eq]
-            leverage += float(v @ _solve(gram + np.diag(penalty), v))
+            per_fold[eq, f] = delta[eq]
+        v_all = (self.a.T @ per_fold)[cols]  # A_t' delta_t of every fold t
+        leverage = 0.0
+        for f in range(len(self.fold_eq)):
+            v = v_all[:, f]
+            leverage += float(v @ self._factored(frozenset({f}), cols, penalty).solve(v))
         variance = 4.0 * candidate.sigma2 * (float(delta @ delta) + leverage)
         if variance <= 0:
             return gain, 0.0, 1.0
@@ -322,13 +318,21 @@ class BandScan:
         """Held-out residuals of the current model with the kept bands at their penalties,
         and its full-data solution (the columns of ``_layout(kept, None, drop)``);
         ``drop``: columns of the current unknowns (``scan.scaled``) left out."""
-        cols, penalty, n_u = self._layout(kept, None, drop)
-        fits = []
-        for f in range(len(self.grams)):
-            gram, rhs = self._training(frozenset({f}))
-            fits.append(-_solve(gram[np.ix_(cols, cols)] + np.diag(penalty), rhs[cols]))
-        gram, rhs = self._training(frozenset())
-        x = -_solve(gram[np.ix_(cols, cols)] + np.diag(penalty), rhs[cols])
+        key = (tuple(kept), np.unique(np.asarray(drop, dtype=int)).tobytes())
+        if key not in self._current:
+            cols, penalty, n_u = self._layout(kept, None, drop)
+            fits = [-self._factored(frozenset({f}), cols, penalty).solve(
+                self._training(frozenset({f}))[1][cols]) for f in range(len(self.grams))]
+            x = -self._factored(frozenset(), cols, penalty).solve(
+                self._training(frozenset())[1][cols])
+            self._current[key] = self._fitted(cols, n_u, fits, x)
+        return self._current[key]
+
+    def _fitted(self, cols: np.ndarray, n_u: int, fits: list[np.ndarray], x: np.ndarray
+               ) -> tuple[Heldout, np.ndarray]:
+        """(held-out residuals, x) of the per-fold solutions ``fits`` and the full-data
+        solution ``x`` in ``cols`` (the first ``n_u`` of them fitted: the noise estimate's
+        degrees of freedom), as :meth:`current` returns them."""
         rss = sum(self._sse(f, cols, x) for f in range(len(self.grams)))
         dof = len(self.scan.residual) - n_u
         return self._heldout(fits, cols, rss / max(dof, 1)), x
