@@ -123,14 +123,20 @@ def test_turn_toward_ranges_is_the_enumeration_of_turns(name):
             if joint.kind != "revolute":
                 assert got[i, a] == value
                 continue
-            lo, hi = ranges[a]
-            fits = [value + 2 * np.pi * t for t in range(-3, 4)
-                    if np.isfinite(lo) and np.isfinite(hi)
-                    and lo - 1e-9 <= value + 2 * np.pi * t <= hi + 1e-9]
-            want = min(fits, key=abs) if fits else (value + np.pi) % (2 * np.pi) - np.pi
+            want = _enumerated_turn(value, *ranges[a])
             assert got[i, a] == pytest.approx(want, abs=1e-12), (i, a)
     assert np.array_equal(turn_toward_ranges(robot, q.reshape(30, 10, -1)).reshape(q.shape),
                           got)
+
+
+def _enumerated_turn(value: float, lo: float, hi: float) -> float:
+    """The enumeration the rule's turns must equal: of the seven whole turns of ``value``
+    (rad) that fit in [lo, hi] (1e-9 slack), the one nearest zero (the first on a tie);
+    else ``value`` wrapped into [-pi, pi)."""
+    fits = [value + 2 * np.pi * t for t in range(-3, 4)
+            if np.isfinite(lo) and np.isfinite(hi)
+            and lo - 1e-9 <= value + 2 * np.pi * t <= hi + 1e-9]
+    return min(fits, key=abs) if fits else (value + np.pi) % (2 * np.pi) - np.pi
 
 
 @pytest.mark.parametrize("name", ["abb_irb2400", "ur5e", "staubli_tx2_60", "kuka_kr16_2"])
@@ -154,11 +160,7 @@ def test_turn_toward_ranges_near_zero_and_at_the_range_ends_is_the_enumeration(n
             value = q[i, a]
             if joint.kind != "revolute":
                 continue
-            lo, hi = ranges[a]
-            fits = [value + 2 * np.pi * t for t in range(-3, 4)
-                    if np.isfinite(lo) and np.isfinite(hi)
-                    and lo - 1e-9 <= value + 2 * np.pi * t <= hi + 1e-9]
-            want = min(fits, key=abs) if fits else (value + np.pi) % (2 * np.pi) - np.pi
+            want = _enumerated_turn(value, *ranges[a])
             assert np.float64(got[i, a]).tobytes() == np.float64(want).tobytes(), (i, a)
 
 

@@ -9,21 +9,15 @@ from olp_compensate.calibration.identify import (IdentificationOptions, _checked
 from olp_compensate.calibration.simulate import make_virtual_robot
 from olp_compensate.cli.cal_identify import report
 from olp_compensate.kinematics.robot import load_robot
+from virtual_world import axis1_poses
 
 NOISE = 0.05e-3
 ROBOT = "staubli_tx2_90l"
 
 
 def _poses(robot, n, seed):
-    """Controller joints (n, 6): axes 1 and 2 random, axis 3 keeps j2 + j3 at 30 deg and the
-    wrist is still, so the flange only turns about axis 1: the tool point's component along
-    that axis cannot be told from the device frame's (a structural tie)."""
-    rng = np.random.default_rng(seed)
-    q = np.empty((n, 6))
-    q[:, 0] = rng.uniform(-2.5, 2.5, n)
-    q[:, 1] = rng.uniform(-1.0, 1.2, n)
-    q[:, 2] = np.radians(30.0) - q[:, 1]
-    q[:, 3:] = np.radians([10.0, 40.0, 20.0])
+    """:func:`virtual_world.axis1_poses`, inside the URDF limits."""
+    q = axis1_poses(robot, n, seed)
     assert np.all((q > robot.lower_limits) & (q < robot.upper_limits))
     return q
 

@@ -15,6 +15,7 @@ from olp_compensate.cli.cal_identify import report
 from olp_compensate.kinematics.conventions import rotation_angle_between, rotvec_from_rotation
 from olp_compensate.kinematics.model import build_model, forward
 from olp_compensate.kinematics.robot import load_robot
+from virtual_world import axis1_poses
 
 NOISE = 0.05e-3
 ROBOT = "staubli_tx2_90l"
@@ -107,25 +108,12 @@ def test_a_fixed_orientation_refuses_the_linear_start_and_holds_a_tool_at_zero()
     assert np.sqrt(np.mean(error**2)) < 2 * NOISE
 
 
-def _axis1_poses(robot, n, seed):
-    """Controller joints (n, 6) turning the flange about axis 1 only (axes 1 and 2 random,
-    j2 + j3 at 30 deg, the wrist still): the tool's component along axis 1, in the flange
-    frame, cannot be told from the device frame's; the rest of the tool can."""
-    rng = np.random.default_rng(seed)
-    q = np.empty((n, 6))
-    q[:, 0] = rng.uniform(-2.5, 2.5, n)
-    q[:, 1] = rng.uniform(-1.0, 1.2, n)
-    q[:, 2] = np.radians(30.0) - q[:, 1]
-    q[:, 3:] = np.radians([10.0, 40.0, 20.0])
-    return q
-
-
 def test_one_axis_of_rotation_refuses_it_and_finds_the_identifiable_part_of_the_tool():
     # The geometry exact (no joint errors): the wrist stands still, so every error of links
     # 4-6 would be a constant offset of the tool; without them the tool's truth is defined.
     robot = load_robot(ROBOT)
     virtual = make_virtual_robot(robot, seed=2, length_error_m=0.0, angle_error_rad=0.0)
-    q = _axis1_poses(robot, 60, 3)
+    q = axis1_poses(robot, 60, 3)
     meas = virtual.measure(q, NOISE, np.random.default_rng(5))
     flange, points, index = _start_inputs(robot, q, meas)
     assert _linear_start(flange[:, :3, :3], flange[:, :3, 3], points, index, 1) is None

@@ -60,3 +60,16 @@ def assert_the_gap_closed(label: str, before_mm, after_mm) -> None:
           f"mm, compensated by at most {max(after_mm):.4f} mm")
     assert max(after_mm) < 0.05, after_mm
     assert min(before_mm) > 0.5, before_mm
+
+
+def axis1_poses(robot, n: int, seed: int) -> np.ndarray:
+    """Controller joints (n, 6), rad: axes 1 and 2 random, axis 3 keeps j2 + j3 at 30 deg and
+    the wrist is still, so the flange only turns about axis 1: a tool point's component along
+    that axis cannot be told from the device frame's (a structural tie)."""
+    rng = np.random.default_rng(seed)
+    q = np.empty((n, 6))
+    q[:, 0] = rng.uniform(-2.5, 2.5, n)
+    q[:, 1] = rng.uniform(-1.0, 1.2, n)
+    q[:, 2] = np.radians(30.0) - q[:, 1]
+    q[:, 3:] = np.radians([10.0, 40.0, 20.0])
+    return q
