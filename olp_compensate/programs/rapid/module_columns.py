@@ -225,7 +225,11 @@ class _TablePart:
 
     def notes(self, k: int, pair: int) -> tuple[str, ...]:
         """The resolution notes of table row ``k`` (as semantics.resolve gives them)."""
-        return (("unused",) if self.plan.uses[k] == 0 else ()) + self._notes[pair]
+        return self._row_notes(self.plan.uses[k] == 0, pair)
+
+    def _row_notes(self, unused: bool, pair: int) -> tuple[str, ...]:
+        """The resolution notes of a row ``unused`` or not, of tool/work-object ``pair``."""
+        return (("unused",) if unused else ()) + self._notes[pair]
 
     def compensate_all(self, chunk: int, jobs: int = 1) -> None:
         """Every row: :meth:`compensate_chunks`, then :meth:`retry_failed`."""
@@ -401,7 +405,7 @@ class _TablePart:
 
     def _solved_note(self, unused: bool, pair: int, tool_note: str) -> str:
         """The note of a solved row (:meth:`notes` of a row moved to ``unused`` or not)."""
-        notes = (("unused",) if unused else ()) + self._notes[pair]
+        notes = self._row_notes(unused, pair)
         return solved_note(notes, tool_note) if notes else tool_note
 
     def _edits(self, mine: np.ndarray, keep: np.ndarray, solved, values: np.ndarray) -> list:
