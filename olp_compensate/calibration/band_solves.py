@@ -48,11 +48,6 @@ class Recent(dict):
         return value
 
 
-def solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """matrix^-1 rhs for a symmetric positive (semi-)definite matrix (:class:`Factored`)."""
-    return Factored(matrix).solve(rhs)
-
-
 class ProfiledBand:
     """The band's problem on one training set with the other unknowns profiled out:
     ``c(lam) = -V (V'h / (d + lam))`` and ``u = -(y + X c)``; ``factor``: the
