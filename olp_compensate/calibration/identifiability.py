@@ -16,12 +16,13 @@ and not fitted (:func:`effect_separation`), so an effect never displaces geometr
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import DataError
 from ..kinematics.model import KinematicModel
+from .device_motions import DeviceMotion, held_motions
 from .factorizations import pivoted_cholesky_diagonal, pivoted_qr_r
 from .freeze_choice import TIE_MARGIN, choose_frozen
 from .measurements import Measurements
@@ -53,6 +54,9 @@ class Identifiability:
     frozen: dict[str, str]
     weak: list[str]
     singular_values: np.ndarray
+    motions: dict[str, DeviceMotion] = field(default_factory=dict)
+    """Held device-frame unknown -> the rigid motion of the device frame it leaves
+    undetermined (:mod:`.device_motions`); its reason in ``frozen`` is that motion's text."""
 
 
 
@@ -129,10 +133,14 @@ def analyse_identifiability(problem: IdentificationProblem, x: np.ndarray,
     keep[n_geo:] = False  # effects join one by one below, after the geometry
     geo = np.flatnonzero(keep[:n_geo])
     rank = _geometric_rank(jac, normal, norms, geo)
+    motions = {}
     if rank.rank < len(geo):
         inseparable = _inseparable(rank, geo, names, freeze_preference(problem.layout))
+        held = [names.index(name) for name in inseparable]
+        motions = held_motions(problem, held, rank.null, geo, rank.norms)
         frozen.update(inseparable)
-        keep[[names.index(name) for name in inseparable]] = False
+        frozen.update({name: motion.text for name, motion in motions.items()})
+        keep[held] = False
     for effect, cols in zip(problem.effects, problem.layout.effects):
         reason = effect_separation(jac[:, np.flatnonzero(keep)], jac[:, cols],
                                    [names[k] for k in np.flatnonzero(keep)])
@@ -145,7 +153,7 @@ def analyse_identifiability(problem: IdentificationProblem, x: np.ndarray,
     weak = [f"{describe_combination(vt[k], kept_names)} (relative singular value "
             f"{s[k] / s[0]:.1e})" for k in range(len(s)) if s[k] < WEAK_TOLERANCE * s[0]]
     return Identifiability(condition_number=float(s[0] / s[-1]), frozen=frozen, weak=weak,
-                           singular_values=s), keep
+                           singular_values=s, motions=motions), keep
 
 
 @dataclass(frozen=True)

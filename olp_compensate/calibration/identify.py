@@ -194,6 +194,8 @@ class _Refrozen:
     at_x0: tuple[np.ndarray, np.ndarray, np.ndarray]
     frozen: dict[str, str]
     dropped: dict[str, str]
+    motions: dict = field(default_factory=dict)
+    """Held device-frame unknown -> its undetermined rigid motion (:mod:`.device_motions`)."""
 
 
 def _checked_setup(robot: Robot, meas: Measurements, options: IdentificationOptions) -> _Setup:
@@ -296,7 +298,8 @@ def _refreeze(setup: _Setup, start: _Start, frozen: dict[str, str]) -> _Refrozen
     x0 = x0[columns]
     if columns != list(range(len(names_all))):
         at_x0 = (at_x0[0], at_x0[1][:, columns], at_x0[2][np.ix_(columns, columns)])
-    return _Refrozen(problem=problem, x0=x0, at_x0=at_x0, frozen=frozen, dropped=dropped)
+    return _Refrozen(problem=problem, x0=x0, at_x0=at_x0, frozen=frozen, dropped=dropped,
+                     motions=ident.motions)
 
 
 def _reject_outliers(problem: IdentificationProblem, fit: Fit,
@@ -414,7 +417,8 @@ def _result(setup: _Setup, problem: IdentificationProblem, fit: Fit,
     """Stage 9, the result: the calibration and every figure of the identification."""
     ident = Identifiability(condition_number=statistics.condition_number,
                             frozen={**refrozen.frozen, **refrozen.dropped},
-                            weak=statistics.weak, singular_values=statistics.singular_values)
+                            weak=statistics.weak, singular_values=statistics.singular_values,
+                            motions=refrozen.motions)
     calibration = _calibration(setup, problem, fit.x, statistics.std, refrozen.frozen,
                                _validation(statistics, heldout, n_poses))
     meas = setup.meas

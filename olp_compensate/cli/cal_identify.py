@@ -151,6 +151,7 @@ def report(result) -> str:
     if cal.frozen:
         lines.append("frozen (not identified):")
         lines += [f"  {name}: {why}" for name, why in cal.frozen.items()]
+    lines += [f"WARNING: {motion.text}" for motion in ident.motions.values()]
     if ident.weak:
         lines.append("WARNING: barely observable with these poses (the residual can look "
                      "perfect while these stay wrong; add poses that move them):")
