@@ -49,11 +49,11 @@ def _same(a, b) -> bool:
 
 
 def _round_trip(text: str) -> str:
-    """calib.json text read and written again: the same document, numbers to their last
-    digit or two (the device frame's mm -> m -> mm and its quaternion through a matrix move
-    the last digit at each round trip: the format's doing, not the key's)."""
+    """calib.json text read and written again: the same document, byte for byte (numbers
+    whose value did not change are written as read: tests/test_calibration_round_trip.py)."""
     again = dumps_calibration(calibration_from_dict(json.loads(text)))
     assert _same(json.loads(text), json.loads(again))
+    assert again == text
     return again
 
 

@@ -162,6 +162,11 @@ class Calibration:
     """The geometric model fitted on the same rows as the effects (``olp-cal diagnose``):
     it predicts the rows where an effect is outside its ``fitted_range``
     (:mod:`.effect_ranges`); None: the effects are used everywhere."""
+    as_read: object = field(default=None, compare=False, repr=False)
+    """The calib.json document this calibration was read from (None: not read from one),
+    kept through ``dataclasses.replace`` so that writing it again keeps every number whose
+    value did not change as it was read, digit for digit
+    (:mod:`olp_compensate.io.calibration_file`)."""
 
     def __post_init__(self):
         object.__setattr__(self, "warnings", tuple(self.warnings))

@@ -61,6 +61,7 @@ from ..kinematics.model import build_model
 from ..kinematics.robot import (Robot, bundled_robot_names, load_robot, ranges_from_edge_units,
                      robot_from_urdf_text)
 from .atomic import check_finite_json, write_text_atomic
+from .kept_numbers import keep_numbers
 from .schemas import schema, schema_bytes, schema_error, validator
 from .user_cache import cache_folder
 
@@ -206,9 +207,29 @@ def calibration_to_dict(cal: Calibration) -> dict:
     return doc
 
 
+@dataclasses.dataclass
+class _AsRead:
+    """The calib.json document a calibration was read from (``Calibration.as_read``) and
+    the robot it was read for; ``again()``: what the calibration as read writes."""
+
+    doc: dict
+    robot: Robot | None
+    _again: dict | None = None
+
+    def again(self) -> dict:
+        if self._again is None:
+            self._again = calibration_to_dict(calibration_from_dict(
+                self.doc, robot=self.robot, valid=True))
+        return self._again
+
+
 def dumps_calibration(cal: Calibration, source: str = "calibration") -> str:
-    """calib.json text; :class:`DataError` when a number is not finite (never written)."""
+    """calib.json text; :class:`DataError` when a number is not finite (never written).
+    A calibration read from a file writes each number whose value did not change as it
+    was read (:mod:`.kept_numbers`): read then written, a file comes back byte for byte."""
     doc = calibration_to_dict(cal)
+    if isinstance(cal.as_read, _AsRead):
+        doc = keep_numbers(doc, cal.as_read.again(), cal.as_read.doc)
     check_finite_json(doc, source)
     return json.dumps(doc, indent=2, allow_nan=False) + "\n"
 
@@ -254,10 +275,8 @@ def calibration_from_dict(doc: dict, source: str = "<calibration>",
             doc["geometric_fallback"], embedded, source))
     regions = tuple(_region_from_dict(entry, embedded, f"{source}: regions/{k}")
                     for k, entry in enumerate(doc.get("regions", ())))
-    if not regions:
-        return calibration
     try:
-        return dataclasses.replace(calibration, regions=regions)
+        return dataclasses.replace(calibration, regions=regions, as_read=_AsRead(doc, robot))
     except DataError as exc:
         raise ModelError(f"{source}: {exc}") from None
 
