@@ -18,11 +18,13 @@ import json
 import numpy as np
 import pytest
 
+from olp_compensate.calibration.device_motions import _motion, _text
 from olp_compensate.calibration.identify import IdentificationOptions, identify
 from olp_compensate.calibration.simulate import make_virtual_robot, random_joints
 from olp_compensate.cli.cal_identify import report
 from olp_compensate.io.calibration_file import dumps_calibration
-from olp_compensate.kinematics.conventions import rotvec_from_rotation
+from olp_compensate.calibration.unknowns import UnknownLayout
+from olp_compensate.kinematics.conventions import rotation_from_rotvec, rotvec_from_rotation
 from olp_compensate.kinematics.model import build_model, forward
 from olp_compensate.kinematics.robot import load_robot
 
@@ -164,3 +166,75 @@ def test_spread_poses_name_nothing():
     ident = result.identifiability
     assert ident.motions == {}
     assert "device frame's" not in report(result)
+
+
+class _Stub:
+    """The parts of an identification problem :func:`_motion` reads: the layout, the start
+    registration (r0, t0) and the measured points, device frame."""
+
+    def __init__(self, rng):
+        self.layout = UnknownLayout.build([], ["tcp"])
+        self.r0 = rotation_from_rotvec(rng.normal(size=3))
+        self.t0 = rng.normal(0.0, 2.0, 3)
+        self.measured = rng.normal(0.0, 0.3, (20, 3)) + [1.0, -2.0, 0.5]
+
+
+def _registration_step(stub, axis, through, pitch_m_per_rad, angle):
+    """The unknown-vector change (registration part) that screws the device frame by
+    ``angle`` about the line through ``through`` along ``axis`` (device frame), advancing
+    ``pitch * angle`` along it, at the start (phi = 0): inverted by hand from
+    ``device_T_base = (R0 Exp(phi), t0 + R0 rho)``."""
+    w = angle * axis
+    v = -np.cross(w, through) + pitch_m_per_rad * w
+    dx = np.zeros(stub.layout.size)
+    dx[stub.layout.registration_rotation] = stub.r0.T @ w
+    dx[stub.layout.registration_translation] = stub.r0.T @ (v + np.cross(w, stub.t0))
+    return dx
+
+
+def _moved(stub, dx, eps, points):
+    """Where device-frame points go when the registration moves by ``eps * dx`` (the
+    problem's own registration formula, finite step): the robot base's points are fixed,
+    so a point p of the device frame goes to T(eps) T(0)^-1 p."""
+    layout = stub.layout
+    turn = stub.r0 @ rotation_from_rotvec(eps * dx[layout.registration_rotation])
+    shift = stub.t0 + stub.r0 @ (eps * dx[layout.registration_translation])
+    base = (points - stub.t0) @ stub.r0
+    return base @ turn.T + shift
+
+
+@pytest.mark.parametrize("pitch", [0.0, 0.05])
+def test_the_screw_named_is_the_registration_change_by_finite_steps(pitch):
+    """A known screw of the device frame, built by hand into the registration's unknowns,
+    is named back (axis, the point of the axis nearest the points, pitch), and a finite step
+    of the registration formula moves the named axis' points only along the axis."""
+    stub = _Stub(np.random.default_rng(3))
+    axis = np.array([2.0, -1.0, 0.5]) / np.linalg.norm([2.0, -1.0, 0.5])
+    through = np.array([0.3, 0.1, -0.4])
+    dx = _registration_step(stub, axis, through, pitch, 1.0)
+    centroid = stub.measured.mean(axis=0)
+    extent = np.sqrt(np.mean(np.sum((stub.measured - centroid) ** 2, axis=1)))
+    kind, direction, point_mm, pitch_mm_per_deg, _ = _motion(stub, dx, centroid, extent,
+                                                             stub.measured)
+    assert kind == ("rotation" if pitch == 0.0 else "screw")
+    assert abs(abs(direction @ axis) - 1.0) < 1e-12
+    foot = through + axis * (axis @ (centroid - through))
+    np.testing.assert_allclose(point_mm * 1e-3, foot, atol=1e-12)
+    assert pitch_mm_per_deg == pytest.approx(np.radians(1.0) * pitch * 1e3, abs=1e-12)
+    on_axis = foot + np.outer([-1.0, 0.0, 2.0], axis)
+    eps = 1e-6
+    step = _moved(stub, dx, eps, on_axis) - on_axis
+    np.testing.assert_allclose(step, np.outer([1.0] * 3, eps * pitch * axis), atol=1e-11)
+
+
+def test_a_translation_is_named_as_one():
+    stub = _Stub(np.random.default_rng(4))
+    along = np.array([0.0, 0.6, 0.8])
+    dx = np.zeros(stub.layout.size)
+    dx[stub.layout.registration_translation] = stub.r0.T @ along
+    kind, direction, point_mm, _, farthest = _motion(stub, dx, stub.measured.mean(axis=0),
+                                                     0.5, stub.measured)
+    assert kind == "translation" and point_mm is None and farthest is None
+    np.testing.assert_allclose(direction, along, atol=1e-12)
+    text = _text(kind, direction, point_mm, 0.0, farthest, ("tcp",))
+    assert "translation along (0.0000, 0.6000, 0.8000) together with tool point tcp" in text

@@ -7,7 +7,7 @@ vector of the unit-scaled Jacobian that is 1 at k and 0 at every other held unkn
 null basis ``N`` times the inverse of its held rows: a canonical choice, independent of
 the basis an SVD returns) is the change that freezing k forbids. When that vector moves no
 model parameter (its geometric part below ``GEOMETRY_SHARE``), it is a rigid motion of the
-device frame, alone or with tool points that shift to match; its registration part, a
+device frame, alone or with tool points (or frames) that move to match; its registration part, a
 small change ``(rho, phi)`` of ``device_T_base = (R0 Exp(phi), t0 + R0 rho)`` at the start
 ``phi = 0``, moves a point p of the device frame by ``w x p + v`` with ``w = R0 phi`` and
 ``v = R0 rho - w x t0`` (device frame, rad and m): a screw of axis direction ``w / |w|``
@@ -15,7 +15,10 @@ through ``w x v / |w|^2``, pitch ``w.v / |w|^2`` (m/rad), or a translation along
 ``w`` is nil. A device-only rotation whose axis runs through the measured points is the
 line those points lie on (points on one line let the device frame turn about it unseen);
 points in a plane leave no device-only motion (a rigid motion fixing three non-collinear
-points is the identity).
+points is the identity). The null space is the start's, where the identification decides
+what to hold: a controller's straight line is straight in its nominal model, so the start's
+predicted points lie on it exactly while the real arm's are off it by its errors (the ASTL
+LINE session's by 0.3 mm, given in the sentence).
 """
 
 from __future__ import annotations
@@ -44,9 +47,9 @@ class DeviceMotion:
     ``direction``: unit axis (rotation, screw) or translation direction, device frame;
     ``point_mm``: the point of the axis nearest the measured points' centroid, device frame,
     mm (None for a translation); ``pitch_mm_per_deg`` (screw; 0 otherwise); ``tools``: the
-    tool points that shift with it; ``farthest_mm``: the largest distance of a measured
-    point from the axis, mm (None for a translation); ``text``: the sentence the report and
-    calib.json give."""
+    tool points (``NAME``) and tool frames (``NAME's frame``) that move with it;
+    ``farthest_mm``: the largest distance of a measured point from the axis, mm (None for a
+    translation); ``text``: the sentence the report and calib.json give."""
 
     component: str
     kind: str
@@ -96,9 +99,11 @@ def held_motions(problem, held: list[int], null: np.ndarray, geo: np.ndarray,
             continue
         dx = np.zeros(layout.size)
         dx[geo] = vec / norms[geo]
-        tools = tuple(name for t, name in enumerate(layout.tool_names)
-                      if np.linalg.norm(_scaled_part(vec, geo, layout.tool_point(t)))
-                      > TOOL_SHARE * size)
+        groups = [*((name, layout.tool_point(t)) for t, name in enumerate(layout.tool_names)),
+                  *((f"{name}'s frame", layout.tool_rotation(r))
+                    for r, name in enumerate(layout.rotated_tools))]
+        tools = tuple(name for name, group in groups
+                      if np.linalg.norm(_scaled_part(vec, geo, group)) > TOOL_SHARE * size)
         motion = _motion(problem, dx, centroid, extent, points)
         if motion is not None:
             out[names[k]] = DeviceMotion(component=names[k], tools=tools,
@@ -145,7 +150,7 @@ def _text(kind: str, direction: np.ndarray, point_mm, pitch_mm_per_deg: float,
     with_tools = ""
     if tools:
         with_tools = (f" together with tool point{'s' if len(tools) > 1 else ''} "
-                      f"{', '.join(tools)} (shifted to match)")
+                      f"{', '.join(tools)} (moved to match)")
     held = "is not determined by these poses: held where the start put it"
     if kind == "translation":
         return (f"the device frame's translation along {_triple(direction, 4)}{with_tools} "

@@ -209,6 +209,7 @@ def regions_report(regional) -> str:
                          "model is kept unchecked")
         if region.name in regional.left_out:
             lines.append(f"  LEFT OUT: {regional.left_out[region.name]}")
+        lines += [f"  WARNING: {motion.text}" for motion in result.identifiability.motions.values()]
         if result.identifiability.weak:
             lines.append(f"  WARNING: barely observable in this region: "
                          f"{'; '.join(result.identifiability.weak)}")
