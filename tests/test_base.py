@@ -213,6 +213,10 @@ def test_cli_writes_a_calibration_that_predicts_in_the_new_frame(robot, workspac
     assert "residual per mark" in printed and " mm" in printed
     moved = read_calibration(out)
     assert np.allclose(moved.device_T_base, world, atol=1e-7)
+    # everything but the base frame is written as read, digit for digit
+    before, after = json.loads(model.read_text()), json.loads(out.read_text())
+    assert {k: v for k, v in after.items() if k != "device_T_base"} == {
+        k: v for k, v in before.items() if k != "device_T_base"}
     # refuses to write over an input
     assert _run_cli(["--model", str(model), "--marks", str(tmp_path / "marks.csv"),
                      "-o", str(model)]) == 1
