@@ -40,16 +40,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...compensation.failures import FailureReport
 from ...compensation.pose import Compensator
 from ...compensation.report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport,
-                                    ReportRows, RowColumns, TargetReport, config_texts,
+                                    ReportRows, TargetReport, config_text, config_texts,
                                     row_source)
+from ...compensation.row_columns import RowColumns
 from ...kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                        pose_from_rotation_translation, quat_wxyz_from_matrix)
 from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
-from ..object_model.rows import failure_row, solved_note, written_row
+from ..object_model.rows import failure_note, solved_note, written_row
 from .column_plans import Plan, modules_sharing_names, plain_rows, task_plans
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
@@ -369,20 +371,14 @@ class _TablePart:
         """Rows and edits of the solved table ``rows`` (their numbers as written
         ``values``); ``failures``: the rows not compensated too (else they are left to
         :meth:`retry_failed`)."""
-        table, pairs, robot = self.table, self.plan.pairs, self.comp.robot
+        table = self.table
         pair = self.plan.pair[rows]
         # the note of each row, made once per (unused, pair, real-tool note)
         notes = list(map(functools.lru_cache(None)(self._solved_note),
                          (self.plan.uses[rows] == 0).tolist(), pair.tolist(), solved.tool_note))
         ok = solved.ok
-        for i in np.flatnonzero(~ok).tolist() if failures else ():
-            k, p = int(rows[i]), int(pair[i])
-            self.others.append(failure_row(TargetReport(
-                target=table.names[k], file=self.program.file, line=int(table.line[k]),
-                column=int(table.column[k]), status=solved.reason[i],
-                tool=pairs[p].tool_name, wobj=pairs[p].wobj_name,
-                config_before=solved.config_before[i], note=notes[i]),
-                solved.failures[i], robot, False))
+        if failures and not ok.all():
+            self._rows_failed(rows, np.flatnonzero(~ok), pair, solved, notes)
         keep = np.flatnonzero(ok)
         if not len(keep):
             return
@@ -398,10 +394,39 @@ class _TablePart:
             correction_deg=solved.turn_deg[keep], joint_change=solved.change_deg[keep],
             config_before=[solved.config_before[i] for i in keep.tolist()],
             config_after=config_after, joints=solved.joints_deg[keep],
-            note=[words.setdefault(notes[i], notes[i]) for i in keep.tolist()]))
+            note=[words.setdefault(notes[i], notes[i]) for i in keep.tolist()],
+            compensated=np.ones(len(keep), bool)))
         edits = self._edits(mine, keep, solved, values[keep])
         self.edits.append(EditColumns(array("q", [e[0] for e in edits]),
                                       array("q", [e[1] for e in edits]), [e[2] for e in edits]))
+
+    def _rows_failed(self, rows: np.ndarray, bad: np.ndarray, pair: np.ndarray, solved,
+                     notes: list) -> None:
+        """The rows of the solved table ``rows[bad]`` not compensated, as columns (what
+        :func:`~.object_model.rows.failure_row` makes of each, row by row): joints
+        converted in one batch, configurations written once per distinct one, notes
+        joined once per distinct (failure note, row note)."""
+        table, words, robot, job = self.table, self._words, self.comp.robot, bad.tolist()
+        none = FailureReport("", np.full(robot.n_joints, np.nan), None)   # not explained
+        failures = [solved.failures[i] or none for i in job]
+        q = robot.to_degrees_or_mm(np.array([f.joints for f in failures], float)
+                                   .reshape(len(job), robot.n_joints))
+        q[~np.isfinite(q).all(axis=1)] = np.nan
+        joined: dict = {}
+        mine = rows[bad]
+        self.parts.append(RowColumns(
+            names=[table.names[k] for k in mine.tolist()], file=self.program.file,
+            line=table.line[mine], column=table.column[mine],
+            status=[words.setdefault(s, s) for s in (
+                f.status or solved.reason[i] for f, i in zip(failures, job))],
+            pair=pair[bad], pair_names=self.pair_names,
+            correction_mm=np.full((len(job), 3), np.nan), correction_deg=np.full(len(job), np.nan),
+            joint_change=np.full(len(job), np.nan),
+            config_before=[solved.config_before[i] for i in job],
+            config_after=["" if f.config is None else config_text(f.config) for f in failures],
+            joints=q, compensated=np.zeros(len(job), bool),
+            note=[joined.get(key) or joined.setdefault(key, failure_note(*key)) for key in zip(
+                [f.note for f in failures], [notes[i] for i in job])]))
 
     def _solved_note(self, unused: bool, pair: int, tool_note: str) -> str:
         """The note of a solved row (:meth:`notes` of a row moved to ``unused`` or not)."""
@@ -460,4 +485,4 @@ def _empty_columns(file: str, n_joints: int) -> RowColumns:
                       pair_names=[], correction_mm=np.zeros((0, 3)),
                       correction_deg=np.zeros(0), joint_change=np.zeros(0),
                       config_before=[], config_after=[], joints=np.zeros((0, n_joints)),
-                      note=[])
+                      note=[], compensated=np.zeros(0, bool))
