@@ -164,3 +164,40 @@ def test_failure_row_is_the_row_with_why(configless, row_note):
         got = failure_row(row, failure, robot, configless)
         expected = _reference_failure_row(row, failure, robot, configless)
         assert _fields(got) == _fields(expected)
+
+
+def test_a_retry_resumed_from_the_first_pass_is_the_retry_from_scratch(comp):
+    """The solver's state kept by a pass without retries (its closed form and reach
+    screen), resumed for the failed targets alone: the statuses, joints and nominal joints
+    of solving them again from scratch with every stage."""
+    from olp_compensate.calibration.simulate import random_joints
+    from olp_compensate.compensation.ik.solver import solve_with_nominal
+
+    robot = comp.robot
+    q = robot.joints_from_controller(random_joints(robot, 80, np.random.default_rng(0),
+                                                   margin=0.0))
+    q[::3, 4] = 1e-3                            # near the wrist's singularity: retries
+    desired = comp.nominal_flange(q)
+    confdata = comp.confdata(q)
+    desired[::7, :3, 3] *= 2.5                  # out of reach
+    args = (comp.family, comp.real_flange_and_jacobian)
+    keep: list = []
+    first, _ = solve_with_nominal(*args, desired, confdata, comp.limits, reach=comp.reach,
+                                  retries=False, ruled=True, keep=keep)
+    failed = np.flatnonzero(~first.success)
+    assert 10 < len(failed) < 80 and len(keep) == 1 and len(keep[0].start) == 80
+    again = (desired[failed], confdata[failed], comp.limits)
+    scratch, nominal = solve_with_nominal(*args, *again, reach=comp.reach, ruled=True)
+    resumed, resumed_nominal = solve_with_nominal(*args, *again, reach=comp.reach,
+                                                  ruled=True, resume=keep[0].rows(failed))
+    assert list(resumed.reason) == list(scratch.reason)
+    assert set(scratch.reason) >= {"ok", "unreachable", "branch_changed"}
+    np.testing.assert_allclose(resumed_nominal, nominal, rtol=0, atol=1e-12)
+    ok = scratch.success
+    np.testing.assert_allclose(resumed.q[ok], scratch.q[ok], rtol=0, atol=1e-7)
+    # the rule's final answers through the Compensator: the same statuses and joints
+    final = [comp.compensate_flanges(desired[failed], desired[failed], confdata[failed],
+                                     resume=state)[2]
+             for state in (None, keep[0].rows(failed))]
+    assert list(final[0].reason) == list(final[1].reason)
+    np.testing.assert_allclose(final[1].q, final[0].q, rtol=0, atol=1e-7, equal_nan=True)

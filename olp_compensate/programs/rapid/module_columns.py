@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...compensation.failures import FailureReport
+from ...compensation.ik.solver import SolverState
 from ...compensation.pose import Compensator
 from ...compensation.report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport,
                                     ReportRows, TargetReport, config_text, config_texts,
@@ -217,7 +218,7 @@ class _TablePart:
         self.others: list[TargetReport] = []
         self.edits: list[EditColumns] = []
         self.defer = type(comp) is Compensator   # a RegionalCompensator retries at once
-        self.failed: list[tuple] = []   # (rows, values, written, flange, poses, pair)
+        self.failed: list[tuple] = []   # (rows, values, written, flange, poses, pair, state)
         self.pair_names = [(p.tool_name, p.wobj_name) for p in plan.pairs]
         self._notes = [p.notes for p in plan.pairs]
         self._words: dict[str, str] = {}   # one string per distinct status and note
@@ -322,7 +323,9 @@ class _TablePart:
         job = np.asarray(job)
         if self.defer and not solved.ok.all():
             j = job[~solved.ok]
-            self.failed.append((j + a, values[j], written[j], flange[j], poses[j], pair[j]))
+            state = solved.state.rows(~solved.ok) if solved.state is not None else None
+            self.failed.append((j + a, values[j], written[j], flange[j], poses[j], pair[j],
+                                state))
         self._rows_solved(job + a, solved, values[job], failures=not self.defer)
 
     def retry_failed(self, chunk: int | None = None, jobs: int = 1) -> None:
@@ -333,7 +336,10 @@ class _TablePart:
         if not self.failed:
             return
         chunk = RETRY_CHUNK if chunk is None else chunk
-        gathered = tuple(np.concatenate(c) for c in zip(*self.failed))
+        states = [f[-1] for f in self.failed]
+        gathered = tuple(np.concatenate(c) for c in zip(*(f[:-1] for f in self.failed)))
+        # the solver's state of each, where every chunk kept one (the retries go on)
+        gathered += (None if any(s is None for s in states) else SolverState.concatenate(states),)
         self.failed = []
         n = len(gathered[0])
         self._shared([(a, min(a + chunk, n)) for a in range(0, n, chunk)],
@@ -341,11 +347,14 @@ class _TablePart:
 
     def _retry_batch(self, gathered: tuple, a: int, b: int) -> None:
         """Rows ``a:b`` of the ``gathered`` targets (rows, values, written, flange, poses,
-        pair) solved again, their rows and edits kept."""
-        rows, values, written, flange, poses, pair = (c[a:b] for c in gathered)
+        pair, solver state or None) solved again from where the first pass stopped, their
+        rows and edits kept."""
+        rows, values, written, flange, poses, pair = (c[a:b] for c in gathered[:-1])
+        state = gathered[-1].rows(slice(a, b)) if gathered[-1] is not None else None
         batch = _Chunk(written=written, base_T_flange=flange, wobj_T_target=poses,
                        entry_pairs=pair, pairs=self.plan.pairs)
-        solved = solve_entries(self.comp, batch, list(range(b - a)), False, self.teacher)
+        solved = solve_entries(self.comp, batch, list(range(b - a)), False, self.teacher,
+                               resume=state)
         self._rows_solved(rows, solved, values, failures=True)
 
     def _rows_not_solved(self, a: int, bad: np.ndarray, known: np.ndarray) -> list[int]:
