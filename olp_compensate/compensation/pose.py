@@ -290,20 +290,25 @@ class Compensator:
     def compensate_flanges(self, desired_real_flange: np.ndarray,
                            requested_flange: np.ndarray | None = None,
                            confdata: np.ndarray | None = None, *, retries: bool = True,
-                           asked=None):
+                           asked=None, keep: list | None = None, resume=None):
         """Solve the real arm for ``desired_real_flange`` (m, 4, 4); return
         (joints URDF (m, n), nominal flange at those joints (m, 4, 4), IKSolution,
         nominal joints of ``requested_flange`` (URDF, m, n) or None). ``retries`` as
         :func:`~.ik.solve`; with them, the failed rows' status is the configuration rule's
         (:func:`~.config_rule.decide`, ``asked`` its predicate of the configuration asked
-        for, default ``confdata``'s), without them it is left for the caller's retry."""
+        for, default ``confdata``'s), without them it is left for the caller's retry.
+        ``keep`` (a list; the caller retries the failed rows with the rule): where the
+        requested and desired poses are the same, the solver's
+        :class:`~.ik.solver.SolverState` is appended to it, and ``resume`` (that state of
+        the rows solved now) goes on from it (:func:`~.ik.solver.solve_with_nominal`)."""
         if (requested_flange is not None and confdata is not None
                 and np.shape(requested_flange) == np.shape(desired_real_flange)
                 and np.array_equal(requested_flange, desired_real_flange)):
             # the same poses: the nominal joints are the closed form solve starts from
             solution, nominal = solve_with_nominal(
                 self.family, self.real_flange_and_jacobian, desired_real_flange, confdata,
-                self.limits, reach=self.reach, retries=retries, ruled=retries)
+                self.limits, reach=self.reach, retries=retries,
+                ruled=retries or keep is not None, keep=keep, resume=resume)
             solution = self.check_axis_ranges(solution)
             nominal = self.controller_joints(nominal, requested_flange)
             if retries:

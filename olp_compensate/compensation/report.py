@@ -200,56 +200,7 @@ def _largest(rows) -> tuple[float, float, float] | None:
     return None if shift < 0 else (shift, turn, max(dq, 0.0))
 
 
-# ---- rows held as columns (a big module compensated in columns) ---------------------
-
-@dataclass(frozen=True, eq=False)
-class RowColumns:
-    """Report rows of compensated targets as columns (see :class:`TargetReport` for the
-    meaning and units of each); ``pair`` indexes ``pair_names`` (tool, wobj)."""
-
-    names: list
-    file: str
-    line: np.ndarray
-    column: np.ndarray
-    status: list
-    pair: np.ndarray
-    pair_names: list
-    correction_mm: np.ndarray
-    correction_deg: np.ndarray
-    joint_change: np.ndarray
-    config_before: list
-    config_after: list
-    joints: np.ndarray
-    note: list
-
-    def __len__(self) -> int:
-        return len(self.names)
-
-    def row(self, i: int) -> TargetReport:
-        """Row ``i`` as a :class:`TargetReport`."""
-        tool, wobj = self.pair_names[int(self.pair[i])]
-        return TargetReport(
-            target=self.names[i], file=self.file, line=int(self.line[i]),
-            column=int(self.column[i]), status=self.status[i], tool=tool, wobj=wobj,
-            correction_mm=tuple(self.correction_mm[i].tolist()),
-            correction_deg=float(self.correction_deg[i]),
-            joint_change=float(self.joint_change[i]), config_before=self.config_before[i],
-            config_after=self.config_after[i], joints=tuple(self.joints[i].tolist()),
-            note=self.note[i])
-
-    @staticmethod
-    def concatenate(parts: list[RowColumns]) -> RowColumns:
-        """One RowColumns of ``parts`` (of one file and the same pairs), in order."""
-        def joined(name):
-            values = [getattr(p, name) for p in parts]
-            if isinstance(values[0], list):
-                return [v for vs in values for v in vs]
-            return np.concatenate(values)
-        first = parts[0]
-        return RowColumns(**{f.name: (getattr(first, f.name) if f.name in ("file", "pair_names")
-                                      else joined(f.name))
-                             for f in dataclasses.fields(RowColumns)})
-
+# ---- rows held as columns (a big module compensated in columns: .row_columns) -------
 
 class RowSequence(Sequence):
     """Report rows that are not a tuple: made on access, with the summaries the report
@@ -316,6 +267,10 @@ class RowSource(Sequence):
         """The rows neither compensated nor needing none, in order."""
         return [r for r in self if not r.fine]
 
+    def fine_mask(self) -> np.ndarray:
+        """(n,) bool: which rows are compensated or need no compensation, in order."""
+        return np.fromiter((r.fine for r in self), bool, len(self))
+
     def csv_lines(self, rows: list[int], writer: CsvRows) -> list[str]:
         """The CSV lines (each ending in a line break) of rows ``rows``, in that order."""
         return [writer.line(self[j]) + "\n" for j in rows]
@@ -370,11 +325,23 @@ class ReportRows(RowSequence, MergedRows):
         return out
 
     def problem_rows(self) -> Sequence:
-        return self.others.problem_rows()   # column rows are all compensated
+        """The rows neither compensated nor needing none, in order (made on access where
+        columns hold some)."""
+        failed = ~self.columns.compensated
+        if not failed.any():
+            return self.others.problem_rows()
+        order = self.order
+        mine = order >= 0
+        problem = np.empty(len(order), bool)
+        problem[mine] = failed[order[mine]]
+        problem[~mine] = ~self.others.fine_mask()[-1 - order[~mine]]
+        return PickedRows(self, np.flatnonzero(problem))
 
     def largest_correction(self) -> tuple[float, float, float] | None:
         c = self.columns
         found = _largest(self.others.compensated_rows())
+        if not c.compensated.all():
+            c = c.taken(np.flatnonzero(c.compensated))
         if not len(c):
             return found
         change = c.joint_change[~np.isnan(c.joint_change)]
@@ -402,7 +369,7 @@ class ReportRows(RowSequence, MergedRows):
             slow = order[~fast]
             theirs = slow < 0
             lines = merged(theirs, others.csv_lines((-1 - slow[theirs]).tolist(), writer),
-                           [writer.line(c.row(j)) + "\n" for j in slow[~theirs].tolist()])
+                           _column_lines(c, slow[~theirs], writer))
             done = 0    # fast rows written
             for a, b in zip(bounds, bounds[1:]):
                 if fast[a]:
@@ -412,6 +379,35 @@ class ReportRows(RowSequence, MergedRows):
                 else:
                     pieces.append("".join(lines[a - done:b - done]))
             yield "".join(pieces)
+
+
+class PickedRows(Sequence):
+    """Rows ``positions`` (k,) int of a sequence of rows, made on access; equal to any
+    sequence of the same rows."""
+
+    def __init__(self, rows: Sequence, positions: np.ndarray):
+        self.rows, self.positions = rows, positions
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        return self.rows[int(self.positions[k])]
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Sequence) and list(self) == list(other)
+
+
+def _column_lines(c: RowColumns, rows: np.ndarray, writer: CsvRows) -> list[str]:
+    """The CSV lines of column rows ``rows`` that are not complete: those of targets not
+    compensated written together (:meth:`CsvRows.failed_lines`), the others row by row."""
+    failed = ~c.compensated[rows]
+    if not failed.any():
+        return [writer.line(c.row(j)) + "\n" for j in rows.tolist()]
+    return merged(failed, writer.failed_lines(c, rows[failed]),
+                  [writer.line(c.row(j)) + "\n" for j in rows[~failed].tolist()])
 
 
 def merged(mask: np.ndarray, yes: list, no: list) -> list:

@@ -28,6 +28,8 @@ class CsvRows:
         # a row with no number (a run-time motion): target, file, line, column, status,
         # tool, wobj, config before and after, note, each already a CSV field
         self.bare_line = "%s,%s,%d,%d,%s,%s,%s,,,,,,%s,%s," + self.empty_joints + ",%s\n"
+        # a row of a target not compensated: no correction, its joints (or none)
+        self.failed_line = "%s,%s,%d,%d,%s,%s,%s,,,,,,%s,%s,%s,%s\n"
         self.quoted = Quoted()
 
     def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
@@ -52,6 +54,32 @@ class CsvRows:
                    *[fixed_rows(c.joints[rows], 6)] * bool(self.n_joints),
                    map(quoted, [c.note[i] for i in r])]
         return list(itertools.chain.from_iterable(zip(*columns)))
+
+    def failed_lines(self, c: RowColumns, rows: np.ndarray) -> list[str]:
+        """The CSV lines (each ending in a line break) of the rows ``rows`` of ``c`` that
+        are not compensated (no correction; joints where all are finite), as :meth:`line`
+        writes them, each column converted in one pass."""
+        if not len(rows):
+            return []
+        quoted = self.quoted.__getitem__
+        r = rows.tolist()
+        names = [c.names[i] for i in r]
+        if any(ch in "".join(names) for ch in ',"\n\r'):
+            names = list(map(csv_field, names))
+        tools = [(quoted(t), quoted(w)) for t, w in c.pair_names]
+        tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
+        q = c.joints[rows]
+        found = np.isfinite(q).all(axis=1) if q.shape[1] else np.zeros(len(r), bool)
+        joints = [self.empty_joints] * len(r)
+        for k, text in zip(np.flatnonzero(found).tolist(), fixed_rows(q[found], 6)):
+            joints[k] = text
+        file = quoted(c.file)
+        return [self.failed_line % fields for fields in zip(
+            names, itertools.repeat(file), c.line[rows].tolist(), c.column[rows].tolist(),
+            map(quoted, [c.status[i] for i in r]), tool, wobj,
+            map(quoted, [c.config_before[i] for i in r]),
+            map(quoted, [c.config_after[i] for i in r]), joints,
+            map(quoted, [c.note[i] for i in r]))]
 
     def line(self, r: TargetReport) -> str:
         quoted = self.quoted

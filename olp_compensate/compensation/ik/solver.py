@@ -29,6 +29,8 @@ BLOCK = 2048              # targets per batch of closed_form_newton
 _FIRST_STEPS = 2          # its steps in blocks, before the rows that need more go on together
 _MULTI_START_STEPS = 12   # Newton steps of the multi-start retry
 _RESULT_FIELDS = ("q", "success", "reason", "position_error_m", "rotation_error_rad")
+_STATE_FIELDS = ("q", "success", "reason", "iterations", "position_error_m",
+                 "rotation_error_rad")   # of an IKSolution, in its order
 
 
 @dataclass(frozen=True)
@@ -98,14 +100,52 @@ def solve(family_params: OPWParameters | URParameters,
 
 def solve_with_nominal(family_params: OPWParameters | URParameters,
                        fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-                       target, confdata=None, limits=None, **options
+                       target, confdata=None, limits=None, *, keep: list | None = None,
+                       resume: SolverState | None = None, **options
                        ) -> tuple[IKSolution, np.ndarray]:
     """:func:`solve` (same arguments), and the joints ``(m, 6)`` rad of the nominal closed
     form on the requested branch it starts from (as :func:`nominal_joints_on_branch`
-    gives them), at no extra cost: what the nominal controller does with ``target``."""
+    gives them), at no extra cost: what the nominal controller does with ``target``.
+
+    ``keep`` (a list): the solver's :class:`SolverState` of every target is appended to it
+    (with ``retries`` False: what a later call with ``resume`` goes on from). ``resume``:
+    the state such a call kept for these ``target`` (the same poses, its ``confdata``):
+    the closed form and the reach screen are not made again, the retries go on from it."""
     reach = options.pop("reach", None)
-    return _BranchSolver(family_params, fk_jacobian, target, confdata, limits,
-                         SolveOptions(**options), reach).solve()
+    solver = _BranchSolver(family_params, fk_jacobian, target, confdata, limits,
+                           SolveOptions(**options), reach, resume)
+    out = solver.solve()
+    if keep is not None:
+        keep.append(solver.state())
+    return out
+
+
+@dataclass
+class SolverState:
+    """What :func:`solve_with_nominal` has done for m targets: the configuration solved on
+    ``confdata (m, 4)``, the nominal closed form's joints ``start (m, 6)`` rad,
+    ``stretched (m,)``, ``status (m,)`` (1: no start, or proven out of reach) and the
+    :class:`IKSolution` ``result`` so far (see :class:`_BranchSolver`)."""
+
+    confdata: np.ndarray
+    start: np.ndarray
+    stretched: np.ndarray
+    status: np.ndarray
+    result: IKSolution
+
+    def rows(self, rows) -> SolverState:
+        """The state of targets ``rows`` (an index array or a boolean mask), copied."""
+        r = self.result
+        return SolverState(self.confdata[rows], self.start[rows], self.stretched[rows],
+                           self.status[rows], IKSolution(
+                               *(getattr(r, name)[rows] for name in _STATE_FIELDS)))
+
+    @staticmethod
+    def concatenate(states: list[SolverState]) -> SolverState:
+        """One state of ``states`` one after the other."""
+        return SolverState(*(np.concatenate([getattr(s, name) for s in states]) for name in (
+            "confdata", "start", "stretched", "status")), IKSolution(*(np.concatenate(
+                [getattr(s.result, name) for s in states]) for name in _STATE_FIELDS)))
 
 
 def _empty_solution(m: int) -> IKSolution:
@@ -142,7 +182,7 @@ class _BranchSolver:
     """
 
     def __init__(self, params, fk_jacobian, target, confdata, limits, options: SolveOptions,
-                 reach: ReachBound | None):
+                 reach: ReachBound | None, resume: SolverState | None = None):
         check_family(params)
         self.params, self.fk_jacobian, self.options, self.reach = (params, fk_jacobian,
                                                                    options, reach)
@@ -161,6 +201,18 @@ class _BranchSolver:
         self.stretched = np.zeros(m, bool)        # start is the stretched arm's
         self.status = np.ones(m, int)             # of select_on_branch: 1 = no start at all
         self.result = _empty_solution(m)
+        self.resumed = resume is not None
+        if resume is not None:              # the first stages done: their state, copied
+            state = resume.rows(np.arange(m))
+            self.confdata, self.start, self.stretched, self.status, self.result = (
+                as_confdata(state.confdata, m), state.start, state.stretched, state.status,
+                state.result)
+            self.check_configuration, self.solutions = True, None
+
+    def state(self) -> SolverState:
+        """The state of every target, copied (see :class:`SolverState`)."""
+        return SolverState(self.confdata, self.start, self.stretched, self.status,
+                           self.result).rows(np.arange(len(self.T)))
 
     # -- checks ---------------------------------------------------------------------------
 
@@ -358,8 +410,9 @@ class _BranchSolver:
     def solve(self):
         """All stages in order: the :class:`IKSolution`, and the nominal closed form's
         joints ``(m, 6)`` rad on the requested branch (NaN where it cannot reach)."""
-        self.closed_form_stage()
-        self.screen_reach()
+        if not self.resumed:
+            self.closed_form_stage()
+            self.screen_reach()
         rows = self.failed_rows()
         if len(rows) and self.options.retries:
             self.multi_start(rows, self.start[rows], self.result.q[rows],

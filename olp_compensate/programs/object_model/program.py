@@ -230,17 +230,21 @@ class _Solved:
     tool_note: list
     vplus_text: dict
     failures: list
+    state: object = None    # the solver's SolverState of the rows (retries left out), or None
 
 
 def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
-                  teacher: Compensator | None = None, *, retries: bool = True) -> _Solved:
+                  teacher: Compensator | None = None, *, retries: bool = True,
+                  resume=None) -> _Solved:
     """Solve the real arm for the job entries and derive what the report and the emitter
     need (``teacher``: the robot the targets were taught on, see :func:`_taught_flanges`).
     ``res``: a Resolution, or anything with its arrays ``written``, ``base_T_flange``,
     ``wobj_T_target``, ``entry_pairs`` and its ``pairs``. ``retries`` False (a plain
     Compensator only): the solver's retries of failed entries are left out, and so is the
     account of why they failed (their ``failures`` are None): the caller solves them
-    again."""
+    again, from the solver's state where the result keeps one (``state``: every entry
+    with a written configuration, the program's tool the real one) by passing that
+    state of the entries it solves as ``resume``."""
     robot = comp.robot
     n = len(job)
     written = res.written[job, 7:11]
@@ -254,13 +258,18 @@ def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
     reason = np.empty(n, dtype=object)
     failures: list = [None] * n
     regional = _regions(comp, res, job, requested)
-    for idx, conf in _configuration_groups(comp, written, has_conf, requested):
+    groups = _configuration_groups(comp, written, has_conf, requested)
+    single = len(groups) == 1 and groups[0][1] is not None and regional is None
+    keep = [] if single and not retries else None
+    resume = resume if single and resume is not None and len(resume.start) == n else None
+    for idx, conf in groups:
         if teacher is not None:
             desired[idx] = _taught_flanges(teacher, requested[idx], conf, desired[idx],
                                            tool_change[idx])
         if regional is None:
             qi, fi, sol, nomi = comp.compensate_flanges(desired[idx], requested[idx], conf,
-                                                        retries=retries)
+                                                        retries=retries, keep=keep,
+                                                        resume=resume)
             explained = explain_failures(comp, sol, desired[idx], conf) \
                 if retries and not sol.success.all() else ()
         else:
@@ -302,7 +311,8 @@ def solve_entries(comp: Compensator, res, job: list[int], vplus: bool,
         turn_deg=np.degrees(rotation_angle_between(new_targets[:, :3, :3],
                                                    original[:, :3, :3])),
         change_deg=change, joints_deg=robot.to_degrees_or_mm(q_ctrl), tool_note=tool_note,
-        vplus_text=_vplus_texts(comp, q, ok) if vplus else {}, failures=failures)
+        vplus_text=_vplus_texts(comp, q, ok) if vplus else {}, failures=failures,
+        state=keep[0] if keep else None)
 
 
 def _regions(comp: Compensator, res, job: list[int], requested: np.ndarray):

@@ -4,9 +4,7 @@ its best joints and configuration), and the note of one that was."""
 
 from __future__ import annotations
 
-import dataclasses
-
-import numpy as np
+import math
 
 from ...compensation.report import TargetReport, config_text
 from ..targets import QUAT_WXYZ
@@ -54,13 +52,20 @@ def failure_row(row: TargetReport, failure, robot, configless: bool) -> TargetRe
     joints found and their configuration."""
     if failure is None:
         return row
-    note = failure.note if not row.note else f"{failure.note}; {row.note}"
-    joints = ()
-    if np.all(np.isfinite(failure.joints)):
-        joints = tuple(robot.to_degrees_or_mm(failure.joints[None])[0].tolist())
+    joints = robot.to_degrees_or_mm(failure.joints).tolist()
     config = config_text(failure.config) if failure.config is not None and not configless else ""
-    return dataclasses.replace(row, status=failure.status or row.status, note=note,
-                               joints=joints, config_after=config)
+    return TargetReport(
+        target=row.target, file=row.file, line=row.line, column=row.column,
+        status=failure.status or row.status, tool=row.tool, wobj=row.wobj,
+        correction_mm=row.correction_mm, correction_deg=row.correction_deg,
+        joint_change=row.joint_change, config_before=row.config_before,
+        config_after=config, joints=tuple(joints) if math.isfinite(sum(joints)) else (),
+        note=failure_note(failure.note, row.note))
+
+
+def failure_note(why: str, row_note: str) -> str:
+    """The note of a row not compensated: ``why`` (the failure's note), then the row's own."""
+    return f"{why}; {row_note}" if row_note else why
 
 
 def solved_note(notes: tuple[str, ...], tool_note: str) -> str:

@@ -186,6 +186,15 @@ class RowsWithDisplaced(RowSource, MergedRows):
         out.objects = [change(r) if r.status in COMPENSATED else r for r in self.objects]
         return out
 
+    def fine_mask(self) -> np.ndarray:
+        """Which rows are compensated or need none, in order, without making the table's
+        rows (a run-time motion is neither)."""
+        objects, order = self.objects, self.order
+        fine = np.fromiter((r.fine for r in objects), bool, len(objects))
+        out = np.zeros(len(order), bool)
+        out[order >= 0] = fine[order[order >= 0]]
+        return out
+
     def problem_rows(self) -> Sequence:
         """The rows neither compensated nor needing none, in order, made on access (a
         run-time motion is one of them)."""

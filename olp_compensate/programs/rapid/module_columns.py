@@ -40,16 +40,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...compensation.failures import FailureReport
+from ...compensation.ik.solver import SolverState
 from ...compensation.pose import Compensator
 from ...compensation.report import (LINE_COLUMN, NOT_MOVED, ChainedRows, CompensationReport,
-                                    ReportRows, RowColumns, TargetReport, config_texts,
+                                    ReportRows, TargetReport, config_text, config_texts,
                                     row_source)
+from ...compensation.row_columns import RowColumns
 from ...kinematics.conventions import (MM, invert_pose, matrix_from_quat_wxyz,
                                        pose_from_rotation_translation, quat_wxyz_from_matrix)
 from ..emit import EditColumns, EditsInTurn, SplicedText, target_edits
 from ..emit_batch import edits_for_spans
 from ..object_model.program import module_rows_and_edits, solve_entries
-from ..object_model.rows import failure_row, solved_note, written_row
+from ..object_model.rows import failure_note, solved_note, written_row
 from .column_plans import Plan, modules_sharing_names, plain_rows, task_plans
 from ..semantics import resolve_task
 from ..target_values import bad_values, value_problem
@@ -215,7 +218,7 @@ class _TablePart:
         self.others: list[TargetReport] = []
         self.edits: list[EditColumns] = []
         self.defer = type(comp) is Compensator   # a RegionalCompensator retries at once
-        self.failed: list[tuple] = []   # (rows, values, written, flange, poses, pair)
+        self.failed: list[tuple] = []   # (rows, values, written, flange, poses, pair, state)
         self.pair_names = [(p.tool_name, p.wobj_name) for p in plan.pairs]
         self._notes = [p.notes for p in plan.pairs]
         self._words: dict[str, str] = {}   # one string per distinct status and note
@@ -320,7 +323,9 @@ class _TablePart:
         job = np.asarray(job)
         if self.defer and not solved.ok.all():
             j = job[~solved.ok]
-            self.failed.append((j + a, values[j], written[j], flange[j], poses[j], pair[j]))
+            state = solved.state.rows(~solved.ok) if solved.state is not None else None
+            self.failed.append((j + a, values[j], written[j], flange[j], poses[j], pair[j],
+                                state))
         self._rows_solved(job + a, solved, values[job], failures=not self.defer)
 
     def retry_failed(self, chunk: int | None = None, jobs: int = 1) -> None:
@@ -331,7 +336,10 @@ class _TablePart:
         if not self.failed:
             return
         chunk = RETRY_CHUNK if chunk is None else chunk
-        gathered = tuple(np.concatenate(c) for c in zip(*self.failed))
+        states = [f[-1] for f in self.failed]
+        gathered = tuple(np.concatenate(c) for c in zip(*(f[:-1] for f in self.failed)))
+        # the solver's state of each, where every chunk kept one (the retries go on)
+        gathered += (None if any(s is None for s in states) else SolverState.concatenate(states),)
         self.failed = []
         n = len(gathered[0])
         self._shared([(a, min(a + chunk, n)) for a in range(0, n, chunk)],
@@ -339,11 +347,14 @@ class _TablePart:
 
     def _retry_batch(self, gathered: tuple, a: int, b: int) -> None:
         """Rows ``a:b`` of the ``gathered`` targets (rows, values, written, flange, poses,
-        pair) solved again, their rows and edits kept."""
-        rows, values, written, flange, poses, pair = (c[a:b] for c in gathered)
+        pair, solver state or None) solved again from where the first pass stopped, their
+        rows and edits kept."""
+        rows, values, written, flange, poses, pair = (c[a:b] for c in gathered[:-1])
+        state = gathered[-1].rows(slice(a, b)) if gathered[-1] is not None else None
         batch = _Chunk(written=written, base_T_flange=flange, wobj_T_target=poses,
                        entry_pairs=pair, pairs=self.plan.pairs)
-        solved = solve_entries(self.comp, batch, list(range(b - a)), False, self.teacher)
+        solved = solve_entries(self.comp, batch, list(range(b - a)), False, self.teacher,
+                               resume=state)
         self._rows_solved(rows, solved, values, failures=True)
 
     def _rows_not_solved(self, a: int, bad: np.ndarray, known: np.ndarray) -> list[int]:
@@ -369,20 +380,14 @@ class _TablePart:
         """Rows and edits of the solved table ``rows`` (their numbers as written
         ``values``); ``failures``: the rows not compensated too (else they are left to
         :meth:`retry_failed`)."""
-        table, pairs, robot = self.table, self.plan.pairs, self.comp.robot
+        table = self.table
         pair = self.plan.pair[rows]
         # the note of each row, made once per (unused, pair, real-tool note)
         notes = list(map(functools.lru_cache(None)(self._solved_note),
                          (self.plan.uses[rows] == 0).tolist(), pair.tolist(), solved.tool_note))
         ok = solved.ok
-        for i in np.flatnonzero(~ok).tolist() if failures else ():
-            k, p = int(rows[i]), int(pair[i])
-            self.others.append(failure_row(TargetReport(
-                target=table.names[k], file=self.program.file, line=int(table.line[k]),
-                column=int(table.column[k]), status=solved.reason[i],
-                tool=pairs[p].tool_name, wobj=pairs[p].wobj_name,
-                config_before=solved.config_before[i], note=notes[i]),
-                solved.failures[i], robot, False))
+        if failures and not ok.all():
+            self._rows_failed(rows, np.flatnonzero(~ok), pair, solved, notes)
         keep = np.flatnonzero(ok)
         if not len(keep):
             return
@@ -398,10 +403,39 @@ class _TablePart:
             correction_deg=solved.turn_deg[keep], joint_change=solved.change_deg[keep],
             config_before=[solved.config_before[i] for i in keep.tolist()],
             config_after=config_after, joints=solved.joints_deg[keep],
-            note=[words.setdefault(notes[i], notes[i]) for i in keep.tolist()]))
+            note=[words.setdefault(notes[i], notes[i]) for i in keep.tolist()],
+            compensated=np.ones(len(keep), bool)))
         edits = self._edits(mine, keep, solved, values[keep])
         self.edits.append(EditColumns(array("q", [e[0] for e in edits]),
                                       array("q", [e[1] for e in edits]), [e[2] for e in edits]))
+
+    def _rows_failed(self, rows: np.ndarray, bad: np.ndarray, pair: np.ndarray, solved,
+                     notes: list) -> None:
+        """The rows of the solved table ``rows[bad]`` not compensated, as columns (what
+        :func:`~.object_model.rows.failure_row` makes of each, row by row): joints
+        converted in one batch, configurations written once per distinct one, notes
+        joined once per distinct (failure note, row note)."""
+        table, words, robot, job = self.table, self._words, self.comp.robot, bad.tolist()
+        none = FailureReport("", np.full(robot.n_joints, np.nan), None)   # not explained
+        failures = [solved.failures[i] or none for i in job]
+        q = robot.to_degrees_or_mm(np.array([f.joints for f in failures], float)
+                                   .reshape(len(job), robot.n_joints))
+        q[~np.isfinite(q).all(axis=1)] = np.nan
+        joined: dict = {}
+        mine = rows[bad]
+        self.parts.append(RowColumns(
+            names=[table.names[k] for k in mine.tolist()], file=self.program.file,
+            line=table.line[mine], column=table.column[mine],
+            status=[words.setdefault(s, s) for s in (
+                f.status or solved.reason[i] for f, i in zip(failures, job))],
+            pair=pair[bad], pair_names=self.pair_names,
+            correction_mm=np.full((len(job), 3), np.nan), correction_deg=np.full(len(job), np.nan),
+            joint_change=np.full(len(job), np.nan),
+            config_before=[solved.config_before[i] for i in job],
+            config_after=["" if f.config is None else config_text(f.config) for f in failures],
+            joints=q, compensated=np.zeros(len(job), bool),
+            note=[joined.get(key) or joined.setdefault(key, failure_note(*key)) for key in zip(
+                [f.note for f in failures], [notes[i] for i in job])]))
 
     def _solved_note(self, unused: bool, pair: int, tool_note: str) -> str:
         """The note of a solved row (:meth:`notes` of a row moved to ``unused`` or not)."""
@@ -460,4 +494,4 @@ def _empty_columns(file: str, n_joints: int) -> RowColumns:
                       pair_names=[], correction_mm=np.zeros((0, 3)),
                       correction_deg=np.zeros(0), joint_change=np.zeros(0),
                       config_before=[], config_after=[], joints=np.zeros((0, n_joints)),
-                      note=[])
+                      note=[], compensated=np.zeros(0, bool))
