@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 import numpy as np
 
 from .ik import IKSolution, closed_form_inverse, refine
-from .ik.stalls import BehindAndStalled
+from .ik.stalls import BehindAndStalled, FarOutside
 
 if TYPE_CHECKING:
     from .pose import Compensator
@@ -252,21 +252,57 @@ def _newton_once(comp: Compensator, flat: np.ndarray, desired: np.ndarray,
     run once per ``first`` copy (:func:`_first_copies`; a copy's iterates are its first's)
     and not at all where not given ('unreachable'); :data:`SEARCH_POOL` starts iterate at
     once, and a start that has stalled behind another of its target stops early
-    (:class:`~.ik.stalls.BehindAndStalled`: it cannot be the one kept)."""
+    (:class:`~.ik.stalls.BehindAndStalled`: it cannot be the one kept). A start that ends
+    outside the ranges by its first step's bound (:class:`~.ik.stalls.FarOutside`) is set
+    aside and run only where no end of its target is inside the ranges; elsewhere it can
+    be neither reported nor change the status, and it ends 'ok' at its start plus its
+    first step (errors NaN: not refined)."""
     r, n = flat.shape
-    solve = given & (first == np.arange(r))
+    solve = np.flatnonzero(given & (first == np.arange(r)))
     ends = _Ends(q=np.full((r, n), np.nan), reason=np.full(r, "unreachable", dtype="<U14"),
                  position_error_m=np.full(r, np.inf), rotation_error_rad=np.full(r, np.inf))
-    if np.any(solve):
-        result = refine(comp.real_flange_and_jacobian, flat[solve], desired[target[solve]],
-                        None, 1e-9, 1e-9, SEARCH_STEPS, pool=SEARCH_POOL,
-                        drop=BehindAndStalled(target[solve]))
-        ends.q[solve], ends.reason[solve] = result.q, result.reason
-        ends.position_error_m[solve] = result.position_error_m
-        ends.rotation_error_rad[solve] = result.rotation_error_rad
+    if len(solve):
+        robot = comp.robot
+        revolute = np.array([joint.kind == "revolute" for joint in robot.joints])
+        park = FarOutside(robot.controller_from_joints, robot.controller_ranges, revolute,
+                          target[solve])
+        _refined(comp, ends, solve, flat, desired, target, park)
+        parked = solve[park.rows]
+        decided = _inside_somewhere(comp, ends, target, parked)
+        ends.q[parked[decided]] = park.ends[decided]
+        ends.reason[parked[decided]] = "ok"
+        ends.position_error_m[parked[decided]] = np.nan
+        ends.rotation_error_rad[parked[decided]] = np.nan
+        if not np.all(decided):
+            _refined(comp, ends, parked[~decided], flat, desired, target, None)
     return _Ends(q=ends.q[first], reason=ends.reason[first],
                  position_error_m=ends.position_error_m[first],
                  rotation_error_rad=ends.rotation_error_rad[first])
+
+
+def _refined(comp: Compensator, ends: _Ends, rows: np.ndarray, flat: np.ndarray,
+             desired: np.ndarray, target: np.ndarray, park: FarOutside | None) -> None:
+    """The search's Newton of the starts ``flat[rows]`` toward ``desired[target[rows]]``,
+    written into ``ends`` at ``rows``."""
+    result = refine(comp.real_flange_and_jacobian, flat[rows], desired[target[rows]], None,
+                    1e-9, 1e-9, SEARCH_STEPS, pool=SEARCH_POOL,
+                    drop=BehindAndStalled(target[rows]), park=park)
+    ends.q[rows], ends.reason[rows] = result.q, result.reason
+    ends.position_error_m[rows] = result.position_error_m
+    ends.rotation_error_rad[rows] = result.rotation_error_rad
+
+
+def _inside_somewhere(comp: Compensator, ends: _Ends, target: np.ndarray,
+                      rows: np.ndarray) -> np.ndarray:
+    """(len(rows),) bool: whether the target of each of ``rows`` has an end that reached
+    it inside every range and limit (as :func:`_candidates` judges it)."""
+    robot = comp.robot
+    reached = np.flatnonzero(np.isin(ends.reason, ("ok", "singular")))
+    if not len(rows) or not len(reached):
+        return np.zeros(len(rows), bool)
+    q = turn_toward_ranges(robot, robot.controller_from_joints(ends.q[reached]))
+    inside = reached[~robot.outside_ranges(q).any(axis=1)]
+    return np.isin(target[rows], target[inside])
 
 
 def confdata_asked(comp: Compensator, confdata: np.ndarray | None) -> Asked:

@@ -11,11 +11,20 @@ all-failing module), 100 times less than the margin. It leaves the batch, reason
 'unreachable' (stalled), where the solver would have given it up only after 20 steps in a
 row without progress (:data:`~.newton._STALL_STEPS`). The start kept, and every start
 within the margin of it, runs exactly as before.
+
+A start may also be set aside before its first step (:class:`FarOutside`): one whose first
+Newton step is short and which lies outside an axis range (modulo whole turns) by far more
+than that step, so that it ends outside the ranges; the search runs it later only where its
+target has no end inside the ranges (issue 32 item 3).
 """
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
+
+from .normal_equations import DAMPING, gauss_newton_steps
 
 STALL_WINDOW = 5
 """Newton steps over which a stalled start's error has not fallen by :data:`STALL_RELATIVE`."""
@@ -56,3 +65,79 @@ class BehindAndStalled:
         self.history[act, slot] = cost
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
         return stalled & (self.score[act] > best + self.margin)
+
+
+PARK_FACTOR = 4.0
+"""How many times its first Newton step (controller axes, rad/m, largest axis) a start must
+lie outside an axis range to be set aside: while the steps contract by at least half each,
+the whole travel from the start is at most twice the first step."""
+PARK_STEP = 0.05
+"""rad/m: the largest first step (URDF and controller axes) of a start set aside: a start
+this near its end is in Newton's quadratic regime (the search's converging starts move by
+under 0.02 rad from the nominal closed form to the calibrated arm)."""
+
+
+def past_ranges(q_ctrl: np.ndarray, ranges: np.ndarray, revolute: np.ndarray) -> np.ndarray:
+    """(k,) how far (rad or m) ``q_ctrl (k, n)`` lies past the controller's ``ranges (n,
+    2)``, the largest over axes, each ``revolute (n,)`` axis at its whole turn nearest the
+    range: positive outside, else minus the room left to the nearest edge (an axis without
+    a finite range, or a revolute one of a full turn or more, holds every value: -inf)."""
+    q = np.asarray(q_ctrl, dtype=float)
+    lo, hi = ranges[:, 0], ranges[:, 1]
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    centre = np.where(finite, (lo + hi) / 2, 0.0)
+    half = np.where(finite, (hi - lo) / 2, np.inf)
+    plain = np.abs(q - centre) - half
+    turned = np.abs(np.remainder(q - centre + np.pi, 2 * np.pi) - np.pi) - half
+    past = np.where(revolute, np.where(half < np.pi, turned, -np.inf), plain)
+    return np.max(np.where(finite, past, -np.inf), axis=-1, initial=-np.inf)
+
+
+class FarOutside:
+    """The ``park`` of :func:`~.newton.pooled_newton` for a search's starts: sets aside a
+    start, as it joins, whose first Newton step ``d`` (Gauss-Newton, as
+    :func:`~.newton.newton_step` takes it) is at most :data:`PARK_STEP` and which lies
+    outside an axis range (modulo whole turns) by more than :data:`PARK_FACTOR` times
+    ``|d|`` (controller axes, largest): it ends outside the ranges. Only where a start of
+    its target (``groups (r,)`` int, the target of each row of the Newton) joined with it
+    or before lies inside the ranges by as much (it will most likely end inside: the
+    set-aside start is then not needed). ``controller(q_urdf (k, n)) -> (k, n)`` the
+    controller axes (linear), ``ranges (n, 2)`` and ``revolute (n,)`` as
+    :func:`past_ranges`. After the Newton, :attr:`rows` are the starts set aside (rows of
+    the Newton) and :attr:`ends` (len(rows), n) URDF rad, each one's start plus its first
+    step."""
+
+    def __init__(self, controller: Callable[[np.ndarray], np.ndarray], ranges: np.ndarray,
+                 revolute: np.ndarray, groups: np.ndarray, factor: float = PARK_FACTOR,
+                 step: float = PARK_STEP):
+        self.controller, self.ranges = controller, np.asarray(ranges, dtype=float)
+        self.revolute = np.asarray(revolute, dtype=bool)
+        self.groups = np.asarray(groups, dtype=int)
+        self.inside = np.zeros(int(np.max(self.groups, initial=-1)) + 1, bool)
+        self.factor, self.step = float(factor), float(step)
+        self._rows: list[np.ndarray] = []
+        self._ends: list[np.ndarray] = []
+
+    def __call__(self, rows: np.ndarray, q: np.ndarray, jac: np.ndarray,
+                 err: np.ndarray) -> np.ndarray:
+        """(k,) bool: which of the joining ``rows (k,)`` (at ``q (k, n)`` URDF rad, with
+        Jacobians ``jac (k, 6, n)`` and pose errors ``err (k, 6)``) are set aside."""
+        past = past_ranges(self.controller(q), self.ranges, self.revolute)
+        d = gauss_newton_steps(jac, err, DAMPING)
+        travel = np.max(np.abs(self.controller(d)), axis=1)
+        bound = np.where((np.max(np.abs(d), axis=1) <= self.step) & (travel <= self.step),
+                         self.factor * travel + 1e-9, np.inf)
+        self.inside[self.groups[rows[-past > bound]]] = True
+        park = (past > bound) & self.inside[self.groups[rows]]
+        self._rows.append(rows[park])
+        self._ends.append(q[park] + d[park])
+        return park
+
+    @property
+    def rows(self) -> np.ndarray:
+        return np.concatenate(self._rows) if self._rows else np.zeros(0, int)
+
+    @property
+    def ends(self) -> np.ndarray:
+        n = len(self.ranges)
+        return np.concatenate(self._ends) if self._ends else np.zeros((0, n))
