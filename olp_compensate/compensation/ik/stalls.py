@@ -14,8 +14,8 @@ within the margin of it, runs exactly as before.
 
 A start may also be set aside before its first step (:class:`FarOutside`): one whose first
 Newton step is short and which lies outside an axis range (modulo whole turns) by far more
-than that step, so that it ends outside the ranges; the search runs it later only where its
-target has no end inside the ranges (issue 32 item 3).
+than that step, so that it ends outside the ranges, near its first step's end; the search
+refines it only if the rule reports its joints (issue 32 item 3).
 """
 
 from __future__ import annotations
@@ -98,22 +98,16 @@ class FarOutside:
     start, as it joins, whose first Newton step ``d`` (Gauss-Newton, as
     :func:`~.newton.newton_step` takes it) is at most :data:`PARK_STEP` and which lies
     outside an axis range (modulo whole turns) by more than :data:`PARK_FACTOR` times
-    ``|d|`` (controller axes, largest): it ends outside the ranges. Only where a start of
-    its target (``groups (r,)`` int, the target of each row of the Newton) joined with it
-    or before lies inside the ranges by as much (it will most likely end inside: the
-    set-aside start is then not needed). ``controller(q_urdf (k, n)) -> (k, n)`` the
-    controller axes (linear), ``ranges (n, 2)`` and ``revolute (n,)`` as
-    :func:`past_ranges`. After the Newton, :attr:`rows` are the starts set aside (rows of
-    the Newton) and :attr:`ends` (len(rows), n) URDF rad, each one's start plus its first
-    step."""
+    ``|d|`` (controller axes, largest): it ends outside the ranges, within ``|d|`` of its
+    start plus ``d``. ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes
+    (linear), ``ranges (n, 2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the
+    Newton, :attr:`rows` are the starts set aside (rows of the Newton) and :attr:`ends`
+    (len(rows), n) URDF rad, each one's start plus its first step."""
 
     def __init__(self, controller: Callable[[np.ndarray], np.ndarray], ranges: np.ndarray,
-                 revolute: np.ndarray, groups: np.ndarray, factor: float = PARK_FACTOR,
-                 step: float = PARK_STEP):
+                 revolute: np.ndarray, factor: float = PARK_FACTOR, step: float = PARK_STEP):
         self.controller, self.ranges = controller, np.asarray(ranges, dtype=float)
         self.revolute = np.asarray(revolute, dtype=bool)
-        self.groups = np.asarray(groups, dtype=int)
-        self.inside = np.zeros(int(np.max(self.groups, initial=-1)) + 1, bool)
         self.factor, self.step = float(factor), float(step)
         self._rows: list[np.ndarray] = []
         self._ends: list[np.ndarray] = []
@@ -122,15 +116,18 @@ class FarOutside:
                  err: np.ndarray) -> np.ndarray:
         """(k,) bool: which of the joining ``rows (k,)`` (at ``q (k, n)`` URDF rad, with
         Jacobians ``jac (k, 6, n)`` and pose errors ``err (k, 6)``) are set aside."""
+        park = np.zeros(len(rows), bool)
         past = past_ranges(self.controller(q), self.ranges, self.revolute)
-        d = gauss_newton_steps(jac, err, DAMPING)
+        some = np.flatnonzero(past > 0.0)
+        if not len(some):
+            return park
+        d = gauss_newton_steps(jac[some], err[some], DAMPING)
         travel = np.max(np.abs(self.controller(d)), axis=1)
-        bound = np.where((np.max(np.abs(d), axis=1) <= self.step) & (travel <= self.step),
-                         self.factor * travel + 1e-9, np.inf)
-        self.inside[self.groups[rows[-past > bound]]] = True
-        park = (past > bound) & self.inside[self.groups[rows]]
-        self._rows.append(rows[park])
-        self._ends.append(q[park] + d[park])
+        far = ((np.max(np.abs(d), axis=1) <= self.step) & (travel <= self.step)
+               & (past[some] > self.factor * travel + 1e-9))
+        park[some[far]] = True
+        self._rows.append(rows[some[far]])
+        self._ends.append(q[some[far]] + d[far])
         return park
 
     @property
