@@ -234,8 +234,8 @@ def pooled_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     """:func:`damped_newton` (no multi-start) of the rows of finite ``q0 (m, n)``
     toward ``target (m, 4, 4)`` with at most ``pool`` rows iterating at once: when half of
     them have finished, the next rows in order join. ``drop(steps, rows, cost, err) ->
-    (k,) bool`` after each step, on the rows iterating (``steps (k,)`` each one's steps
-    so far): those it names leave as stalled. ``park(rows, q, jac, err) -> (k,) bool`` on
+    (k,) bool`` as rows join (its answer unused) and after each step, on the rows
+    iterating (``steps (k,)`` each one's steps so far): those it names leave as stalled. ``park(rows, q, jac, err) -> (k,) bool`` on
     the rows joining that have not converged at their start: those it names leave at once,
     not converged nor stalled, ``q`` their start. Returns q, jac, err, iterations, converged,
     stalled as :func:`damped_newton`, but ``jac`` only of the converged rows, in order
@@ -254,6 +254,9 @@ def pooled_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
         while len(waiting) and len(p.act) <= pool // 2:     # (rows set aside leave at once)
             rows, waiting = waiting[:pool - len(p.act)], waiting[pool - len(p.act):]
             p.join(fk_jacobian, rows, q0[rows], target[rows])
+            if drop is not None:                  # their errors at the start (none stops)
+                new = slice(len(p.act) - len(rows), None)
+                drop(p.steps[new], p.act[new], p.cost[new], p.e[new])
             if park is not None:
                 _park(p, park, len(rows), err, position_tol, rotation_tol)
         position, rotation = error_norms(p.e)
