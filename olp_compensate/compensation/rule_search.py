@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 import numpy as np
 
 from .ik import closed_form_inverse, refine
-from .ik.stalls import BehindAndStalled, FarOutside
+from .ik.stalls import BehindAndStalled, CrawlingSettled, FarOutside
 
 if TYPE_CHECKING:
     from .pose import Compensator
@@ -275,12 +275,15 @@ def refined_rough(comp: Compensator, found: list[Candidates], picks: list[np.nda
     """``found`` (blocks of candidates) with the rough candidates ``picks[i] (p, 2)``
     (target, start) of block i refined toward ``desired[i] (p, 4, 4)``, all in one Newton
     (from the rough joints: the same end, within the search's tolerance, as from the
-    start), and judged again (:class:`Candidates`: no longer rough)."""
+    start; one that crawls where its target has another candidate that reached it stops:
+    :class:`~.ik.stalls.CrawlingSettled`), and judged again (:class:`Candidates`: no
+    longer rough)."""
     robot = comp.robot
     q = np.concatenate([f.q[p[:, 0], p[:, 1]] for f, p in zip(found, picks)])
+    settled = np.concatenate([_settled(f, p) for f, p in zip(found, picks)])
     result = refine(comp.real_flange_and_jacobian, robot.joints_from_controller(q),
                     np.concatenate(desired), None, 1e-9, 1e-9, SEARCH_STEPS,
-                    pool=SEARCH_POOL)
+                    pool=SEARCH_POOL, drop=CrawlingSettled(settled))
     judged = _judged(comp, result.q, result.reason, np.ones(len(q), bool))
     out, at = [], 0
     for f, p in zip(found, picks):
@@ -299,6 +302,15 @@ def refined_rough(comp: Compensator, found: list[Candidates], picks: list[np.nda
         fields["rough"][where] = False
         out.append(Candidates(**fields, cfx_of=f.cfx_of, own=f.own))
     return out
+
+
+def _settled(found: Candidates, picks: np.ndarray) -> np.ndarray:
+    """(p,) whether the target of each of ``picks (p, 2)`` (target, start) has another
+    candidate than the one picked that reached it (refined, or rough: then refined in
+    turn, should the rule pick it)."""
+    other = found.reached.copy()
+    other[picks[:, 0], picks[:, 1]] = False
+    return np.any(other[picks[:, 0]], axis=1)
 
 
 def rows_of(found: Candidates, rows: np.ndarray) -> Candidates:

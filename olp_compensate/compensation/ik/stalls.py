@@ -78,6 +78,24 @@ class BehindAndStalled:
         return (stalled | crawling) & (self.score[act] > best + self.margin)
 
 
+class CrawlingSettled:
+    """The ``drop`` of :func:`~.newton.pooled_newton` for r starts refined one per target:
+    stops a start whose squared error fell by less than :data:`CRAWL_RELATIVE` over
+    :data:`STALL_WINDOW` steps where ``settled (r,)`` (its target has another candidate
+    that reached it: the start matters only if it converges, see the module)."""
+
+    def __init__(self, settled: np.ndarray):
+        self.settled = np.asarray(settled, dtype=bool)
+        self.history = np.full((len(self.settled), STALL_WINDOW), np.inf)
+
+    def __call__(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
+                 err: np.ndarray) -> np.ndarray:
+        slot = steps % STALL_WINDOW
+        before = self.history[act, slot]
+        self.history[act, slot] = cost
+        return self.settled[act] & (cost > (1.0 - CRAWL_RELATIVE) * before)
+
+
 PARK_FACTOR = 4.0
 """How many times its first Newton step (controller axes, rad/m, largest axis) a start must
 lie outside an axis range to be set aside: while the steps contract by at least half each,
