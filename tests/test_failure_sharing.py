@@ -281,3 +281,44 @@ def test_the_searchs_early_stops_give_the_rules_answers_of_a_full_refinement(
     assert np.array_equal(np.isnan(early.q), np.isnan(full.q))
     gap = np.remainder(early.q - full.q + np.pi, 2 * np.pi) - np.pi
     assert np.nanmax(np.abs(gap)) < 1e-7
+
+
+def test_a_start_its_first_step_cannot_take_to_the_pose_is_never_set_aside(world):
+    """FarOutside sets aside only starts in Newton's regime: a start whose error its first
+    step takes away (``J d = e``) qualifies when far outside a range; a start at a
+    singularity whose error lies where the arm cannot move (``J^T e = 0``: a zero step)
+    never does, however far outside it lies (such a start stalls: a stretched arm short of
+    a target out of reach); nor do the closed form's starts of targets out of reach."""
+    from olp_compensate.compensation.ik import closed_form_inverse
+    from olp_compensate.compensation.ik.residuals import pose_error
+    from olp_compensate.compensation.ik.stalls import FarOutside
+
+    comp = world
+    robot = comp.robot
+    revolute = np.array([j.kind == "revolute" for j in robot.joints])
+    outside = np.tile([[10.0, 10.5]], (robot.n_joints, 1))    # every start far outside
+    park = FarOutside(robot.controller_from_joints, outside, revolute)
+    q = np.array([[0.3, 0.2, 0.1, 0.4, 0.0, -0.2]])
+    for width in (0.02, 2e-5):                 # the calibrated wrist's singular q5
+        trial = np.repeat(q, 2001, axis=0)
+        trial[:, 4] += np.linspace(-width, width, 2001)
+        smallest = np.linalg.svd(comp.real_flange_and_jacobian(trial)[1], compute_uv=False)
+        q = trial[[np.argmin(smallest[:, -1] / smallest[:, 0])]]
+    _, jac = comp.real_flange_and_jacobian(q)
+    u, sv, _ = np.linalg.svd(jac[0])
+    assert sv[-1] < 1e-6 * sv[0]
+    dq = np.array([[1e-3, -2e-3, 1e-3, 0.0, 2e-3, 1e-3]])
+    e = np.stack([1e-3 * u[:, -1], jac[0] @ dq[0]])           # unmovable; taken by dq
+    parked = park(np.arange(2), np.repeat(q, 2, axis=0), np.repeat(jac, 2, axis=0), e)
+    assert list(parked) == [False, True]
+    desired, _, far = _targets(comp, 40, seed=17)
+    starts = closed_form_inverse(comp.family, desired, clip=True)        # (m, 8, n)
+    rows = np.repeat(np.arange(len(desired)), starts.shape[1])
+    flat = starts.reshape(-1, starts.shape[2])
+    given = np.all(np.isfinite(flat), axis=1)
+    flat, rows = flat[given], rows[given]
+    poses, jac = comp.real_flange_and_jacobian(flat)
+    err = pose_error(desired[rows], poses)
+    parked = park(np.arange(len(flat)), flat, np.array(jac), err)
+    assert not np.any(parked[far[rows]])
+    assert np.mean(parked[~far[rows]]) > 0.5

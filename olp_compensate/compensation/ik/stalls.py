@@ -100,6 +100,11 @@ PARK_FACTOR = 4.0
 """How many times its first Newton step (controller axes, rad/m, largest axis) a start must
 lie outside an axis range to be set aside: while the steps contract by at least half each,
 the whole travel from the start is at most twice the first step."""
+PARK_EXPLAINED = 1e-3
+"""Share of a start's pose error its first step may leave unexplained (``|e - J d| /
+|e|``): a start the Newton can take to its target solves ``J d = e`` (up to the damping);
+one out of reach, at a stretched arm's singularity, takes a short step that leaves most of
+its error (it is not in Newton's regime however short the step)."""
 PARK_STEP = 0.05
 """rad/m: the largest first step (URDF and controller axes) of a start set aside: a start
 this near its end is in Newton's quadratic regime (the search's converging starts move by
@@ -125,10 +130,10 @@ def past_ranges(q_ctrl: np.ndarray, ranges: np.ndarray, revolute: np.ndarray) ->
 class FarOutside:
     """The ``park`` of :func:`~.newton.pooled_newton` for a search's starts: sets aside a
     start, as it joins, whose first Newton step ``d`` (Gauss-Newton, as
-    :func:`~.newton.newton_step` takes it) is at most :data:`PARK_STEP` and which lies
-    outside an axis range (modulo whole turns) by more than :data:`PARK_FACTOR` times
-    ``|d|`` (controller axes, largest): it ends outside the ranges, within ``|d|`` of its
-    start plus ``d``. ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes
+    :func:`~.newton.newton_step` takes it) is at most :data:`PARK_STEP`, explains its
+    pose error (:data:`PARK_EXPLAINED`), and which lies outside an axis range (modulo
+    whole turns) by more than :data:`PARK_FACTOR` times ``|d|`` (controller axes,
+    largest): it ends outside the ranges, within ``|d|`` of its start plus ``d``. ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes
     (linear), ``ranges (n, 2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the
     Newton, :attr:`rows` are the starts set aside (rows of the Newton) and :attr:`ends`
     (len(rows), n) URDF rad, each one's start plus its first step."""
@@ -152,7 +157,10 @@ class FarOutside:
             return park
         d = gauss_newton_steps(jac[some], err[some], DAMPING)
         travel = np.max(np.abs(self.controller(d)), axis=1)
+        left = err[some] - np.einsum("kij,kj->ki", jac[some], d)     # what d leaves
         far = ((np.max(np.abs(d), axis=1) <= self.step) & (travel <= self.step)
+               & (np.linalg.norm(left, axis=1) <= PARK_EXPLAINED * np.linalg.norm(
+                   err[some], axis=1))
                & (past[some] > self.factor * travel + 1e-9))
         park[some[far]] = True
         self._rows.append(rows[some[far]])
