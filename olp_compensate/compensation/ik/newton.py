@@ -235,11 +235,12 @@ def pooled_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     toward ``target (m, 4, 4)`` with at most ``pool`` rows iterating at once: when half of
     them have finished, the next rows in order join. ``drop(steps, rows, cost, err) ->
     (k,) bool`` as rows join (its answer unused) and after each step, on the rows
-    iterating (``steps (k,)`` each one's steps so far): those it names leave as stalled. ``park(rows, q, jac, err) -> (k,) bool`` on
-    the rows joining that have not converged at their start: those it names leave at once,
-    not converged nor stalled, ``q`` their start. Returns q, jac, err, iterations, converged,
-    stalled as :func:`damped_newton`, but ``jac`` only of the converged rows, in order
-    ``(c, 6, n)`` (the others' are not kept: a search's 18,000 starts would hold 5 MB)."""
+    iterating (``steps (k,)`` each one's steps so far): those it names leave as stalled.
+    ``park(rows, q, jac, err) -> (k,) bool`` on the rows joining that have not converged
+    at their start: those it names leave at once, not converged nor stalled, ``q`` their
+    start. Returns q, jac, err, iterations, converged, stalled as :func:`damped_newton`,
+    but ``jac`` only of the converged rows, in order ``(c, 6, n)`` (the others' are not
+    kept: a search's 18,000 starts would hold 5 MB)."""
     m, n = q0.shape
     q = q0.copy()
     kept_rows, kept_jac = [], []          # the converged rows' Jacobians, as they leave

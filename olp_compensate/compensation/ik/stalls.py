@@ -50,8 +50,9 @@ class BehindAndStalled:
     """The ``drop`` of :func:`~.newton.pooled_newton` for r starts of a search:
     ``groups (r,) int`` the target of each start, non-decreasing (a target's starts side by
     side). Called as they join (steps 0) and after each step with the starts iterating
-    ``act (k,)``, the steps each has taken ``steps (k,)``, their squared errors ``cost (k,)`` and errors ``err (k, 6)``;
-    returns (k,) bool, the starts to stop (see the module)."""
+    ``act (k,)``, the steps each has taken ``steps (k,)``, their squared errors ``cost
+    (k,)`` and errors ``err (k, 6)``; returns (k,) bool, the starts to stop (see the
+    module)."""
 
     def __init__(self, groups: np.ndarray, window: int = STALL_WINDOW,
                  relative: float = STALL_RELATIVE, margin: float = BEHIND_MARGIN):
@@ -133,9 +134,9 @@ class FarOutside:
     :func:`~.newton.newton_step` takes it) is at most :data:`PARK_STEP`, explains its
     pose error (:data:`PARK_EXPLAINED`), and which lies outside an axis range (modulo
     whole turns) by more than :data:`PARK_FACTOR` times ``|d|`` (controller axes,
-    largest): it ends outside the ranges, within ``|d|`` of its start plus ``d``. ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes
-    (linear), ``ranges (n, 2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the
-    Newton, :attr:`rows` are the starts set aside (rows of the Newton) and :attr:`ends`
+    largest): it ends outside the ranges, within ``|d|`` of its start plus ``d``.
+    ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes (linear), ``ranges (n,
+    2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the Newton, :attr:`rows` are the starts set aside (rows of the Newton) and :attr:`ends`
     (len(rows), n) URDF rad, each one's start plus its first step."""
 
     def __init__(self, controller: Callable[[np.ndarray], np.ndarray], ranges: np.ndarray,
