@@ -136,7 +136,8 @@ class FarOutside:
     whole turns) by more than :data:`PARK_FACTOR` times ``|d|`` (controller axes,
     largest): it ends outside the ranges, within ``|d|`` of its start plus ``d``.
     ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes (linear), ``ranges (n,
-    2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the Newton, :attr:`rows` are the starts set aside (rows of the Newton) and :attr:`ends`
+    2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the Newton, :attr:`rows` are
+    the starts set aside (rows of the Newton) and :attr:`ends`
     (len(rows), n) URDF rad, each one's start plus its first step."""
 
     def __init__(self, controller: Callable[[np.ndarray], np.ndarray], ranges: np.ndarray,
