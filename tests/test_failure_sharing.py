@@ -238,3 +238,87 @@ def test_range_words_name_each_axis_past_its_range_then_each_urdf_joint(name):
         assert got[i] == want, (i, got[i], want)
         some += bool(want)
     assert some > 100
+
+
+def test_the_searchs_early_stops_give_the_rules_answers_of_a_full_refinement(
+        world, monkeypatch):
+    """The configuration rule's search sets aside the starts that end far outside the
+    ranges by their first step's bound (refining only the ones the rule reports) and stops
+    the starts that crawl behind one that reached its target (issue 32 item 3): on an
+    identified IRB 2400, targets in range, out of range and out of reach get the statuses,
+    on-asked flags and joints (to 1e-7 rad) that the search without those stops gives."""
+    import olp_compensate.compensation.ik.stalls as stalls
+    import olp_compensate.compensation.rule_search as rule_search
+
+    comp = world
+    robot = comp.robot
+    rng = np.random.default_rng(29)
+    q = robot.joints_from_controller(random_joints(robot, 90, rng, margin=0.05,
+                                                   within_ranges=False))
+    desired = comp.nominal_flange(q)
+    desired[::9, :3, 3] *= 2.5                                  # out of reach
+    confdata = comp.confdata(q)
+    parked = []
+    real = rule_search.FarOutside
+
+    class Counted(real):
+        def __call__(self, *args):
+            park = super().__call__(*args)
+            parked.append(int(np.sum(park)))
+            return park
+
+    monkeypatch.setattr(rule_search, "FarOutside", Counted)
+    early = comp.solve_real(desired, confdata)
+    monkeypatch.setattr(rule_search, "FarOutside",
+                        lambda *args: real(*args, factor=np.inf))     # never sets aside
+    monkeypatch.setattr(stalls, "CRAWL_RELATIVE", -1.0)              # never crawls
+    full = comp.solve_real(desired, confdata)
+    assert sum(parked) >= 50
+    statuses = set(full.reason)
+    assert {"joint_limit", "branch_changed", "unreachable"} <= statuses, statuses
+    assert list(early.reason) == list(full.reason)
+    assert np.array_equal(early.on_asked, full.on_asked)
+    assert np.array_equal(np.isnan(early.q), np.isnan(full.q))
+    gap = np.remainder(early.q - full.q + np.pi, 2 * np.pi) - np.pi
+    assert np.nanmax(np.abs(gap)) < 1e-7
+
+
+def test_a_start_its_first_step_cannot_take_to_the_pose_is_never_set_aside(world):
+    """FarOutside sets aside only starts in Newton's regime: a start whose error its first
+    step takes away (``J d = e``) qualifies when far outside a range; a start at a
+    singularity whose error lies where the arm cannot move (``J^T e = 0``: a zero step)
+    never does, however far outside it lies (such a start stalls: a stretched arm short of
+    a target out of reach); nor do the closed form's starts of targets out of reach."""
+    from olp_compensate.compensation.ik import closed_form_inverse
+    from olp_compensate.compensation.ik.residuals import pose_error
+    from olp_compensate.compensation.ik.stalls import FarOutside
+
+    comp = world
+    robot = comp.robot
+    revolute = np.array([j.kind == "revolute" for j in robot.joints])
+    outside = np.tile([[10.0, 10.5]], (robot.n_joints, 1))    # every start far outside
+    park = FarOutside(robot.controller_from_joints, outside, revolute)
+    q = np.array([[0.3, 0.2, 0.1, 0.4, 0.0, -0.2]])
+    for width in (0.02, 2e-5):                 # the calibrated wrist's singular q5
+        trial = np.repeat(q, 2001, axis=0)
+        trial[:, 4] += np.linspace(-width, width, 2001)
+        smallest = np.linalg.svd(comp.real_flange_and_jacobian(trial)[1], compute_uv=False)
+        q = trial[[np.argmin(smallest[:, -1] / smallest[:, 0])]]
+    _, jac = comp.real_flange_and_jacobian(q)
+    u, sv, _ = np.linalg.svd(jac[0])
+    assert sv[-1] < 1e-6 * sv[0]
+    dq = np.array([[1e-3, -2e-3, 1e-3, 0.0, 2e-3, 1e-3]])
+    e = np.stack([1e-3 * u[:, -1], jac[0] @ dq[0]])           # unmovable; taken by dq
+    parked = park(np.arange(2), np.repeat(q, 2, axis=0), np.repeat(jac, 2, axis=0), e)
+    assert list(parked) == [False, True]
+    desired, _, far = _targets(comp, 40, seed=17)
+    starts = closed_form_inverse(comp.family, desired, clip=True)        # (m, 8, n)
+    rows = np.repeat(np.arange(len(desired)), starts.shape[1])
+    flat = starts.reshape(-1, starts.shape[2])
+    given = np.all(np.isfinite(flat), axis=1)
+    flat, rows = flat[given], rows[given]
+    poses, jac = comp.real_flange_and_jacobian(flat)
+    err = pose_error(desired[rows], poses)
+    parked = park(np.arange(len(flat)), flat, np.array(jac), err)
+    assert not np.any(parked[far[rows]])
+    assert np.mean(parked[~far[rows]]) > 0.5

@@ -18,11 +18,12 @@ asks for, inside every controller axis range and URDF joint limit) gets exactly 
   out): the joints of the closest approach.
 
 :func:`decide` applies the rule to the failed rows of an :class:`~.ik.IKSolution`;
-:func:`search` is the shared work: damped Newton of the calibrated arm from the nominal
-closed form of every branch (stretched where out of reach) and from the solver's own last
-iterate, at most :data:`SEARCH_STEPS` steps each, the starts of :data:`SEARCH_SPAN` rows
-iterating :data:`SEARCH_POOL` at a time (a start stalled behind another of its row stops:
-:mod:`.ik.stalls`). What
+:func:`search` (:mod:`.rule_search`) is the shared work: damped Newton of the calibrated
+arm from the nominal closed form of every branch (stretched where out of reach) and from
+the solver's own last iterate, at most :data:`SEARCH_STEPS` steps each, the starts of
+:data:`SEARCH_SPAN` rows iterating :data:`SEARCH_POOL` at a time (a start stalled behind
+another of its row stops, a start far outside the ranges by its first step's bound is
+refined only if the rule reports it: :mod:`.ik.stalls`). What
 "the configuration asked for" means is a predicate (:data:`Asked`): ABB confdata here
 (:func:`confdata_asked`), a dialect's written configuration in
 :mod:`.dialect_program`. Joints: URDF axes in IK solutions, controller axes (rad/m) in the
@@ -32,33 +33,23 @@ search results.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Iterator
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from .ik import IKSolution, closed_form_inverse, refine
-from .ik.stalls import BehindAndStalled
+from .ik import IKSolution
+from .rule_search import (SEARCH_BLOCK, SEARCH_POOL, SEARCH_STEPS, Candidates, refined_rough,
+                          rows_of, search, searched_blocks, turn_toward_ranges)
 
 if TYPE_CHECKING:
     from .pose import Compensator
 
 __all__ = ["Candidates", "search", "decide", "confdata_asked", "turn_toward_ranges",
-           "QUADRANT_TOLERANCE", "SEARCH_STEPS"]
+           "QUADRANT_TOLERANCE", "SEARCH_STEPS", "SEARCH_BLOCK", "SEARCH_POOL"]
 
-SEARCH_STEPS = 60
-"""Newton steps of each start of the search (a start that stalls stops after 20, or
-after 5 where another start of its target is already closer: :mod:`.ik.stalls`)."""
-SEARCH_BLOCK = 512
-"""Failed targets whose starts and candidates are made together (nine starts each)."""
 SEARCH_SPAN = 4096
 """Failed targets decided together: their starts' Newton runs in one pool (about 1.5 KB a
 target held at once, the pool aside)."""
-SEARCH_POOL = 4608
-"""Starts of the search's Newton iterating at once, a finished start's place taken by the
-next (:func:`~.ik.newton.pooled_newton`): bounds the Newton's memory as 512 targets of nine
-starts did in one batch (13 MB; 2,048 targets held 45 MB), with far fewer passes: the
-benchmark's 20,000 all-failing targets took 2,400 passes of about 0.6 ms each beyond their
-rows' cost in blocks of 512 targets."""
 QUADRANT_TOLERANCE = np.pi / 4
 """An axis 1, 4 or 6 this far (rad) outside the asked quadrant is still on the asked
 configuration (as the solver's ``quadrant_tolerance``); the quadrant written is then the
@@ -69,204 +60,6 @@ Asked = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 each of ``rows`` (indices into the batch solved), the joints among its usable candidates
 that are on the configuration the program asks for (turned as the controller turns them),
 NaN where none is."""
-
-
-@dataclass(frozen=True)
-class Candidates:
-    """The calibrated arm's solutions of k poses from b starts each.
-
-    q : (k, b, n) controller axes, rad/m, each revolute axis turned by whole turns as near
-        its range as it goes (see :func:`turn_toward_ranges`); NaN where the start is none.
-    reached : (k, b) bool, the pose reached (1e-9 m, 1e-9 rad).
-    inside : (k, b) bool, reached and inside every controller range and URDF limit.
-    reason : (k, b) str, the Newton's verdict ('ok', 'singular', 'unreachable',
-        'not_converged').
-    position_error_m, rotation_error_rad : (k, b) where each start stopped.
-    excess : (k, b) how far past the ranges and limits (rad/m, summed over axes).
-    cfx : (k, b) int, the configuration number (branch) of ``q``, -1 where not reached.
-    cfx_of : controller joints (n,) -> their configuration number.
-    own : whether the last start is the solver's own iterate.
-    """
-
-    q: np.ndarray
-    reached: np.ndarray
-    inside: np.ndarray
-    reason: np.ndarray
-    position_error_m: np.ndarray
-    rotation_error_rad: np.ndarray
-    excess: np.ndarray
-    cfx: np.ndarray
-    cfx_of: Callable[[np.ndarray], int]
-    own: bool = False
-
-
-def turn_toward_ranges(robot, q_ctrl: np.ndarray) -> np.ndarray:
-    """``q_ctrl (..., n)`` rad with each revolute axis turned by whole turns into its
-    controller range (the turn nearest zero where several fit), or, where no turn fits and
-    for axes without a finite range, wrapped to [-180, 180) deg. A value already inside its
-    range and under :data:`_UNTURNED` in size stays (plus 0.0, as the turns add it): any
-    other turn is over 2 pi - 3 > 3 from zero, so it is the one nearest zero; only the
-    others try the turns."""
-    q = np.array(q_ctrl, dtype=float, copy=True)
-    ranges = robot.controller_ranges
-    turns = 2 * np.pi * np.arange(-3, 4)
-    for a, joint in enumerate(robot.joints):
-        if joint.kind != "revolute":
-            continue
-        lo, hi = ranges[a]
-        if not (np.isfinite(lo) and np.isfinite(hi)):
-            q[..., a] = (q[..., a] + np.pi) % (2 * np.pi) - np.pi
-            continue
-        value = q[..., a]
-        stays = (np.abs(value) < _UNTURNED) & (value >= lo - 1e-9) & (value <= hi + 1e-9)
-        out = value + 0.0
-        if not np.all(stays):
-            other = ~stays
-            out[other] = _turned(value[other], turns, lo, hi)
-        q[..., a] = out
-    return q
-
-
-_UNTURNED = 3.0
-"""rad: an axis value inside its range and smaller than this is its own nearest turn to
-zero (every other turn is at least 2 pi - 3 from zero)."""
-
-
-def _turned(value: np.ndarray, turns: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """``value (r,)`` rad turned by one of ``turns`` into [lo, hi] (the one nearest zero),
-    else wrapped to [-pi, pi)."""
-    values = value[:, None] + turns                                   # (r, 7)
-    inside = (values >= lo - 1e-9) & (values <= hi + 1e-9)
-    pick = np.argmin(np.where(inside, np.abs(values), np.inf), axis=-1)
-    turned = np.take_along_axis(values, pick[:, None], axis=-1)[:, 0]
-    wrapped = (value + np.pi) % (2 * np.pi) - np.pi
-    return np.where(np.any(inside, axis=-1), turned, wrapped)
-
-
-def search(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
-           ) -> Candidates:
-    """The calibrated arm's solutions of ``desired (k, 4, 4)`` (flange, base frame, m):
-    damped Newton from the nominal closed form of every branch (stretched where the
-    nominal arm falls short) and from ``own (k, n)`` (URDF rad: the solver's last iterate,
-    NaN where none), at most :data:`SEARCH_STEPS` steps each, all in one batch
-    (:func:`searched_blocks`, joined)."""
-    parts = [found for _, _, found in searched_blocks(comp, desired, own)]
-    if len(parts) == 1:
-        return parts[0]
-    fields = ("q", "reached", "inside", "reason", "position_error_m", "rotation_error_rad",
-              "excess", "cfx")
-    return Candidates(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in fields},
-                      cfx_of=parts[0].cfx_of, own=parts[0].own)
-
-
-def searched_blocks(comp: Compensator, desired: np.ndarray, own: np.ndarray | None = None
-                    ) -> Iterator[tuple[int, int, Candidates]]:
-    """:func:`search` of ``desired (k, 4, 4)`` (and ``own``) as ``(a, b, candidates of
-    rows a:b)`` for blocks of :data:`SEARCH_BLOCK` rows: the starts and candidates are
-    made block by block (arrays that stay in the processor's cache), the Newton of every
-    start of every block runs :data:`SEARCH_POOL` at a time (a finished start's place
-    taken by the next, a start stalled behind another of its target stopped); a block's
-    candidates are made when the caller asks for them."""
-    k = len(desired)
-    blocks = [(a, min(a + SEARCH_BLOCK, k)) for a in range(0, k, SEARCH_BLOCK)]
-    starts = []
-    for a, b in blocks:
-        block = closed_form_inverse(comp.family, desired[a:b], clip=True)      # (r, 8, n)
-        if own is not None:
-            block = np.concatenate([block, np.asarray(own[a:b], dtype=float)[:, None]], 1)
-        starts.append(block)
-    if not blocks:
-        return
-    width, n = starts[0].shape[1], starts[0].shape[2]
-    flat = np.concatenate([block.reshape(-1, n) for block in starts])
-    first = np.concatenate([_first_copies(block) + a * width
-                            for block, (a, _) in zip(starts, blocks)])
-    given = np.all(np.isfinite(flat), axis=1)
-    target = np.repeat(np.arange(k), width)
-    ends = _newton_once(comp, flat, desired, given, first, target)
-    for a, b in blocks:
-        yield a, b, _candidates(comp, ends, given, slice(a * width, b * width), b - a, width,
-                                own is not None)
-
-
-def _candidates(comp: Compensator, ends: _Ends, given: np.ndarray, part: slice, k: int,
-                b: int, own: bool) -> Candidates:
-    """The :class:`Candidates` of the k targets (b starts each) whose starts are the flat
-    rows ``part`` of the search's Newton ``ends`` (``given``: the starts that are some)."""
-    robot = comp.robot
-    given = given[part]
-    n = ends.q.shape[1]
-    reason = np.where(given, ends.reason[part], "unreachable")
-    reached = np.isin(reason, ("ok", "singular"))
-    end_q = ends.q[part]
-    q = np.full((k * b, n), np.nan)
-    if np.any(reached):
-        q[reached] = turn_toward_ranges(robot, robot.controller_from_joints(end_q[reached]))
-    q[~reached & given] = turn_toward_ranges(
-        robot, robot.controller_from_joints(end_q[~reached & given]))
-    inside = reached.copy()
-    excess = np.full(k * b, np.inf)
-    cfx = np.full(k * b, -1)
-    if np.any(reached):
-        inside[reached] = ~robot.outside_ranges(q[reached]).any(axis=1)
-        excess[reached] = _excess(robot, q[reached])
-        cfx[reached] = comp.confdata(robot.joints_from_controller(q[reached]))[:, 3]
-
-    def cfx_of(q_ctrl: np.ndarray) -> int:
-        return int(comp.confdata(robot.joints_from_controller(q_ctrl[None]))[0, 3])
-    position = np.where(given, ends.position_error_m[part], np.inf)
-    rotation = np.where(given, ends.rotation_error_rad[part], np.inf)
-    return Candidates(q=q.reshape(k, b, n), reached=reached.reshape(k, b),
-                      inside=inside.reshape(k, b), reason=reason.reshape(k, b),
-                      position_error_m=position.reshape(k, b),
-                      rotation_error_rad=rotation.reshape(k, b), excess=excess.reshape(k, b),
-                      cfx=cfx.reshape(k, b), cfx_of=cfx_of, own=own)
-
-
-@dataclass(frozen=True)
-class _Ends:
-    """Where the search's Newton ended from each start: ``q (r, n)`` URDF rad, ``reason
-    (r,)``, ``position_error_m``, ``rotation_error_rad (r,)``."""
-
-    q: np.ndarray
-    reason: np.ndarray
-    position_error_m: np.ndarray
-    rotation_error_rad: np.ndarray
-
-
-def _first_copies(starts: np.ndarray) -> np.ndarray:
-    """(k * b,) for each start of ``starts (k, b, n)`` the flat index of the first start of
-    its row with the same bits (itself where none before it): two branches of the closed
-    form often stretch to the same joints for a pose out of reach."""
-    k, b, n = starts.shape
-    bits = np.ascontiguousarray(starts, dtype=float).view(np.int64)
-    same = np.all(bits[:, :, None, :] == bits[:, None, :, :], axis=-1)          # (k, b, b)
-    first = np.where(np.any(same, axis=2), np.argmax(same, axis=2), np.arange(b))
-    return (first + b * np.arange(k)[:, None]).reshape(-1)
-
-
-def _newton_once(comp: Compensator, flat: np.ndarray, desired: np.ndarray,
-                 given: np.ndarray, first: np.ndarray, target: np.ndarray) -> _Ends:
-    """Damped Newton of the calibrated arm from each given start of ``flat (r, n)`` (URDF
-    rad) to ``desired[target] ((r,) indices into desired (k, 4, 4), non-decreasing)``,
-    run once per ``first`` copy (:func:`_first_copies`; a copy's iterates are its first's)
-    and not at all where not given ('unreachable'); :data:`SEARCH_POOL` starts iterate at
-    once, and a start that has stalled behind another of its target stops early
-    (:class:`~.ik.stalls.BehindAndStalled`: it cannot be the one kept)."""
-    r, n = flat.shape
-    solve = given & (first == np.arange(r))
-    ends = _Ends(q=np.full((r, n), np.nan), reason=np.full(r, "unreachable", dtype="<U14"),
-                 position_error_m=np.full(r, np.inf), rotation_error_rad=np.full(r, np.inf))
-    if np.any(solve):
-        result = refine(comp.real_flange_and_jacobian, flat[solve], desired[target[solve]],
-                        None, 1e-9, 1e-9, SEARCH_STEPS, pool=SEARCH_POOL,
-                        drop=BehindAndStalled(target[solve]))
-        ends.q[solve], ends.reason[solve] = result.q, result.reason
-        ends.position_error_m[solve] = result.position_error_m
-        ends.rotation_error_rad[solve] = result.rotation_error_rad
-    return _Ends(q=ends.q[first], reason=ends.reason[first],
-                 position_error_m=ends.position_error_m[first],
-                 rotation_error_rad=ends.rotation_error_rad[first])
 
 
 def confdata_asked(comp: Compensator, confdata: np.ndarray | None) -> Asked:
@@ -338,15 +131,41 @@ def decide(comp: Compensator, solution: IKSolution, desired: np.ndarray,
         span = failed[start:start + SEARCH_SPAN]
         own = solution.q[span].copy()
         own[solution.reason[span] == "unreachable"] = np.nan
-        for a, b, found in searched_blocks(comp, desired[span], own):
-            _decide_rows(comp, solution, span[a:b], found, predicate)
+        blocks = [(span[a:b], found) for a, b, found in searched_blocks(comp, desired[span], own)]
+        _decide_span(comp, solution, blocks, desired, predicate)
     return solution
 
 
-def _decide_rows(comp: Compensator, solution: IKSolution, failed: np.ndarray,
-                 found: Candidates, predicate: Asked) -> None:
-    """:func:`decide` of the rows ``failed`` of ``solution`` (changed in place), searched:
-    ``found``."""
+def _decide_span(comp: Compensator, solution: IKSolution,
+                 blocks: list[tuple[np.ndarray, Candidates]], desired: np.ndarray,
+                 predicate: Asked) -> None:
+    """:func:`decide` of the failed rows of ``solution`` in ``blocks`` (rows, their search),
+    changed in place: where the rule keeps a rough candidate (set aside by the search), it
+    is refined and the rule applied again to its row (each round refines one more start of
+    a row)."""
+    rows = [failed for failed, _ in blocks]
+    found = [f for _, f in blocks]
+    kept = [_kept(comp, solution, r, f, predicate) for r, f in zip(rows, found)]
+    while True:
+        picks = [np.flatnonzero(k.has & f.rough[np.arange(len(r)), k.start])
+                 for r, f, k in zip(rows, found, kept)]
+        if not any(len(p) for p in picks):
+            break
+        found = refined_rough(comp, found, [np.stack([p, k.start[p]], 1) for p, k in
+                                            zip(picks, kept)],
+                              [desired[r[p]] for r, p in zip(rows, picks)])
+        for r, f, k, p in zip(rows, found, kept, picks):
+            if len(p):
+                again = _kept(comp, solution, r[p], rows_of(f, p), predicate)
+                for name in ("q", "reason", "start", "as_asked", "has"):
+                    getattr(k, name)[p] = getattr(again, name)
+    for r, f, k in zip(rows, found, kept):
+        _write(comp, solution, r, f, k)
+
+
+def _kept(comp: Compensator, solution: IKSolution, failed: np.ndarray, found: Candidates,
+          predicate: Asked) -> _Kept:
+    """What the rule keeps of the rows ``failed`` of ``solution``, searched: ``found``."""
     robot = comp.robot
     on_asked_q = predicate(failed, found.q, found.inside)
     picked = np.all(np.isfinite(on_asked_q), axis=1)
@@ -355,7 +174,13 @@ def _decide_rows(comp: Compensator, solution: IKSolution, failed: np.ndarray,
         on_asked_q[np.flatnonzero(picked)[outside]] = np.nan
     # the same predicate, ranges aside: is the out-of-range solution the asked one?
     any_q = predicate(failed, found.q, found.reached)
-    kept = _rule(comp, found, on_asked_q, any_q, solution.reason[failed] == "unreachable")
+    return _rule(comp, found, on_asked_q, any_q, solution.reason[failed] == "unreachable")
+
+
+def _write(comp: Compensator, solution: IKSolution, failed: np.ndarray, found: Candidates,
+           kept: _Kept) -> None:
+    """The rows ``failed`` of ``solution`` set to what the rule ``kept`` of ``found``."""
+    robot = comp.robot
     solution.reason[failed] = kept.reason
     solution.success[failed] = np.isin(kept.reason, ("ok", "singular"))
     solution.on_asked[failed] = kept.as_asked
@@ -449,15 +274,3 @@ def _nearest_other(comp: Compensator, found: Candidates, rows: np.ndarray,
         pick[near] = np.argmin(np.where(usable, np.nansum((qn - t[:, None]) ** 2, axis=2),
                                         np.inf), axis=1)
     return pick
-
-
-def _excess(robot, q_ctrl: np.ndarray) -> np.ndarray:
-    """(r,) how far (rad/m, summed over axes) ``q_ctrl (r, n)`` lies past the controller's
-    ranges and the URDF limits."""
-    ranges = robot.controller_ranges
-    past = np.maximum(np.maximum(ranges[:, 0] - q_ctrl, q_ctrl - ranges[:, 1]), 0.0)
-    joints = robot.joints_from_controller(q_ctrl)
-    past_urdf = np.maximum(np.maximum(robot.lower_limits - joints,
-                                      joints - robot.upper_limits), 0.0)
-    return np.nansum(np.nan_to_num(past, posinf=0.0) + np.nan_to_num(past_urdf, posinf=0.0),
-                     axis=1)

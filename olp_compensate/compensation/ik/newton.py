@@ -121,7 +121,7 @@ def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q
            limits=None, position_tol: float = 1e-9, rotation_tol: float = 1e-9,
            max_iterations: int = 50, *, singular_tol: float = 1e-7, max_step: float = 0.5,
            configuration: Callable[[np.ndarray], np.ndarray] | None = None,
-           pool: int | None = None, drop=None) -> IKSolution:
+           pool: int | None = None, drop=None, park=None) -> IKSolution:
     """Damped Newton from ``q0 (m, n)`` rad to ``target (m, 4, 4)`` m.
 
     ``fk_jacobian(q (k, n)) -> (base_T_flange (k, 4, 4), jacobian (k, 6, n))``, the
@@ -140,8 +140,9 @@ def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q
     ``q0`` gives 'branch_changed'. ``pool``: at most this many rows iterate at once, a
     finished row's place taken by the next (:func:`pooled_newton`; the same
     results, far fewer passes over the batch when rows take very different numbers of
-    steps); ``drop`` its rows to give up early ('unreachable'). See :class:`IKSolution`
-    for the reasons.
+    steps); ``drop`` its rows to give up early ('unreachable'), ``park`` rows to set aside
+    as they join ('not_converged', left at ``q0``). See :class:`IKSolution` for the
+    reasons.
     """
     q0 = as_joints(q0, None, "q0", allow_nan=True)
     m, n = q0.shape
@@ -163,7 +164,7 @@ def refine(fk_jacobian: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], q
     else:
         q, jac, err, iterations, converged, stalled = pooled_newton(
             fk_jacobian, q0, target, position_tol, rotation_tol, int(max_iterations),
-            max_step, pool, drop)
+            max_step, pool, drop, park)
     reason = np.full(m, "not_converged", dtype="<U14")
     reason[~np.all(np.isfinite(q0), axis=1) | stalled] = "unreachable"
     reason[converged] = "ok"
@@ -229,14 +230,17 @@ class _Pool:
 
 
 def pooled_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_iterations,
-                  max_step, pool: int, drop=None):
+                  max_step, pool: int, drop=None, park=None):
     """:func:`damped_newton` (no multi-start) of the rows of finite ``q0 (m, n)``
     toward ``target (m, 4, 4)`` with at most ``pool`` rows iterating at once: when half of
     them have finished, the next rows in order join. ``drop(steps, rows, cost, err) ->
-    (k,) bool`` after each step, on the rows iterating (``steps (k,)`` each one's steps
-    so far): those it names leave as stalled. Returns q, jac, err, iterations, converged,
-    stalled as :func:`damped_newton`, but ``jac`` only of the converged rows, in order
-    ``(c, 6, n)`` (the others' are not kept: a search's 18,000 starts would hold 5 MB)."""
+    (k,) bool`` as rows join (its answer unused) and after each step, on the rows
+    iterating (``steps (k,)`` each one's steps so far): those it names leave as stalled.
+    ``park(rows, q, jac, err) -> (k,) bool`` on the rows joining that have not converged
+    at their start: those it names leave at once, not converged nor stalled, ``q`` their
+    start. Returns q, jac, err, iterations, converged, stalled as :func:`damped_newton`,
+    but ``jac`` only of the converged rows, in order ``(c, 6, n)`` (the others' are not
+    kept: a search's 18,000 starts would hold 5 MB)."""
     m, n = q0.shape
     q = q0.copy()
     kept_rows, kept_jac = [], []          # the converged rows' Jacobians, as they leave
@@ -248,9 +252,14 @@ def pooled_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     pool = max(int(pool), 1)
     p = _Pool(n)
     while len(waiting) or len(p.act):
-        if len(waiting) and len(p.act) <= pool // 2:
+        while len(waiting) and len(p.act) <= pool // 2:     # (rows set aside leave at once)
             rows, waiting = waiting[:pool - len(p.act)], waiting[pool - len(p.act):]
             p.join(fk_jacobian, rows, q0[rows], target[rows])
+            if drop is not None:                  # their errors at the start (none stops)
+                new = slice(len(p.act) - len(rows), None)
+                drop(p.steps[new], p.act[new], p.cost[new], p.e[new])
+            if park is not None:
+                _park(p, park, len(rows), err, position_tol, rotation_tol)
         position, rotation = error_norms(p.e)
         done = (position <= position_tol) & (rotation <= rotation_tol)
         leave = done | p.stuck | (p.steps >= max_iterations)
@@ -273,3 +282,18 @@ def pooled_newton(fk_jacobian, q0, target, position_tol, rotation_tol, max_itera
     rows = np.concatenate(kept_rows) if kept_rows else np.zeros(0, int)
     jac = (np.concatenate(kept_jac) if kept_jac else np.zeros((0, 6, n)))[np.argsort(rows)]
     return q, jac, err, iterations, converged, stalled
+
+
+def _park(p: _Pool, park, joined: int, err: np.ndarray, position_tol: float,
+          rotation_tol: float) -> None:
+    """The ``park`` of :func:`pooled_newton` on the last ``joined`` rows of the pool ``p``:
+    those it names leave it (their errors written to ``err``; their q stays the start)."""
+    new = np.arange(len(p.act) - joined, len(p.act))
+    position, rotation = error_norms(p.e[new])
+    going = ~((position <= position_tol) & (rotation <= rotation_tol))
+    going[going] = park(p.act[new[going]], p.q[new[going]], p.J[new[going]], p.e[new[going]])
+    if np.any(going):
+        err[p.act[new[going]]] = p.e[new[going]]
+        stay = np.ones(len(p.act), bool)
+        stay[new[going]] = False
+        p.keep(np.flatnonzero(stay))

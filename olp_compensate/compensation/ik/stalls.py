@@ -10,12 +10,26 @@ error falls by about 1e-6 m in all (measured on 2,000 stalled starts of the benc
 all-failing module), 100 times less than the margin. It leaves the batch, reason
 'unreachable' (stalled), where the solver would have given it up only after 20 steps in a
 row without progress (:data:`~.newton._STALL_STEPS`). The start kept, and every start
-within the margin of it, runs exactly as before.
+within the margin of it, runs exactly as before. Where another start of its target has
+reached it (converged), a start behind by the margin also stops once it crawls (its squared
+error fell by less than :data:`CRAWL_RELATIVE` over the window): it could matter only by
+converging within its steps left, and no start that converged in the benchmark's
+all-failing module ever fell by less than 18 % over a window before it did; such crawls
+(a start at some 4 mm that runs out its 60 steps) made the tail of each search's Newton.
+
+A start may also be set aside before its first step (:class:`FarOutside`): one whose first
+Newton step is short and which lies outside an axis range (modulo whole turns) by far more
+than that step, so that it ends outside the ranges, near its first step's end; the search
+refines it only if the rule reports its joints (issue 32 item 3).
 """
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
+
+from .normal_equations import DAMPING, gauss_newton_steps
 
 STALL_WINDOW = 5
 """Newton steps over which a stalled start's error has not fallen by :data:`STALL_RELATIVE`."""
@@ -25,14 +39,20 @@ which a start has stalled (the solver's own stall test uses the same share per s
 BEHIND_MARGIN = 1e-4
 """How much worse (m + 0.1 rad) than the best start of its target a stalled start must be
 to stop."""
+CRAWL_RELATIVE = 0.01
+"""Relative fall of the squared error over :data:`STALL_WINDOW` steps below which a start
+behind one that reached its target stops."""
+REACHED_SCORE = 1.1e-9
+"""Score (m + 0.1 rad) at or below which a start has reached its target (1e-9 m, 1e-9 rad)."""
 
 
 class BehindAndStalled:
     """The ``drop`` of :func:`~.newton.pooled_newton` for r starts of a search:
     ``groups (r,) int`` the target of each start, non-decreasing (a target's starts side by
-    side). Called after each step with the starts iterating ``act (k,)``, the steps each
-    has taken ``steps (k,)``, their squared errors ``cost (k,)`` and errors ``err (k, 6)``;
-    returns (k,) bool, the starts to stop (see the module)."""
+    side). Called as they join (steps 0) and after each step with the starts iterating
+    ``act (k,)``, the steps each has taken ``steps (k,)``, their squared errors ``cost
+    (k,)`` and errors ``err (k, 6)``; returns (k,) bool, the starts to stop (see the
+    module)."""
 
     def __init__(self, groups: np.ndarray, window: int = STALL_WINDOW,
                  relative: float = STALL_RELATIVE, margin: float = BEHIND_MARGIN):
@@ -55,4 +75,105 @@ class BehindAndStalled:
         before = self.history[act, slot]          # the squared error `window` steps ago
         self.history[act, slot] = cost
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
-        return stalled & (self.score[act] > best + self.margin)
+        crawling = (best <= REACHED_SCORE) & (cost > (1.0 - CRAWL_RELATIVE) * before)
+        return (stalled | crawling) & (self.score[act] > best + self.margin)
+
+
+class CrawlingSettled:
+    """The ``drop`` of :func:`~.newton.pooled_newton` for r starts refined one per target:
+    stops a start whose squared error fell by less than :data:`CRAWL_RELATIVE` over
+    :data:`STALL_WINDOW` steps where ``settled (r,)`` (its target has another candidate
+    that reached it: the start matters only if it converges, see the module)."""
+
+    def __init__(self, settled: np.ndarray):
+        self.settled = np.asarray(settled, dtype=bool)
+        self.history = np.full((len(self.settled), STALL_WINDOW), np.inf)
+
+    def __call__(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
+                 err: np.ndarray) -> np.ndarray:
+        slot = steps % STALL_WINDOW
+        before = self.history[act, slot]
+        self.history[act, slot] = cost
+        return self.settled[act] & (cost > (1.0 - CRAWL_RELATIVE) * before)
+
+
+PARK_FACTOR = 4.0
+"""How many times its first Newton step (controller axes, rad/m, largest axis) a start must
+lie outside an axis range to be set aside: while the steps contract by at least half each,
+the whole travel from the start is at most twice the first step."""
+PARK_EXPLAINED = 1e-3
+"""Share of a start's pose error its first step may leave unexplained (``|e - J d| /
+|e|``): a start the Newton can take to its target solves ``J d = e`` (up to the damping);
+one out of reach, at a stretched arm's singularity, takes a short step that leaves most of
+its error (it is not in Newton's regime however short the step)."""
+PARK_STEP = 0.05
+"""rad/m: the largest first step (URDF and controller axes) of a start set aside: a start
+this near its end is in Newton's quadratic regime (the search's converging starts move by
+under 0.02 rad from the nominal closed form to the calibrated arm)."""
+
+
+def past_ranges(q_ctrl: np.ndarray, ranges: np.ndarray, revolute: np.ndarray) -> np.ndarray:
+    """(k,) how far (rad or m) ``q_ctrl (k, n)`` lies past the controller's ``ranges (n,
+    2)``, the largest over axes, each ``revolute (n,)`` axis at its whole turn nearest the
+    range: positive outside, else minus the room left to the nearest edge (an axis without
+    a finite range, or a revolute one of a full turn or more, holds every value: -inf)."""
+    q = np.asarray(q_ctrl, dtype=float)
+    lo, hi = ranges[:, 0], ranges[:, 1]
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    centre = np.where(finite, (lo + hi) / 2, 0.0)
+    half = np.where(finite, (hi - lo) / 2, np.inf)
+    plain = np.abs(q - centre) - half
+    turned = np.abs(np.remainder(q - centre + np.pi, 2 * np.pi) - np.pi) - half
+    past = np.where(revolute, np.where(half < np.pi, turned, -np.inf), plain)
+    return np.max(np.where(finite, past, -np.inf), axis=-1, initial=-np.inf)
+
+
+class FarOutside:
+    """The ``park`` of :func:`~.newton.pooled_newton` for a search's starts: sets aside a
+    start, as it joins, whose first Newton step ``d`` (Gauss-Newton, as
+    :func:`~.newton.newton_step` takes it) is at most :data:`PARK_STEP`, explains its
+    pose error (:data:`PARK_EXPLAINED`), and which lies outside an axis range (modulo
+    whole turns) by more than :data:`PARK_FACTOR` times ``|d|`` (controller axes,
+    largest): it ends outside the ranges, within ``|d|`` of its start plus ``d``.
+    ``controller(q_urdf (k, n)) -> (k, n)`` the controller axes (linear), ``ranges (n,
+    2)`` and ``revolute (n,)`` as :func:`past_ranges`. After the Newton, :attr:`rows` are
+    the starts set aside (rows of the Newton) and :attr:`ends`
+    (len(rows), n) URDF rad, each one's start plus its first step."""
+
+    def __init__(self, controller: Callable[[np.ndarray], np.ndarray], ranges: np.ndarray,
+                 revolute: np.ndarray, factor: float = PARK_FACTOR, step: float = PARK_STEP):
+        self.controller, self.ranges = controller, np.asarray(ranges, dtype=float)
+        self.revolute = np.asarray(revolute, dtype=bool)
+        self.factor, self.step = float(factor), float(step)
+        self._rows: list[np.ndarray] = []
+        self._ends: list[np.ndarray] = []
+
+    def __call__(self, rows: np.ndarray, q: np.ndarray, jac: np.ndarray,
+                 err: np.ndarray) -> np.ndarray:
+        """(k,) bool: which of the joining ``rows (k,)`` (at ``q (k, n)`` URDF rad, with
+        Jacobians ``jac (k, 6, n)`` and pose errors ``err (k, 6)``) are set aside."""
+        park = np.zeros(len(rows), bool)
+        past = past_ranges(self.controller(q), self.ranges, self.revolute)
+        some = np.flatnonzero(past > 0.0)
+        if not len(some):
+            return park
+        d = gauss_newton_steps(jac[some], err[some], DAMPING)
+        travel = np.max(np.abs(self.controller(d)), axis=1)
+        left = err[some] - np.einsum("kij,kj->ki", jac[some], d)     # what d leaves
+        far = ((np.max(np.abs(d), axis=1) <= self.step) & (travel <= self.step)
+               & (np.linalg.norm(left, axis=1) <= PARK_EXPLAINED * np.linalg.norm(
+                   err[some], axis=1))
+               & (past[some] > self.factor * travel + 1e-9))
+        park[some[far]] = True
+        self._rows.append(rows[some[far]])
+        self._ends.append(q[some[far]] + d[far])
+        return park
+
+    @property
+    def rows(self) -> np.ndarray:
+        return np.concatenate(self._rows) if self._rows else np.zeros(0, int)
+
+    @property
+    def ends(self) -> np.ndarray:
+        n = len(self.ranges)
+        return np.concatenate(self._ends) if self._ends else np.zeros((0, n))
