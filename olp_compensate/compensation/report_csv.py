@@ -32,12 +32,9 @@ class CsvRows:
         self.failed_line = "%s,%s,%d,%d,%s,%s,%s,,,,,,%s,%s,%s,%s\n"
         self.quoted = Quoted()
 
-    def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
-        """The fields of :attr:`row_line` for the complete rows ``rows`` of ``c``, row
-        after row in one flat list (each column converted in one pass, the numbers of a
-        row's runs of floats written together: :func:`fixed_rows`)."""
-        if not len(rows):
-            return []
+    def _who(self, c: RowColumns, rows: np.ndarray) -> tuple:
+        """``rows`` as a list, and their target names (CSV fields), tools and work objects
+        (quoted), one list each."""
         quoted = self.quoted.__getitem__
         r = rows.tolist()
         names = [c.names[i] for i in r]
@@ -45,6 +42,16 @@ class CsvRows:
             names = list(map(csv_field, names))
         tools = [(quoted(t), quoted(w)) for t, w in c.pair_names]
         tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
+        return r, names, tool, wobj
+
+    def column_fields(self, c: RowColumns, rows: np.ndarray) -> list:
+        """The fields of :attr:`row_line` for the complete rows ``rows`` of ``c``, row
+        after row in one flat list (each column converted in one pass, the numbers of a
+        row's runs of floats written together: :func:`fixed_rows`)."""
+        if not len(rows):
+            return []
+        quoted = self.quoted.__getitem__
+        r, names, tool, wobj = self._who(c, rows)
         columns = [names, itertools.repeat(quoted(c.file)), c.line[rows].tolist(),
                    c.column[rows].tolist(), map(quoted, [c.status[i] for i in r]), tool, wobj,
                    fixed_rows(c.correction_mm[rows], 4),
@@ -62,12 +69,7 @@ class CsvRows:
         if not len(rows):
             return []
         quoted = self.quoted.__getitem__
-        r = rows.tolist()
-        names = [c.names[i] for i in r]
-        if any(ch in "".join(names) for ch in ',"\n\r'):
-            names = list(map(csv_field, names))
-        tools = [(quoted(t), quoted(w)) for t, w in c.pair_names]
-        tool, wobj = zip(*[tools[p] for p in c.pair[rows].tolist()])
+        r, names, tool, wobj = self._who(c, rows)
         q = c.joints[rows]
         found = np.isfinite(q).all(axis=1) if q.shape[1] else np.zeros(len(r), bool)
         joints = [self.empty_joints] * len(r)

@@ -20,7 +20,8 @@ from sys import intern
 
 import numpy as np
 
-from ...compensation.report import COMPENSATED, MergedRows, RowSource, TargetReport, merged
+from ...compensation.report import (COMPENSATED, MergedRows, PickedRows, RowSource,
+                                    TargetReport, merged)
 from ...compensation.report_csv import CsvRows, csv_field
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
 from .columns import lines_and_columns
@@ -205,22 +206,7 @@ class RowsWithDisplaced(RowSource, MergedRows):
         picked = np.flatnonzero(~mine)
         if len(objects):
             picked = np.flatnonzero(~mine | ~fine[np.where(mine, order, 0)])
-        return _Picked(self, picked)
-
-
-class _Picked(Sequence):
-    """Rows ``positions`` of a sequence of rows, made on access."""
-
-    def __init__(self, rows: Sequence, positions: np.ndarray):
-        self.rows, self.positions = rows, positions
-
-    def __len__(self) -> int:
-        return len(self.positions)
-
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        return self.rows[int(self.positions[k])]
+        return PickedRows(self, picked)
 
 
 def with_displaced(program: Program, table: DisplacedMoves,
