@@ -322,3 +322,53 @@ def test_a_start_its_first_step_cannot_take_to_the_pose_is_never_set_aside(world
     parked = park(np.arange(len(flat)), flat, np.array(jac), err)
     assert not np.any(parked[far[rows]])
     assert np.mean(parked[~far[rows]]) > 0.5
+
+
+def _enumerated_past(q: np.ndarray, robot) -> float:
+    """How far joints ``q (n,)`` (controller rad/m) lie past ``robot``'s ranges, by the
+    enumeration of the seven whole turns of each revolute axis: per axis the least of
+    max(lo - v, v - hi) over its turns v (positive outside, else minus the room left),
+    -inf for an axis that holds every value (no finite range, or a full turn or more);
+    the largest over the axes."""
+    worst = -np.inf
+    for a, joint in enumerate(robot.joints):
+        lo, hi = robot.controller_ranges[a]
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            continue
+        if joint.kind == "revolute":
+            if hi - lo >= 2 * np.pi:
+                continue
+            values = [q[a] + 2 * np.pi * t for t in range(-4, 5)]
+        else:
+            values = [q[a]]
+        worst = max(worst, min(max(lo - v, v - hi) for v in values))
+    return worst
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "ur5e", "staubli_tx2_60", "kuka_kr16_2",
+                                  "fanuc_r2000ic_165f"])
+def test_past_ranges_is_the_enumeration_of_turns_and_agrees_with_the_rules_turns(name):
+    """The set-aside test's closed form (:func:`~olp_compensate.compensation.ik.stalls.
+    past_ranges`, issue 32) against the enumeration of turns; and where it says a start
+    lies outside (or inside) the ranges by more than 1e-9, the rule's own turns
+    (:func:`turn_toward_ranges`) put it outside (inside) too."""
+    from olp_compensate.compensation.ik.stalls import past_ranges
+
+    robot = load_robot(name)
+    revolute = np.array([joint.kind == "revolute" for joint in robot.joints])
+    rng = np.random.default_rng(8)
+    q = rng.uniform(-14.0, 14.0, (400, robot.n_joints))
+    q[:100] = robot.controller_ranges[:, 0] + rng.uniform(-0.3, 0.3, (100, robot.n_joints))
+    got = past_ranges(q, robot.controller_ranges, revolute)
+    outside = robot.outside_ranges(turn_toward_ranges(robot, q)).any(axis=1)
+    for i in range(len(q)):
+        want = _enumerated_past(q[i], robot)
+        assert got[i] == pytest.approx(want, abs=1e-12), i
+        if want > 1e-9:
+            assert outside[i], i
+        elif want < -1e-9:
+            assert not outside[i], i
+    if name == "ur5e":                   # every axis a full turn both ways: holds any value
+        assert np.all(got == -np.inf)
+    else:
+        assert np.any(got > 1e-9) and np.any(got < -1e-9)
