@@ -20,7 +20,7 @@ import dataclasses
 import heapq
 import re
 from array import array
-from itertools import count, islice, repeat
+from itertools import chain, compress, count, islice, repeat
 
 import numpy as np
 
@@ -30,6 +30,11 @@ from ..targets import QUAT_WXYZ, CartesianTarget, MotionUse, Program
 NUMBERS = 17
 """Numbers of a robtarget literal: x y z, q1..q4, cf1 cf4 cf6 cfx, eax_a..eax_f."""
 SPANS = 6
+SIMPLE_GROUPS = (1, 3, 4, 5, 6, 2, 7)
+"""fast.py ``_SIMPLE_MOVE``'s groups: instruction, name, index, tool, wobj, target, where
+the arguments end."""
+MIXED_GROUPS = (1, 3, 4, 8, 9, 2, 10)
+"""The same of fast.py ``_MIXED_MOVE`` (its displaced moves: :data:`~.displaced.GROUPS`)."""
 _BRACKETS = {ord("["): " ", ord("]"): " "}
 
 
@@ -209,7 +214,6 @@ class MoveTable:
         the previous one from ``pos`` on, without a gap, in batches
         (:func:`matches_in_turn`): the rows :meth:`append` gives of the same matches.
         Returns where they end."""
-        words = self._words
         for ms in matches_in_turn(regex, text, pos, end):
             pos = ms[-1].end()
             if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
@@ -218,17 +222,57 @@ class MoveTable:
                     self.append(*m.group(1, 3, 4, 5, 6), routine,
                                 (*regs[1], regs[0][0], regs[7][0], *regs[2]))
                 continue
-            instructions, names, indices, tools, wobjs = (
-                list(map(_GROUP, ms, repeat(k))) for k in (1, 3, 4, 5, 6))
-            self.instructions.extend(map(words.setdefault, instructions, instructions))
-            self.target_names.extend(names)
-            self.tools.extend(map(words.setdefault, tools, tools))
-            self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
-            self.routines.extend(repeat(routine, len(ms)))
-            self.indices.extend(-1 if k is None else int(k) for k in indices)
-            _add_rows(self.spans, ms, ((_START, 1), (_END, 1), (_START, 0), (_START, 7),
-                                       (_START, 2), (_END, 2)))
+            self.extend(ms, routine, SIMPLE_GROUPS)
         return pos
+
+    def run_mixed(self, regex: re.Pattern, text: str, pos: int, end: int,
+                  routine: str | None, displaced) -> int:
+        """:meth:`run` of ``regex`` (fast.py ``_MIXED_MOVE``, groups :data:`MIXED_GROUPS`),
+        a plain move or an Offs()/RelTool() one each: the plain ones rows here, the others
+        rows of ``displaced`` (a :class:`~.displaced.DisplacedMoves`, its ``extend``), each
+        batch split by kind. Returns where they end."""
+        first = regex.match(text, pos, end)   # anchored: no search where none starts
+        if first is None:
+            return pos
+        for ms in chain(([first],), matches_in_turn(regex, text, first.end(), end)):
+            pos = ms[-1].end()
+            names = list(map(_GROUP, ms, repeat(3)))   # None: a displaced move
+            if None not in names:
+                self.extend(ms, routine, MIXED_GROUPS, names)
+                continue
+            plain = [name is not None for name in names]
+            if any(plain):
+                self.extend(list(compress(ms, plain)), routine, MIXED_GROUPS,
+                            list(compress(names, plain)))
+            displaced.extend([m for m, kept in zip(ms, plain) if not kept], routine)
+        return pos
+
+    def extend(self, ms: list, routine: str | None, groups: tuple,
+               names: list | None = None) -> None:
+        """Add a row per match of ``ms``: the rows :meth:`append` gives of them;
+        ``groups``: their instruction, name, index, tool, wobj, target and arguments' end
+        groups (:data:`SIMPLE_GROUPS`, :data:`MIXED_GROUPS`), ``names`` the name group's
+        texts if known. Short lists row by row (arrays cost more than they save)."""
+        instruction, name, index, tool, wobj, target, stop = groups
+        if len(ms) < 16:
+            for m in ms:
+                regs = m.regs
+                self.append(*m.group(instruction, name, index, tool, wobj), routine,
+                            (*regs[instruction], regs[0][0], regs[stop][0], *regs[target]))
+            return
+        words = self._words
+        if names is None:
+            names = list(map(_GROUP, ms, repeat(name)))
+        instructions, indices, tools, wobjs = (
+            list(map(_GROUP, ms, repeat(k))) for k in (instruction, index, tool, wobj))
+        self.instructions.extend(map(words.setdefault, instructions, instructions))
+        self.target_names.extend(names)
+        self.tools.extend(map(words.setdefault, tools, tools))
+        self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
+        self.routines.extend(repeat(routine, len(ms)))
+        self.indices.extend(-1 if k is None else int(k) for k in indices)
+        _add_rows(self.spans, ms, ((_START, instruction), (_END, instruction), (_START, 0),
+                                   (_START, stop), (_START, target), (_END, target)))
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
