@@ -116,3 +116,25 @@ def test_displaced_rows_share_their_words():
     assert len(table) > 8
     assert len({id(r) for r in table.reasons}) == len(set(table.reasons))
     assert len({id(t) for t in table.tools}) == len(set(table.tools))
+
+
+@pytest.mark.parametrize("odd", ["PERS robtarget", "LOCAL VAR robtarget", "TASK PERS robtarget",
+                                 "VAR num", "CONST robtarget"])
+def test_a_routines_own_targets_are_read_in_runs_up_to_any_other_declaration(odd):
+    """Routine-local VAR/CONST robtargets are rows, read in runs (TargetTable.run, own);
+    a PERS, LOCAL or TASK one (or other data) between them stops the run there and is
+    left to the builder: the objects are the object parse's."""
+    decls = [f"    VAR robtarget p{k}:={LITERAL};\r\n" for k in range(40)]
+    value = "5" if odd == "VAR num" else LITERAL
+    for at in (0, 3, 15, 16, 17, 33, 39):
+        lines = decls[:at] + [f"    {odd} x{at}:={value};\r\n"] + decls[at:]
+        text = ("MODULE M\r\n  PROC main()\r\n" + "".join(lines)
+                + "".join(f"    MoveL p{k},v500,z10,tool0;\r\n" for k in range(40))
+                + "  ENDPROC\r\nENDMODULE\r\n")
+        want = parse_rapid(text, "m.mod")
+        table = DisplacedMoves()
+        program, columns = parse_rapid_columns(text, "m.mod", table)
+        assert with_displaced(with_objects(program, columns), table) == want
+        rows = 40 + (odd == "CONST robtarget")
+        assert len(columns.targets) == rows
+        assert set(columns.targets.routines) == {"main"}

@@ -79,27 +79,38 @@ class TargetTable:
         self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
 
     def run(self, regex: re.Pattern, text: str, pos: int, end: int,
-            routine: str | None = None) -> int:
+            routine: str | None = None, own: bool = False) -> int:
         """Add a row for each match of ``regex`` (a :meth:`append` form) that follows the
         previous one from ``pos`` on, without a gap, in batches (:func:`matches_in_turn`):
-        the rows :meth:`append` gives of the same matches. Returns where they end."""
-        add_names, add_storage, words = self.names.extend, self.storage.extend, self._words
+        the rows :meth:`append` gives of the same matches. ``own`` (in a routine): only
+        its own data, the run stops before a ``PERS`` declaration or one with a ``LOCAL``
+        or ``TASK`` word (the builder's to judge). Returns where they end."""
         for ms in matches_in_turn(regex, text, pos, end):
+            if own:
+                kept = _routine_data(ms)
+                if kept < len(ms):
+                    self._add(ms[:kept], routine)
+                    return ms[kept].start()
             pos = ms[-1].end()
-            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
-                for m in ms:
-                    self.append(m.group(3), m.group(1), m.regs, routine)
-                continue
-            add_names(map(_GROUP, ms, repeat(3)))
-            written = list(map(_GROUP, ms, repeat(1)))
-            for word in set(written).difference(words):
-                words[word] = word.upper()
-            add_storage(map(words.__getitem__, written))
-            self.routines.extend(repeat(routine, len(ms)))
-            self.offsets.extend(map(_START, ms, repeat(3)))
-            _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
-                                       (_START, 5), (_END, 6)))
+            self._add(ms, routine)
         return pos
+
+    def _add(self, ms: list, routine: str | None) -> None:
+        """Add a row per match of ``ms`` (:meth:`run`)."""
+        if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
+            for m in ms:
+                self.append(m.group(3), m.group(1), m.regs, routine)
+            return
+        words = self._words
+        self.names.extend(map(_GROUP, ms, repeat(3)))
+        written = list(map(_GROUP, ms, repeat(1)))
+        for word in set(written).difference(words):
+            words[word] = word.upper()
+        self.storage.extend(map(words.__getitem__, written))
+        self.routines.extend(repeat(routine, len(ms)))
+        self.offsets.extend(map(_START, ms, repeat(3)))
+        _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
+                                   (_START, 5), (_END, 6)))
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
@@ -338,6 +349,15 @@ class ModuleColumns:
 
 
 _GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
+
+
+def _routine_data(ms: list) -> int:
+    """How many of the declaration matches ``ms`` (TargetTable forms), from the first, are
+    a routine's own data: no LOCAL or TASK word, not PERS."""
+    for k, m in enumerate(ms):
+        if m.start(1) != m.start() or m.group(1).upper() == "PERS":
+            return k
+    return len(ms)
 
 
 def _numbers(joined: str, n: int) -> np.ndarray:

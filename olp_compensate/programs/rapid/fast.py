@@ -121,7 +121,7 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
             if sink.depth and (m.start(1) != pos or m.group(1).upper() == "PERS"):
                 return pos   # not a routine's data (LOCAL, TASK, PERS): the builder says
             add(m.group(3), m.group(1), m.regs, routine)   # then the run it starts, at once
-            pos = m.end() if sink.depth else sink.columns.targets.run(m.re, text, m.end(), end)
+            pos = sink.columns.targets.run(m.re, text, m.end(), end, routine, sink.depth > 0)
     first, second = (rx.match for rx in robtarget_regexes(rows=False))
     append, file = sink.targets.append, sink.file
     count, rfind = text.count, text.rfind
