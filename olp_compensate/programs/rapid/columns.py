@@ -227,12 +227,6 @@ class MoveTable:
         Returns where they end."""
         for ms in matches_in_turn(regex, text, pos, end):
             pos = ms[-1].end()
-            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
-                for m in ms:
-                    regs = m.regs
-                    self.append(*m.group(1, 3, 4, 5, 6), routine,
-                                (*regs[1], regs[0][0], regs[7][0], *regs[2]))
-                continue
             self.extend(ms, routine, SIMPLE_GROUPS)
         return pos
 
