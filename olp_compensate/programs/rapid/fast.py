@@ -322,7 +322,7 @@ def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
     match, routine = _SIMPLE_MOVE.match, sink.routine
     if sink.columns is not None:
         moves = sink.columns.moves
-        if sink.displaced is not None:   # and the plain Offs()/RelTool() ones, as rows
+        if sink.displaced is not None:   # and the Offs()/RelTool() ones, as rows: same batches
             return moves.run_mixed(_MIXED_MOVE, text, pos, end, routine, sink.displaced)
         while (m := match(text, pos, end)) is not None:   # then the run it starts, at once
             regs = m.regs
