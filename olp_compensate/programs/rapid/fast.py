@@ -322,13 +322,13 @@ def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
     match, routine = _SIMPLE_MOVE.match, sink.routine
     if sink.columns is not None:
         moves = sink.columns.moves
-        if sink.displaced is not None:   # and the Offs()/RelTool() ones, as rows: same batches
-            return moves.run_mixed(_MIXED_MOVE, text, pos, end, routine, sink.displaced)
         while (m := match(text, pos, end)) is not None:   # then the run it starts, at once
             regs = m.regs
             moves.append(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
             pos = moves.run(m.re, text, m.end(), end, routine)
-        return pos
+        if sink.displaced is None:   # from an Offs()/RelTool() on, both kinds, as rows
+            return pos
+        return moves.run_mixed(_MIXED_MOVE, text, pos, end, routine, sink.displaced)
     append, file = sink.motions.append, sink.file
     count, rfind = text.count, text.rfind
     index = sink.index
