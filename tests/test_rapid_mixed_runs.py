@@ -1,9 +1,10 @@
-"""A column parse reads runs of plain MoveL/MoveJ and Offs()/RelTool() ones in batches
-(rapid/fast.py ``_MIXED_MOVE``, columns.py ``MoveTable.run_mixed``, displaced.py
-``DisplacedMoves.extend``): the MotionUse, RuntimeTarget and CartesianTarget objects made
-of its rows must be the object parse's of the same module, whatever the mix, the run
-lengths (row by row, the first batches, long batches), the comments, blank lines and
-other statements between, and the routine-local targets."""
+"""A column parse reads runs of plain MoveL/MoveJ and, from the first Offs()/RelTool() one
+on, of both kinds in batches (rapid/fast.py ``_MIXED_MOVE``, columns.py
+``MoveTable.run_mixed``, displaced.py ``DisplacedMoves.extend``): the MotionUse,
+RuntimeTarget and CartesianTarget objects made of its rows must be the object parse's of
+the same module, whatever the mix, the run lengths (row by row, the first batches, long
+batches), the comments, blank lines and other statements between, and the routine-local
+targets."""
 
 from __future__ import annotations
 
@@ -70,7 +71,7 @@ def _module(seed: int) -> str:
 
 def _column_objects(text: str) -> tuple:
     """The Program a column parse with a DisplacedMoves table gives, its rows made objects,
-    and the table's row count."""
+    and the row counts of its displaced and move tables."""
     table = DisplacedMoves()
     program, columns = parse_rapid_columns(text, "m.mod", table)
     return with_displaced(with_objects(program, columns), table), len(table), len(columns.moves)
