@@ -20,7 +20,7 @@ import dataclasses
 import heapq
 import re
 from array import array
-from itertools import count, islice, repeat
+from itertools import chain, compress, count, islice, repeat
 
 import numpy as np
 
@@ -30,6 +30,11 @@ from ..targets import QUAT_WXYZ, CartesianTarget, MotionUse, Program
 NUMBERS = 17
 """Numbers of a robtarget literal: x y z, q1..q4, cf1 cf4 cf6 cfx, eax_a..eax_f."""
 SPANS = 6
+SIMPLE_GROUPS = (1, 3, 4, 5, 6, 2, 7)
+"""fast.py ``_SIMPLE_MOVE``'s groups: instruction, name, index, tool, wobj, target, where
+the arguments end."""
+MIXED_GROUPS = (1, 3, 4, 8, 9, 2, 10)
+"""The same of fast.py ``_MIXED_MOVE`` (its displaced moves: :data:`~.displaced.GROUPS`)."""
 _BRACKETS = {ord("["): " ", ord("]"): " "}
 
 
@@ -74,27 +79,38 @@ class TargetTable:
         self.spans.extend((literal[0], literal[1], kind[0], kind[1], regs[5][0], regs[6][1]))
 
     def run(self, regex: re.Pattern, text: str, pos: int, end: int,
-            routine: str | None = None) -> int:
+            routine: str | None = None, own: bool = False) -> int:
         """Add a row for each match of ``regex`` (a :meth:`append` form) that follows the
         previous one from ``pos`` on, without a gap, in batches (:func:`matches_in_turn`):
-        the rows :meth:`append` gives of the same matches. Returns where they end."""
-        add_names, add_storage, words = self.names.extend, self.storage.extend, self._words
+        the rows :meth:`append` gives of the same matches. ``own`` (in a routine): only
+        its own data, the run stops before a ``PERS`` declaration or one with a ``LOCAL``
+        or ``TASK`` word (the builder's to judge). Returns where they end."""
         for ms in matches_in_turn(regex, text, pos, end):
+            if own:
+                kept = _routine_data(ms)
+                if kept < len(ms):
+                    self._add(ms[:kept], routine)
+                    return ms[kept].start()
             pos = ms[-1].end()
-            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
-                for m in ms:
-                    self.append(m.group(3), m.group(1), m.regs, routine)
-                continue
-            add_names(map(_GROUP, ms, repeat(3)))
-            written = list(map(_GROUP, ms, repeat(1)))
-            for word in set(written).difference(words):
-                words[word] = word.upper()
-            add_storage(map(words.__getitem__, written))
-            self.routines.extend(repeat(routine, len(ms)))
-            self.offsets.extend(map(_START, ms, repeat(3)))
-            _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
-                                       (_START, 5), (_END, 6)))
+            self._add(ms, routine)
         return pos
+
+    def _add(self, ms: list, routine: str | None) -> None:
+        """Add a row per match of ``ms`` (:meth:`run`)."""
+        if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
+            for m in ms:
+                self.append(m.group(3), m.group(1), m.regs, routine)
+            return
+        words = self._words
+        self.names.extend(map(_GROUP, ms, repeat(3)))
+        written = list(map(_GROUP, ms, repeat(1)))
+        for word in set(written).difference(words):
+            words[word] = word.upper()
+        self.storage.extend(map(words.__getitem__, written))
+        self.routines.extend(repeat(routine, len(ms)))
+        self.offsets.extend(map(_START, ms, repeat(3)))
+        _add_rows(self.spans, ms, ((_START, 4), (_END, 4), (_START, 2), (_END, 2),
+                                   (_START, 5), (_END, 6)))
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
@@ -209,26 +225,59 @@ class MoveTable:
         the previous one from ``pos`` on, without a gap, in batches
         (:func:`matches_in_turn`): the rows :meth:`append` gives of the same matches.
         Returns where they end."""
-        words = self._words
         for ms in matches_in_turn(regex, text, pos, end):
             pos = ms[-1].end()
-            if len(ms) < 16:   # a short run: row by row (arrays cost more than they save)
-                for m in ms:
-                    regs = m.regs
-                    self.append(*m.group(1, 3, 4, 5, 6), routine,
-                                (*regs[1], regs[0][0], regs[7][0], *regs[2]))
-                continue
-            instructions, names, indices, tools, wobjs = (
-                list(map(_GROUP, ms, repeat(k))) for k in (1, 3, 4, 5, 6))
-            self.instructions.extend(map(words.setdefault, instructions, instructions))
-            self.target_names.extend(names)
-            self.tools.extend(map(words.setdefault, tools, tools))
-            self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
-            self.routines.extend(repeat(routine, len(ms)))
-            self.indices.extend(-1 if k is None else int(k) for k in indices)
-            _add_rows(self.spans, ms, ((_START, 1), (_END, 1), (_START, 0), (_START, 7),
-                                       (_START, 2), (_END, 2)))
+            self.extend(ms, routine, SIMPLE_GROUPS)
         return pos
+
+    def run_mixed(self, regex: re.Pattern, text: str, pos: int, end: int,
+                  routine: str | None, displaced) -> int:
+        """:meth:`run` of ``regex`` (fast.py ``_MIXED_MOVE``, groups :data:`MIXED_GROUPS`),
+        a plain move or an Offs()/RelTool() one each: the plain ones rows here, the others
+        rows of ``displaced`` (a :class:`~.displaced.DisplacedMoves`, its ``extend``), each
+        batch split by kind. Returns where they end."""
+        first = regex.match(text, pos, end)   # anchored: no search where none starts
+        if first is None:
+            return pos
+        for ms in chain(([first],), matches_in_turn(regex, text, first.end(), end)):
+            pos = ms[-1].end()
+            names = list(map(_GROUP, ms, repeat(3)))   # None: a displaced move
+            if None not in names:
+                self.extend(ms, routine, MIXED_GROUPS, names)
+                continue
+            plain = [name is not None for name in names]
+            if any(plain):
+                self.extend(list(compress(ms, plain)), routine, MIXED_GROUPS,
+                            list(compress(names, plain)))
+            displaced.extend([m for m, kept in zip(ms, plain) if not kept], routine)
+        return pos
+
+    def extend(self, ms: list, routine: str | None, groups: tuple,
+               names: list | None = None) -> None:
+        """Add a row per match of ``ms``: the rows :meth:`append` gives of them;
+        ``groups``: their instruction, name, index, tool, wobj, target and arguments' end
+        groups (:data:`SIMPLE_GROUPS`, :data:`MIXED_GROUPS`), ``names`` the name group's
+        texts if known. Short lists row by row (arrays cost more than they save)."""
+        instruction, name, index, tool, wobj, target, stop = groups
+        if len(ms) < 16:
+            for m in ms:
+                regs = m.regs
+                self.append(*m.group(instruction, name, index, tool, wobj), routine,
+                            (*regs[instruction], regs[0][0], regs[stop][0], *regs[target]))
+            return
+        words = self._words
+        if names is None:
+            names = list(map(_GROUP, ms, repeat(name)))
+        instructions, indices, tools, wobjs = (
+            list(map(_GROUP, ms, repeat(k))) for k in (instruction, index, tool, wobj))
+        self.instructions.extend(map(words.setdefault, instructions, instructions))
+        self.target_names.extend(names)
+        self.tools.extend(map(words.setdefault, tools, tools))
+        self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
+        self.routines.extend(repeat(routine, len(ms)))
+        self.indices.extend(-1 if k is None else int(k) for k in indices)
+        _add_rows(self.spans, ms, ((_START, instruction), (_END, instruction), (_START, 0),
+                                   (_START, stop), (_START, target), (_END, target)))
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
@@ -294,6 +343,15 @@ class ModuleColumns:
 
 
 _GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
+
+
+def _routine_data(ms: list) -> int:
+    """How many of the declaration matches ``ms`` (TargetTable forms), from the first, are
+    a routine's own data: no LOCAL or TASK word, not PERS."""
+    for k, m in enumerate(ms):
+        if m.start(1) != m.start() or m.group(1).upper() == "PERS":
+            return k
+    return len(ms)
 
 
 def _numbers(joined: str, n: int) -> np.ndarray:

@@ -14,8 +14,10 @@ from __future__ import annotations
 import copy
 import dataclasses
 import heapq
+import re
 from array import array
 from collections.abc import Sequence
+from itertools import repeat
 from sys import intern
 
 import numpy as np
@@ -27,6 +29,10 @@ from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
 from .columns import lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
+GROUPS = (1, 5, 6, 7, 8, 9, 10)
+"""fast.py ``_MIXED_MOVE``'s groups of a displaced move: instruction, target expression,
+function, the displaced target's name, tool, wobj, where the arguments end."""
+_GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
 _WIDTH = 10
 """Integers per row: line, column, instruction (start, end), statement (start, end),
 target expression (start, end), the displaced target's name (start, end)."""
@@ -49,12 +55,12 @@ class DisplacedMoves:
     def __len__(self) -> int:
         return len(self.reasons)
 
-    def add(self, regs: tuple, instruction: str, function: str, tool: str,
-            wobj: str | None, routine: str | None) -> None:
-        """Add a row: the spans ``regs`` of a ``_DISPLACED_MOVE`` match (fast.py:
-        1 instruction, 2 expression, 4 target name, 7 the arguments' end), its words as
-        written; its line and column are set by :meth:`place`."""
-        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[7][0], *regs[2], *regs[4]))
+    def add(self, m: re.Match, routine: str | None) -> None:
+        """Add a row: a ``_MIXED_MOVE`` match ``m`` of a displaced move (fast.py; groups
+        :data:`GROUPS`); its line and column are set by :meth:`place`."""
+        regs = m.regs
+        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[10][0], *regs[5], *regs[7]))
+        instruction, function, tool, wobj = m.group(1, 6, 8, 9)
         words = self._words
         instruction = words.setdefault(instruction, instruction)
         key = (function, instruction)
@@ -66,6 +72,36 @@ class DisplacedMoves:
         self.tools.append(words.setdefault(tool, tool))
         self.wobjs.append(None if wobj is None else words.setdefault(wobj, wobj))
         self.routines.append(routine)
+
+    def extend(self, ms: list, routine: str | None) -> None:
+        """Add a row per ``_MIXED_MOVE`` match of ``ms`` (fast.py; each a displaced move,
+        groups :data:`GROUPS`): the rows :meth:`add` gives of the same moves, in one
+        batch (a short list row by row: arrays cost more than they save)."""
+        if len(ms) < 8:
+            for m in ms:
+                self.add(m, routine)
+            return
+        instruction, expression, function, name, tool, wobj, stop = GROUPS
+        words = self._words
+        written = list(map(_GROUP, ms, repeat(instruction)))
+        instructions = list(map(words.setdefault, written, written))
+        keys = list(zip(map(_GROUP, ms, repeat(function)), instructions))
+        for key in set(keys).difference(words):
+            words[key] = intern(f"{RUNTIME_FUNCS[key[0].lower()]} ({key[1]})")
+        tools = list(map(_GROUP, ms, repeat(tool)))
+        wobjs = map(_GROUP, ms, repeat(wobj))
+        self.instructions.extend(instructions)
+        self.reasons.extend(map(words.__getitem__, keys))
+        self.tools.extend(map(words.setdefault, tools, tools))
+        self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
+        self.routines.extend(repeat(routine, len(ms)))
+        n = len(ms)
+        columns = [np.fromiter(map(method, ms, repeat(group)), np.int64, n) for method, group
+                   in ((_START, instruction), (_END, instruction), (_START, 0), (_START, stop),
+                       (_START, expression), (_END, expression), (_START, name),
+                       (_END, name))]
+        zero = np.zeros(n, np.int64)
+        self.numbers.frombytes(np.column_stack([zero, zero, *columns]).tobytes())
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set each row's 1-based line and column, of where its target expression starts,

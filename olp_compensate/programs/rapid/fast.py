@@ -121,7 +121,7 @@ def _plain_robtargets(sink: Sink, text: str, pos: int, end: int) -> int:
             if sink.depth and (m.start(1) != pos or m.group(1).upper() == "PERS"):
                 return pos   # not a routine's data (LOCAL, TASK, PERS): the builder says
             add(m.group(3), m.group(1), m.regs, routine)   # then the run it starts, at once
-            pos = m.end() if sink.depth else sink.columns.targets.run(m.re, text, m.end(), end)
+            pos = sink.columns.targets.run(m.re, text, m.end(), end, routine, sink.depth > 0)
     first, second = (rx.match for rx in robtarget_regexes(rows=False))
     append, file = sink.targets.append, sink.file
     count, rfind = text.count, text.rfind
@@ -251,18 +251,21 @@ _PLAIN = portable(r"(?:[A-Za-z_][A-Za-z0-9_]*+(?:\.[A-Za-z_][A-Za-z0-9_]*+)*+"
 _MOVE_TAIL = (r"[ \t]*,[ \t]*" + _PLAIN + r"[ \t]*,[ \t]*" + _PLAIN + r"[ \t]*,[ \t]*"
               r"([A-Za-z_][A-Za-z0-9_]*)"
               r"(?:[ \t]*\\(?i:WObj)[ \t]*:=[ \t]*([A-Za-z_][A-Za-z0-9_]*))?()[ \t]*;" + _SEP)
-_SIMPLE_MOVE = re.compile(
-    r"((?i:MoveL|MoveJ))[ \t]+(([A-Za-z_][A-Za-z0-9_]*)(?:\{[ \t]*(\d+)[ \t]*\})?)"
-    + _MOVE_TAIL)
-_INLINE_MOVE = re.compile(r"((?i:MoveL|MoveJ))[ \t]+(" + ROBTARGET_PATTERN + ")" + _MOVE_TAIL)
+_MOVE = r"((?i:MoveL|MoveJ))[ \t]+"
+_NAMED = r"(([A-Za-z_][A-Za-z0-9_]*)(?:\{[ \t]*(\d+)[ \t]*\})?)"
+_SIMPLE_MOVE = re.compile(_MOVE + _NAMED + _MOVE_TAIL)
+_INLINE_MOVE = re.compile(_MOVE + "(" + ROBTARGET_PATTERN + ")" + _MOVE_TAIL)
 _INLINE_NUMBERS = range(3, 20)
 # MoveL/MoveJ Offs(<name>, <number>, <number>, <number>) or RelTool(...) of the same form
 # (three numbers, no optional argument): instruction, target expression, function, its
 # target's name, tool, wobj, () where the arguments end
-_DISPLACED_MOVE = re.compile(
-    r"((?i:MoveL|MoveJ))[ \t]+(((?i:Offs|RelTool))\([ \t]*([A-Za-z_][A-Za-z0-9_]*)"
-    r"(?:[ \t]*,[ \t]*-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?){3}[ \t]*\))" + _MOVE_TAIL)
-_NO_MATCH = re.compile(r"(?!)")
+_OFFSET = (r"(((?i:Offs|RelTool))\([ \t]*([A-Za-z_][A-Za-z0-9_]*)"
+           r"(?:[ \t]*,[ \t]*-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?){3}[ \t]*\))")
+_DISPLACED_MOVE = re.compile(_MOVE + _OFFSET + _MOVE_TAIL)
+# either (a column parse's runs of both, in one match each: what _SIMPLE_MOVE matches, else
+# what _DISPLACED_MOVE does): instruction, target, name, index, expression, function, its
+# target's name, tool, wobj, () where the arguments end (columns.MIXED_GROUPS)
+_MIXED_MOVE = re.compile(_MOVE + "(?:" + _NAMED + "|" + _OFFSET + ")" + _MOVE_TAIL)
 
 
 def _on_fast_calls(tok: Token) -> Token:
@@ -317,19 +320,15 @@ def _plain_moves(sink: Sink, text: str, pos: int, end: int) -> int:
     (a column parse, placed in lines afterwards), else as MotionUse objects in
     ``sink.motions``. Returns the offset after them."""
     match, routine = _SIMPLE_MOVE.match, sink.routine
-    if sink.columns is not None:   # and the plain Offs()/RelTool() ones, where held as rows
-        add, table = sink.columns.moves.append, sink.displaced
-        displaced = (_NO_MATCH if table is None else _DISPLACED_MOVE).match
-        while True:
-            if (m := match(text, pos, end)) is not None:   # then the run it starts, at once
-                regs = m.regs
-                add(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
-                pos = sink.columns.moves.run(m.re, text, m.end(), end, routine)
-            elif (m := displaced(text, pos, end)) is not None:
-                table.add(m.regs, *m.group(1, 3, 5, 6), routine)   # (lines: table.place)
-                pos = m.end()
-            else:
-                return pos
+    if sink.columns is not None:
+        moves = sink.columns.moves
+        while (m := match(text, pos, end)) is not None:   # then the run it starts, at once
+            regs = m.regs
+            moves.append(*m.group(1, 3, 4, 5, 6), routine, (*regs[1], pos, regs[7][0], *regs[2]))
+            pos = moves.run(m.re, text, m.end(), end, routine)
+        if sink.displaced is None:   # from an Offs()/RelTool() on, both kinds, as rows
+            return pos
+        return moves.run_mixed(_MIXED_MOVE, text, pos, end, routine, sink.displaced)
     append, file = sink.motions.append, sink.file
     count, rfind = text.count, text.rfind
     index = sink.index
