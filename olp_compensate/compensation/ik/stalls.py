@@ -55,15 +55,18 @@ class BehindAndStalled:
     module)."""
 
     def __init__(self, groups: np.ndarray, window: int = STALL_WINDOW,
-                 relative: float = STALL_RELATIVE, margin: float = BEHIND_MARGIN):
+                 relative: float = STALL_RELATIVE, margin: float = BEHIND_MARGIN,
+                 steps: int | None = None):
         groups = np.asarray(groups, dtype=int)
         self.window, self.relative, self.margin = int(window), float(relative), float(margin)
+        self.steps = steps                       # the starts' step budget, if hopeless ones stop
         r = len(groups)
         new = np.r_[True, groups[1:] != groups[:-1]] if r else np.zeros(0, bool)
         self.first = np.flatnonzero(new)         # the first start of each target
         self.target = np.cumsum(new) - 1         # each start's target, 0..g-1
         self.score = np.full(r, np.inf)          # each start's latest score (m + 0.1 rad)
         self.history = np.full((r, self.window), np.inf)   # its last squared errors
+        self.scores = np.full((r, self.window), np.inf) if steps is not None else None
 
     def __call__(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
                  err: np.ndarray) -> np.ndarray:
@@ -75,8 +78,29 @@ class BehindAndStalled:
         before = self.history[act, slot]          # the squared error `window` steps ago
         self.history[act, slot] = cost
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
-        crawling = (best <= REACHED_SCORE) & (cost > (1.0 - CRAWL_RELATIVE) * before)
-        return (stalled | crawling) & (self.score[act] > best + self.margin)
+        slow = cost > (1.0 - CRAWL_RELATIVE) * before
+        crawling = (best <= REACHED_SCORE) & slow
+        behind = self.score[act] - best
+        if self.scores is not None:              # the score `window` steps ago, and now
+            fall = self.scores[act, slot] - self.score[act]
+            self.scores[act, slot] = self.score[act]
+            crawling |= slow & _hopeless(behind, fall, self.steps - steps, self.window)
+        return (stalled | crawling) & (behind > self.margin)
+
+
+OVERTAKE_FACTOR = 100.0
+"""How many times faster than over its last window a crawling start behind another of its
+target would have to close in, for all its steps left, to catch it up, for it to stop
+(:func:`_hopeless`)."""
+
+
+def _hopeless(behind: np.ndarray, fall: np.ndarray, left: np.ndarray,
+              window: int) -> np.ndarray:
+    """(k,) starts ``behind (k,)`` (m + 0.1 rad) the best of their target that could not
+    catch it up in their ``left (k,)`` steps at :data:`OVERTAKE_FACTOR` times the
+    ``fall (k,)`` of their own score over the last ``window`` steps (inf before a whole
+    window)."""
+    return behind > OVERTAKE_FACTOR * np.maximum(fall, 0.0) * left / window
 
 
 class CrawlingSettled:
