@@ -17,6 +17,15 @@ converging within its steps left, and no start that converged in the benchmark's
 all-failing module ever fell by less than 18 % over a window before it did; such crawls
 (a start at some 4 mm that runs out its 60 steps) made the tail of each search's Newton.
 
+Given the search's step budget, a start that crawls so (its squared error fell by less
+than :data:`CRAWL_RELATIVE` over the window) behind the best start of its target that has
+taken a step by the margin, and by more than :data:`OVERTAKE_FACTOR` times its own fall
+over the window for every window left, stops too: on the 100,000-target realistic module
+720 starts that ran out their 60 steps 0.1 to 2 mm behind (a quarter of the search's
+Newton); every start it stopped there ended its 60 steps at least 1.3e-4 behind the best.
+Its fall is not bounded (a crawl near the stretched arm once sped up 100-fold within 48
+steps: a 1e-7 margin changed a row), hence the margin.
+
 A start may also be set aside before its first step (:class:`FarOutside`): one whose first
 Newton step is short and which lies outside an axis range (modulo whole turns) by far more
 than that step, so that it ends outside the ranges, near its first step's end; the search
@@ -67,6 +76,7 @@ class BehindAndStalled:
         self.score = np.full(r, np.inf)          # each start's latest score (m + 0.1 rad)
         self.history = np.full((r, self.window), np.inf)   # its last squared errors
         self.scores = np.full((r, self.window), np.inf) if steps is not None else None
+        self.moved = np.full(r, np.inf)          # the latest score of starts that stepped
 
     def __call__(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
                  err: np.ndarray) -> np.ndarray:
@@ -81,11 +91,28 @@ class BehindAndStalled:
         slow = cost > (1.0 - CRAWL_RELATIVE) * before
         crawling = (best <= REACHED_SCORE) & slow
         behind = self.score[act] - best
+        stop = (stalled | crawling) & (behind > self.margin)
         if self.scores is not None:              # the score `window` steps ago, and now
-            fall = self.scores[act, slot] - self.score[act]
+            with np.errstate(invalid="ignore"):  # (inf - inf before a window: no stop)
+                fall = np.fmax(self.scores[act, slot] - self.score[act],
+                               np.sqrt(before) - np.sqrt(cost))
             self.scores[act, slot] = self.score[act]
-            crawling |= slow & _hopeless(behind, fall, self.steps - steps, self.window)
-        return (stalled | crawling) & (behind > self.margin)
+            stop |= self._hopeless(steps, act, slow, fall)
+        return stop
+
+    def _hopeless(self, steps: np.ndarray, act: np.ndarray, slow: np.ndarray,
+                  fall: np.ndarray) -> np.ndarray:
+        """(k,) which of the starts ``act`` (``steps`` taken, ``slow`` crawling, the
+        ``fall`` over the window of their score or of their error's norm, the larger)
+        cannot catch up with the best start of their
+        target that has taken a step (not one set aside as it joined, whose score is its
+        start's) by :data:`BEHIND_MARGIN`: :func:`_hopeless`."""
+        moved = steps > 0
+        self.moved[act[moved]] = self.score[act[moved]]
+        best = np.minimum.reduceat(self.moved, self.first)[self.target[act]]
+        behind = self.score[act] - best
+        return (slow & (behind > self.margin)
+                & _hopeless(behind, fall, self.steps - steps, self.window))
 
 
 OVERTAKE_FACTOR = 100.0
@@ -99,7 +126,7 @@ def _hopeless(behind: np.ndarray, fall: np.ndarray, left: np.ndarray,
     """(k,) starts ``behind (k,)`` (m + 0.1 rad) the best of their target that could not
     catch it up in their ``left (k,)`` steps at :data:`OVERTAKE_FACTOR` times the
     ``fall (k,)`` of their own score over the last ``window`` steps (inf before a whole
-    window)."""
+    window: never)."""
     return behind > OVERTAKE_FACTOR * np.maximum(fall, 0.0) * left / window
 
 
