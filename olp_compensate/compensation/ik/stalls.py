@@ -77,6 +77,8 @@ class BehindAndStalled:
         self.history = np.full((r, self.window), np.inf)   # its last squared errors
         self.scores = np.full((r, self.window), np.inf) if steps is not None else None
         self.moved = np.full(r, np.inf)          # the latest score of starts that stepped
+        self.end = np.r_[self.first[1:], r]      # past the last start of each target
+        self.width = int(np.max(self.end - self.first, initial=0))
 
     def __call__(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
                  err: np.ndarray) -> np.ndarray:
@@ -92,27 +94,35 @@ class BehindAndStalled:
         crawling = (best <= REACHED_SCORE) & slow
         behind = self.score[act] - best
         stop = (stalled | crawling) & (behind > self.margin)
-        if self.scores is not None:              # the score `window` steps ago, and now
-            with np.errstate(invalid="ignore"):  # (inf - inf before a window: no stop)
-                fall = np.fmax(self.scores[act, slot] - self.score[act],
-                               np.sqrt(before) - np.sqrt(cost))
-            self.scores[act, slot] = self.score[act]
-            stop |= self._hopeless(steps, act, slow, fall)
+        if self.scores is not None:
+            self._crawled(steps, act, cost, before, slow & ~stop & (behind > self.margin), stop)
         return stop
 
-    def _hopeless(self, steps: np.ndarray, act: np.ndarray, slow: np.ndarray,
-                  fall: np.ndarray) -> np.ndarray:
-        """(k,) which of the starts ``act`` (``steps`` taken, ``slow`` crawling, the
-        ``fall`` over the window of their score or of their error's norm, the larger)
-        cannot catch up with the best start of their
-        target that has taken a step (not one set aside as it joined, whose score is its
-        start's) by :data:`BEHIND_MARGIN`: :func:`_hopeless`."""
+    def _crawled(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
+                 before: np.ndarray, slow: np.ndarray, stop: np.ndarray) -> None:
+        """Sets ``stop (k,)`` where a crawling start of ``act`` (``slow``: its squared
+        error ``cost`` fell by less than :data:`CRAWL_RELATIVE` from ``before``, and it is
+        behind the best of its target by the margin) cannot catch up with the best start
+        of its target that has taken a step (not one set aside as it joined, whose score
+        is its start's) by :data:`BEHIND_MARGIN` (:func:`_hopeless`: its fall over the
+        window the larger of its score's and its error norm's)."""
+        slot = steps % self.window
+        score = self.score[act]
+        fall_score = self.scores[act, slot] - score
+        self.scores[act, slot] = score
         moved = steps > 0
-        self.moved[act[moved]] = self.score[act[moved]]
-        best = np.minimum.reduceat(self.moved, self.first)[self.target[act]]
-        behind = self.score[act] - best
-        return (slow & (behind > self.margin)
-                & _hopeless(behind, fall, self.steps - steps, self.window))
+        self.moved[act[moved]] = score[moved]
+        some = np.flatnonzero(slow)
+        if not len(some):
+            return
+        rows = self.first[self.target[act[some]]][:, None] + np.arange(self.width)
+        mine = rows < self.end[self.target[act[some]]][:, None]
+        best = np.min(np.where(mine, self.moved[np.where(mine, rows, 0)], np.inf), axis=1)
+        behind = score[some] - best
+        with np.errstate(invalid="ignore"):      # (inf - inf before a window: no stop)
+            fall = np.fmax(fall_score[some], np.sqrt(before[some]) - np.sqrt(cost[some]))
+        stop[some] = ((behind > self.margin)
+                      & _hopeless(behind, fall, self.steps - steps[some], self.window))
 
 
 OVERTAKE_FACTOR = 100.0
