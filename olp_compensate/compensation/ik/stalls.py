@@ -74,9 +74,8 @@ class BehindAndStalled:
         self.first = np.flatnonzero(new)         # the first start of each target
         self.target = np.cumsum(new) - 1         # each start's target, 0..g-1
         self.score = np.full(r, np.inf)          # each start's latest score (m + 0.1 rad)
-        self.history = np.full((r, self.window), np.inf)   # its last squared errors
-        self.scores = np.full((r, self.window), np.inf) if steps is not None else None
-        self.moved = np.full(r, np.inf)          # the latest score of starts that stepped
+        # its last squared errors and scores (a start's slot 1 is set once it has stepped)
+        self.history = np.full((r, self.window, 2), np.inf)
         self.end = np.r_[self.first[1:], r]      # past the last start of each target
         self.width = int(np.max(self.end - self.first, initial=0))
 
@@ -84,45 +83,43 @@ class BehindAndStalled:
                  err: np.ndarray) -> np.ndarray:
         position = np.sqrt(np.einsum("ij,ij->i", err[:, :3], err[:, :3]))
         rotation = np.sqrt(np.einsum("ij,ij->i", err[:, 3:], err[:, 3:]))
-        self.score[act] = position + 0.1 * rotation
+        score = position + 0.1 * rotation
+        self.score[act] = score
         best = np.minimum.reduceat(self.score, self.first)[self.target[act]]
         slot = steps % self.window
-        before = self.history[act, slot]          # the squared error `window` steps ago
-        self.history[act, slot] = cost
+        past = self.history[act, slot]            # `window` steps ago: squared error, score
+        self.history[act, slot] = np.stack([cost, score], axis=1)
+        before = past[:, 0]
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
         slow = cost > (1.0 - CRAWL_RELATIVE) * before
         crawling = (best <= REACHED_SCORE) & slow
-        behind = self.score[act] - best
+        behind = score - best
         stop = (stalled | crawling) & (behind > self.margin)
-        if self.scores is not None:
-            self._crawled(steps, act, cost, before, slow & ~stop & (behind > self.margin), stop)
+        some = np.flatnonzero(slow & ~stop & (behind > self.margin))
+        if self.steps is not None and len(some):
+            stop[some] = self._hopeless(act[some], steps[some], cost[some], past[some])
         return stop
 
-    def _crawled(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
-                 before: np.ndarray, slow: np.ndarray, stop: np.ndarray) -> None:
-        """Sets ``stop (k,)`` where a crawling start of ``act`` (``slow``: its squared
-        error ``cost`` fell by less than :data:`CRAWL_RELATIVE` from ``before``, and it is
-        behind the best of its target by the margin) cannot catch up with the best start
-        of its target that has taken a step (not one set aside as it joined, whose score
-        is its start's) by :data:`BEHIND_MARGIN` (:func:`_hopeless`: its fall over the
-        window the larger of its score's and its error norm's)."""
-        slot = steps % self.window
-        score = self.score[act]
-        fall_score = self.scores[act, slot] - score
-        self.scores[act, slot] = score
-        moved = steps > 0
-        self.moved[act[moved]] = score[moved]
-        some = np.flatnonzero(slow)
-        if not len(some):
-            return
-        rows = self.first[self.target[act[some]]][:, None] + np.arange(self.width)
-        mine = rows < self.end[self.target[act[some]]][:, None]
-        best = np.min(np.where(mine, self.moved[np.where(mine, rows, 0)], np.inf), axis=1)
-        behind = score[some] - best
+    def _hopeless(self, rows: np.ndarray, steps: np.ndarray, cost: np.ndarray,
+                  past: np.ndarray) -> np.ndarray:
+        """(c,) which crawling starts ``rows`` (``steps`` taken, squared errors ``cost``,
+        ``past (c, 2)`` squared error and score a window ago) cannot catch up with the
+        best start of their target that has taken a step (not one set aside as it
+        joined, whose score is its start's) by :data:`BEHIND_MARGIN`
+        (:func:`_hopeless`: their fall over the window the larger of their score's and
+        their error norm's)."""
+        target = self.target[rows]
+        starts = self.first[target][:, None] + np.arange(self.width)
+        mine = starts < self.end[target][:, None]
+        starts = np.where(mine, starts, 0)
+        stepped = mine & np.isfinite(self.history[starts, 1, 0])
+        best = np.min(np.where(stepped, self.score[starts], np.inf), axis=1)
+        score = self.score[rows]
+        behind = score - best
         with np.errstate(invalid="ignore"):      # (inf - inf before a window: no stop)
-            fall = np.fmax(fall_score[some], np.sqrt(before[some]) - np.sqrt(cost[some]))
-        stop[some] = ((behind > self.margin)
-                      & _hopeless(behind, fall, self.steps - steps[some], self.window))
+            fall = np.fmax(past[:, 1] - score, np.sqrt(past[:, 0]) - np.sqrt(cost))
+        return (behind > self.margin) & _hopeless(behind, fall, self.steps - steps,
+                                                  self.window)
 
 
 OVERTAKE_FACTOR = 100.0
