@@ -258,7 +258,8 @@ def _newton_once(comp: Compensator, flat: np.ndarray, desired: np.ndarray,
                           np.array([joint.kind == "revolute" for joint in robot.joints]))
         result = refine(comp.real_flange_and_jacobian, flat[solve], desired[target[solve]],
                         None, 1e-9, 1e-9, SEARCH_STEPS, pool=SEARCH_POOL,
-                        drop=BehindAndStalled(target[solve]), park=park)
+                        drop=BehindAndStalled(target[solve], steps=SEARCH_STEPS),
+                        park=park)
         ends.q[solve], ends.reason[solve] = result.q, result.reason
         ends.position_error_m[solve] = result.position_error_m
         ends.rotation_error_rad[solve] = result.rotation_error_rad

@@ -17,6 +17,15 @@ converging within its steps left, and no start that converged in the benchmark's
 all-failing module ever fell by less than 18 % over a window before it did; such crawls
 (a start at some 4 mm that runs out its 60 steps) made the tail of each search's Newton.
 
+Given the search's step budget, a start that crawls so (its squared error fell by less
+than :data:`CRAWL_RELATIVE` over the window) behind the best start of its target that has
+taken a step by the margin, and by more than :data:`OVERTAKE_FACTOR` times its own fall
+over the window for every window left, stops too: on the 100,000-target realistic module
+720 starts that ran out their 60 steps 0.1 to 2 mm behind (a quarter of the search's
+Newton); every start it stopped there ended its 60 steps at least 1.3e-4 behind the best.
+Its fall is not bounded (a crawl near the stretched arm once sped up 100-fold within 48
+steps: a 1e-7 margin changed a row), hence the margin.
+
 A start may also be set aside before its first step (:class:`FarOutside`): one whose first
 Newton step is short and which lies outside an axis range (modulo whole turns) by far more
 than that step, so that it ends outside the ranges, near its first step's end; the search
@@ -55,28 +64,77 @@ class BehindAndStalled:
     module)."""
 
     def __init__(self, groups: np.ndarray, window: int = STALL_WINDOW,
-                 relative: float = STALL_RELATIVE, margin: float = BEHIND_MARGIN):
+                 relative: float = STALL_RELATIVE, margin: float = BEHIND_MARGIN,
+                 steps: int | None = None):
         groups = np.asarray(groups, dtype=int)
         self.window, self.relative, self.margin = int(window), float(relative), float(margin)
+        self.steps = steps                       # the starts' step budget, if hopeless ones stop
         r = len(groups)
         new = np.r_[True, groups[1:] != groups[:-1]] if r else np.zeros(0, bool)
         self.first = np.flatnonzero(new)         # the first start of each target
         self.target = np.cumsum(new) - 1         # each start's target, 0..g-1
         self.score = np.full(r, np.inf)          # each start's latest score (m + 0.1 rad)
-        self.history = np.full((r, self.window), np.inf)   # its last squared errors
+        # its last squared errors and scores (a start's slot 1 is set once it has stepped)
+        self.history = np.full((r, self.window, 2), np.inf)
+        self.end = np.r_[self.first[1:], r]      # past the last start of each target
+        self.width = int(np.max(self.end - self.first, initial=0))
 
     def __call__(self, steps: np.ndarray, act: np.ndarray, cost: np.ndarray,
                  err: np.ndarray) -> np.ndarray:
         position = np.sqrt(np.einsum("ij,ij->i", err[:, :3], err[:, :3]))
         rotation = np.sqrt(np.einsum("ij,ij->i", err[:, 3:], err[:, 3:]))
-        self.score[act] = position + 0.1 * rotation
+        score = position + 0.1 * rotation
+        self.score[act] = score
         best = np.minimum.reduceat(self.score, self.first)[self.target[act]]
         slot = steps % self.window
-        before = self.history[act, slot]          # the squared error `window` steps ago
-        self.history[act, slot] = cost
+        past = self.history[act, slot]            # `window` steps ago: squared error, score
+        self.history[act, slot] = np.stack([cost, score], axis=1)
+        before = past[:, 0]
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
-        crawling = (best <= REACHED_SCORE) & (cost > (1.0 - CRAWL_RELATIVE) * before)
-        return (stalled | crawling) & (self.score[act] > best + self.margin)
+        slow = cost > (1.0 - CRAWL_RELATIVE) * before
+        crawling = (best <= REACHED_SCORE) & slow
+        behind = score - best
+        stop = (stalled | crawling) & (behind > self.margin)
+        some = np.flatnonzero(slow & ~stop & (behind > self.margin))
+        if self.steps is not None and len(some):
+            stop[some] = self._hopeless(act[some], steps[some], cost[some], past[some])
+        return stop
+
+    def _hopeless(self, rows: np.ndarray, steps: np.ndarray, cost: np.ndarray,
+                  past: np.ndarray) -> np.ndarray:
+        """(c,) which crawling starts ``rows`` (``steps`` taken, squared errors ``cost``,
+        ``past (c, 2)`` squared error and score a window ago) cannot catch up with the
+        best start of their target that has taken a step (not one set aside as it
+        joined, whose score is its start's) by :data:`BEHIND_MARGIN`
+        (:func:`_hopeless`: their fall over the window the larger of their score's and
+        their error norm's)."""
+        target = self.target[rows]
+        starts = self.first[target][:, None] + np.arange(self.width)
+        mine = starts < self.end[target][:, None]
+        starts = np.where(mine, starts, 0)
+        stepped = mine & np.isfinite(self.history[starts, 1, 0])
+        best = np.min(np.where(stepped, self.score[starts], np.inf), axis=1)
+        score = self.score[rows]
+        behind = score - best
+        with np.errstate(invalid="ignore"):      # (inf - inf before a window: no stop)
+            fall = np.fmax(past[:, 1] - score, np.sqrt(past[:, 0]) - np.sqrt(cost))
+        return (behind > self.margin) & _hopeless(behind, fall, self.steps - steps,
+                                                  self.window)
+
+
+OVERTAKE_FACTOR = 100.0
+"""How many times faster than over its last window a crawling start behind another of its
+target would have to close in, for all its steps left, to catch it up, for it to stop
+(:func:`_hopeless`)."""
+
+
+def _hopeless(behind: np.ndarray, fall: np.ndarray, left: np.ndarray,
+              window: int) -> np.ndarray:
+    """(k,) starts ``behind (k,)`` (m + 0.1 rad) the best of their target that could not
+    catch it up in their ``left (k,)`` steps at :data:`OVERTAKE_FACTOR` times the
+    ``fall (k,)`` of their own score over the last ``window`` steps (inf before a whole
+    window: never)."""
+    return behind > OVERTAKE_FACTOR * np.maximum(fall, 0.0) * left / window
 
 
 class CrawlingSettled:
