@@ -26,13 +26,12 @@ from ...compensation.report import (COMPENSATED, MergedRows, PickedRows, RowSour
                                     TargetReport, merged)
 from ...compensation.report_csv import CsvRows, csv_field
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
-from .columns import lines_and_columns
+from .columns import _END, _GROUP, _START, lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
 GROUPS = (1, 5, 6, 7, 8, 9, 10)
 """fast.py ``_MIXED_MOVE``'s groups of a displaced move: instruction, target expression,
 function, the displaced target's name, tool, wobj, where the arguments end."""
-_GROUP, _START, _END = re.Match.group, re.Match.start, re.Match.end
 _WIDTH = 10
 """Integers per row: line, column, instruction (start, end), statement (start, end),
 target expression (start, end), the displaced target's name (start, end)."""
