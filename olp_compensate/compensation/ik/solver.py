@@ -28,6 +28,10 @@ CLOSED_FORM_STEPS = 8     # steps of closed_form_newton before the multi-start N
 BLOCK = 2048              # targets per batch of closed_form_newton
 _FIRST_STEPS = 2          # its steps in blocks, before the rows that need more go on together
 _MULTI_START_STEPS = 12   # Newton steps of the multi-start retry
+MULTI_START_BLOCK = 2048
+"""Failed targets whose multi-start (4.) iterates together: its fifteen starts a target
+bound the memory; the fewer targets the later stages keep iterate all together (each row's
+arithmetic is its own, so the blocks change no digit)."""
 _RESULT_FIELDS = ("q", "success", "reason", "position_error_m", "rotation_error_rad")
 _STATE_FIELDS = ("q", "success", "reason", "iterations", "position_error_m",
                  "rotation_error_rad")   # of an IKSolution, in its order
@@ -415,8 +419,10 @@ class _BranchSolver:
             self.screen_reach()
         rows = self.failed_rows()
         if len(rows) and self.options.retries:
-            self.multi_start(rows, self.start[rows], self.result.q[rows],
-                             min(_MULTI_START_STEPS, self.max_iterations))
+            for a in range(0, len(rows), MULTI_START_BLOCK):   # fifteen starts a row
+                block = rows[a:a + MULTI_START_BLOCK]
+                self.multi_start(block, self.start[block], self.result.q[block],
+                                 min(_MULTI_START_STEPS, self.max_iterations))
             self.fixed_point_retry()
         self.result.reason[self.status == 1] = "unreachable"
         self.result.success[self.status == 1] = False
