@@ -342,10 +342,11 @@ class _BranchSolver:
         rows = self.failed_rows()
         self.status[rows[self.beyond_reach(rows)]] = 1
 
-    def restarts(self, rows, first_starts, base):
+    def restarts(self, rows, first_starts, base, last_starts=None):
         """The starts ``[(k, 6), ...]`` rad of a multi-start on ``rows``: ``first_starts``
         (if any), the flipped wrist (OPW), axis 4 (and axis 1) placed in its quadrant with
-        theta4 + theta6 kept, from ``base``, and the nominal neighbouring branches."""
+        theta4 + theta6 kept, from ``base``, the nominal neighbouring branches, and
+        ``last_starts`` (if any)."""
         params, confdata = self.params, self.confdata
         starts = [] if first_starts is None else [first_starts]
         if isinstance(params, OPWParameters):
@@ -361,13 +362,14 @@ class _BranchSolver:
         for flip in (4, 2, 1, 6, 5, 3, 7):
             starts.append(select_requested(nearby, np.concatenate(
                 [confdata[rows, :3], confdata[rows, 3:] ^ flip], 1), self.limits, np.inf)[0])
-        return starts
+        return starts if last_starts is None else [*starts, last_starts]
 
-    def multi_start(self, rows, first_starts, base, steps):
+    def multi_start(self, rows, first_starts, base, steps, last_starts=None):
         """4. Newton from the :meth:`restarts` of ``rows`` at once, at most ``steps`` each;
-        the first start accepted by the checks wins (its results are stored)."""
+        the first start accepted by the checks wins (its results are stored; of starts
+        accepted at the same step, the first in the list)."""
         o = self.options
-        starts = self.restarts(rows, first_starts, base)
+        starts = self.restarts(rows, first_starts, base, last_starts)
         k = len(rows)
         owner = np.tile(rows, len(starts))
         accept = _FirstAccepted(self, owner)
@@ -399,7 +401,10 @@ class _BranchSolver:
 
     def fixed_point_retry(self):
         """5. Still failed rows: the closed-form fixed point and refine (:meth:`run`), then
-        the restarts of 4 from its result with the full iteration budget."""
+        the restarts of 4 from its result with the full iteration budget, and the nominal
+        start of 4 again, last, with that budget (near two singularities at once Newton can
+        need more than 4.'s steps from it, while the fixed point goes to another solution
+        of the configuration, which the quadrant check rejects)."""
         rows = self.failed_rows()
         if len(rows) == 0:
             return
@@ -409,7 +414,8 @@ class _BranchSolver:
         self.result.iterations[rows] += again.iterations
         rows = rows[~again.success]
         if len(rows):
-            self.multi_start(rows, None, self.result.q[rows], self.max_iterations)
+            self.multi_start(rows, None, self.result.q[rows], self.max_iterations,
+                             last_starts=self.start[rows])
 
     def solve(self):
         """All stages in order: the :class:`IKSolution`, and the nominal closed form's
