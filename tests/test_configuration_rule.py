@@ -559,3 +559,22 @@ def test_targets_near_the_wrist_singularity_are_reached_as_asked(irb2400_world):
     reached = comp.real_flange_and_jacobian(joints)[0]
     assert np.abs(reached[:, :3, 3] - desired[:, :3, 3]).max() <= 1e-9
     assert np.abs(reached[:, :3, :3] - desired[:, :3, :3]).max() <= 1e-9
+
+
+def test_a_target_near_the_wrist_and_shoulder_singularities_is_reached_as_asked(
+        irb2400_world):
+    """Axis 5 at -0.94 deg and the wrist centre near axis 1 (found among 3,000 targets of the
+    test above): the nominal start needs more Newton steps than the multi-start's first
+    twelve, and the fixed point goes to another solution of the configuration (axis 1 at
+    6 deg, axis 5 at -19 deg) that the quadrant check rejects. The solver's last
+    multi-start from the nominal start, with the full budget, reaches the joints that made
+    the target: 'ok', not 'branch_changed'."""
+    _, cal = irb2400_world
+    comp = Compensator(cal)
+    robot = comp.robot
+    q_ctrl = np.radians([[35.45, -76.79, 50.5, -9.39, -0.94, 79.97]])
+    q = robot.joints_from_controller(q_ctrl)
+    desired = comp.real_flange_and_jacobian(q)[0]
+    joints, _, solution, _ = comp.compensate_flanges(desired, desired, comp.confdata(q))
+    assert list(solution.reason) == ["ok"]
+    np.testing.assert_allclose(robot.controller_from_joints(joints), q_ctrl, atol=1e-9)

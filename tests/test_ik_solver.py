@@ -77,6 +77,34 @@ def test_multi_start_recovers_targets_near_the_wrist_singularity():
     np.testing.assert_array_equal(abb_confdata(IRB2400_OPW, result.q)[:, 3], conf[:, 3])
 
 
+def test_the_multi_start_taken_in_blocks_changes_no_digit(monkeypatch):
+    """Targets near the wrist singularity (some need the multi-start), others outside
+    tightened axis ranges or out of reach (they go on to the fixed point): :func:`solve`
+    with the multi-start three targets at a time gives every joint, reason, error and
+    step count of the multi-start of all at once."""
+    from olp_compensate.compensation.ik import solver as solver_module
+
+    rng = np.random.default_rng(8)
+    robot = IRB2400.perturbed(rng)
+    n = 60
+    q = rng.uniform(IRB2400_LIMITS[:, 0] * 0.9, IRB2400_LIMITS[:, 1] * 0.9, (n, 6))
+    q[:40, 4] = rng.choice([-1.0, 1.0], 40) * rng.uniform(2e-3, 2e-2, 40)
+    target = robot.fk(q)
+    target[50:, :3, 3] *= 3.0                                   # out of reach
+    tight = IRB2400_LIMITS.copy()
+    tight[2] = [np.quantile(q[:, 2], 0.2), IRB2400_LIMITS[2, 1]]  # a fifth below axis 3's
+    conf = abb_confdata(IRB2400_OPW, q)
+    solved = []
+    for block in (n, 3):
+        monkeypatch.setattr(solver_module, "MULTI_START_BLOCK", block)
+        solved.append(_solver(robot, target, conf, tight).solve()[0])
+    whole, blocks = solved
+    assert {"ok", "joint_limit", "unreachable"} <= set(whole.reason)
+    for name in ("q", "reason", "success", "iterations", "position_error_m",
+                 "rotation_error_rad"):
+        np.testing.assert_array_equal(getattr(blocks, name), getattr(whole, name))
+
+
 def test_reach_screening_proves_far_targets_unreachable_without_the_retries():
     """Wrist centres 10 um beyond c2 + hypot(a2, c3) from the circle of axis 2 (out of the
     data-sheet arm's reach by the triangle inequality) next to reachable targets: after the

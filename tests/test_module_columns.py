@@ -332,6 +332,37 @@ def test_two_processes_give_one_process_text_and_report_byte_for_byte(monkeypatc
     assert two_report.edits == one_report.edits
 
 
+def test_the_retries_in_batches_of_any_size_give_the_same_bytes(monkeypatch):
+    """The targets not reached at once (out of reach, axis 3 beyond its range, the wrist
+    near its singularity) retried one at a time, three at a time, or all in one batch: the
+    same text, CSV and counts (each target's retry is its own, whatever the others of its
+    batch)."""
+    from olp_compensate.programs.rapid import module_columns
+
+    world = _world("abb_irb2400")
+    program_tool, wobj, tool_rot, _ = _frames(world, 3)
+    robot = world.robot
+    q_ctrl = robot.controller_from_joints(world.program_joints(30, seed=7))
+    q_ctrl[[4, 12, 20], 2] = np.radians(80.0)                      # range -60..65 deg
+    q_ctrl[[6, 14, 22, 28], 4] = [0.004, -0.006, 0.01, -0.003]     # rad from the singularity
+    numbers = written_targets(world, robot.joints_from_controller(q_ctrl), program_tool, wobj)
+    for k in (2, 9, 17, 25):                                        # out of reach
+        numbers[k] = (numbers[k][0] + 5000.0, *numbers[k][1:])
+    text = rapid_module(numbers, program_tool[:3, 3] / MM, quat_wxyz_from_matrix(tool_rot),
+                        wobj[:3, 3] / MM, quat_wxyz_from_matrix(wobj[:3, :3]))
+    comp = Compensator(world.calibration)
+    results = []
+    for size in (1, 3, 10_000):
+        monkeypatch.setattr(module_columns, "RETRY_CHUNK", size)
+        results.append(module_columns.compensate_rapid_task([text], ["batch.mod"], comp,
+                                                            chunk=8))
+    (text_one, report_one), *others = results
+    assert {"ok", "unreachable", "joint_limit", "branch_changed"} <= set(report_one.counts())
+    for new_text, report in others:
+        assert new_text[0].encode("latin-1") == text_one[0].encode("latin-1")
+        assert "".join(report.csv_chunks()) == "".join(report_one.csv_chunks())
+
+
 def test_without_a_process_to_fork_everything_runs_in_this_one(monkeypatch):
     """A fork or temporary file refused (a process limit, a full disk) is no error: the
     module is compensated in this process, with the same result."""

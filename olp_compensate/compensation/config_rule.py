@@ -47,9 +47,10 @@ if TYPE_CHECKING:
 __all__ = ["Candidates", "search", "decide", "confdata_asked", "turn_toward_ranges",
            "QUADRANT_TOLERANCE", "SEARCH_STEPS", "SEARCH_BLOCK", "SEARCH_POOL"]
 
-SEARCH_SPAN = 4096
-"""Failed targets decided together: their starts' Newton runs in one pool (about 1.5 KB a
-target held at once, the pool aside)."""
+SEARCH_SPAN = 2048
+"""Failed targets decided together: their starts' Newton runs in one pool (about 5 KB a
+target held at once, the pool aside: 4,096 took 10 MB more at the peak of the benchmark's
+realistic module, for 0.96x the retry's CPU)."""
 QUADRANT_TOLERANCE = np.pi / 4
 """An axis 1, 4 or 6 this far (rad) outside the asked quadrant is still on the asked
 configuration (as the solver's ``quadrant_tolerance``); the quadrant written is then the

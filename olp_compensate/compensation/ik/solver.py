@@ -28,6 +28,10 @@ CLOSED_FORM_STEPS = 8     # steps of closed_form_newton before the multi-start N
 BLOCK = 2048              # targets per batch of closed_form_newton
 _FIRST_STEPS = 2          # its steps in blocks, before the rows that need more go on together
 _MULTI_START_STEPS = 12   # Newton steps of the multi-start retry
+MULTI_START_BLOCK = 2048
+"""Failed targets whose multi-start (4.) iterates together: its fifteen starts a target
+bound the memory; the fewer targets the later stages keep iterate all together (each row's
+arithmetic is its own, so the blocks change no digit)."""
 _RESULT_FIELDS = ("q", "success", "reason", "position_error_m", "rotation_error_rad")
 _STATE_FIELDS = ("q", "success", "reason", "iterations", "position_error_m",
                  "rotation_error_rad")   # of an IKSolution, in its order
@@ -338,10 +342,11 @@ class _BranchSolver:
         rows = self.failed_rows()
         self.status[rows[self.beyond_reach(rows)]] = 1
 
-    def restarts(self, rows, first_starts, base):
+    def restarts(self, rows, first_starts, base, last_starts=None):
         """The starts ``[(k, 6), ...]`` rad of a multi-start on ``rows``: ``first_starts``
         (if any), the flipped wrist (OPW), axis 4 (and axis 1) placed in its quadrant with
-        theta4 + theta6 kept, from ``base``, and the nominal neighbouring branches."""
+        theta4 + theta6 kept, from ``base``, the nominal neighbouring branches, and
+        ``last_starts`` (if any)."""
         params, confdata = self.params, self.confdata
         starts = [] if first_starts is None else [first_starts]
         if isinstance(params, OPWParameters):
@@ -357,13 +362,14 @@ class _BranchSolver:
         for flip in (4, 2, 1, 6, 5, 3, 7):
             starts.append(select_requested(nearby, np.concatenate(
                 [confdata[rows, :3], confdata[rows, 3:] ^ flip], 1), self.limits, np.inf)[0])
-        return starts
+        return starts if last_starts is None else [*starts, last_starts]
 
-    def multi_start(self, rows, first_starts, base, steps):
+    def multi_start(self, rows, first_starts, base, steps, last_starts=None):
         """4. Newton from the :meth:`restarts` of ``rows`` at once, at most ``steps`` each;
-        the first start accepted by the checks wins (its results are stored)."""
+        the first start accepted by the checks wins (its results are stored; of starts
+        accepted at the same step, the first in the list)."""
         o = self.options
-        starts = self.restarts(rows, first_starts, base)
+        starts = self.restarts(rows, first_starts, base, last_starts)
         k = len(rows)
         owner = np.tile(rows, len(starts))
         accept = _FirstAccepted(self, owner)
@@ -395,7 +401,10 @@ class _BranchSolver:
 
     def fixed_point_retry(self):
         """5. Still failed rows: the closed-form fixed point and refine (:meth:`run`), then
-        the restarts of 4 from its result with the full iteration budget."""
+        the restarts of 4 from its result with the full iteration budget, and the nominal
+        start of 4 again, last, with that budget (near two singularities at once Newton can
+        need more than 4.'s steps from it, while the fixed point goes to another solution
+        of the configuration, which the quadrant check rejects)."""
         rows = self.failed_rows()
         if len(rows) == 0:
             return
@@ -405,7 +414,8 @@ class _BranchSolver:
         self.result.iterations[rows] += again.iterations
         rows = rows[~again.success]
         if len(rows):
-            self.multi_start(rows, None, self.result.q[rows], self.max_iterations)
+            self.multi_start(rows, None, self.result.q[rows], self.max_iterations,
+                             last_starts=self.start[rows])
 
     def solve(self):
         """All stages in order: the :class:`IKSolution`, and the nominal closed form's
@@ -415,8 +425,10 @@ class _BranchSolver:
             self.screen_reach()
         rows = self.failed_rows()
         if len(rows) and self.options.retries:
-            self.multi_start(rows, self.start[rows], self.result.q[rows],
-                             min(_MULTI_START_STEPS, self.max_iterations))
+            for a in range(0, len(rows), MULTI_START_BLOCK):   # fifteen starts a row
+                block = rows[a:a + MULTI_START_BLOCK]
+                self.multi_start(block, self.start[block], self.result.q[block],
+                                 min(_MULTI_START_STEPS, self.max_iterations))
             self.fixed_point_retry()
         self.result.reason[self.status == 1] = "unreachable"
         self.result.success[self.status == 1] = False
