@@ -109,6 +109,23 @@ def test_a_long_interleaved_run_is_read_in_batches_split_by_kind():
     assert [u.source[1] for u in got.motions] == list(range(10, 2010))
 
 
+@pytest.mark.parametrize("held", [1, 7, 16, 40])
+@pytest.mark.parametrize("seed", [0, 5, 9])
+def test_matches_held_and_added_every_few_give_the_same_rows(monkeypatch, seed, held):
+    """``run_mixed`` holds a run's matches of each kind and adds them every
+    ``MIXED_BATCH`` matches (and at the run's end): with a few held at a time (rows added
+    row by row, in the first batches, mid-batch) the objects are the object parse's, and
+    the tables the same rows as with the default."""
+    from olp_compensate.programs.rapid import columns
+    text = _module(seed)
+    want = parse_rapid(text, "m.mod")
+    default = _column_objects(text)
+    monkeypatch.setattr(columns, "MIXED_BATCH", held)
+    got = _column_objects(text)
+    assert got[0] == want
+    assert got == default
+
+
 def test_displaced_rows_share_their_words():
     """Batches and single rows store each instruction, tool and reason once."""
     text = _module(3)

@@ -35,6 +35,8 @@ SIMPLE_GROUPS = (1, 3, 4, 5, 6, 2, 7)
 the arguments end."""
 MIXED_GROUPS = (1, 3, 4, 8, 9, 2, 10)
 """The same of fast.py ``_MIXED_MOVE`` (its displaced moves: :data:`~.displaced.GROUPS`)."""
+MIXED_BATCH = 8192
+"""Matches :meth:`MoveTable.run_mixed` holds before adding them as rows."""
 _BRACKETS = {ord("["): " ", ord("]"): " "}
 
 
@@ -235,21 +237,32 @@ class MoveTable:
         """:meth:`run` of ``regex`` (fast.py ``_MIXED_MOVE``, groups :data:`MIXED_GROUPS`),
         a plain move or an Offs()/RelTool() one each: the plain ones rows here, the others
         rows of ``displaced`` (a :class:`~.displaced.DisplacedMoves`, its ``extend``), each
-        batch split by kind. Returns where they end."""
+        batch split by kind, the matches of each kind added together at the end of the run
+        (or every :data:`MIXED_BATCH` of them): a routine's run of a few hundred moves
+        meets several short batches. Returns where they end."""
         first = regex.match(text, pos, end)   # anchored: no search where none starts
         if first is None:
             return pos
+        plain: list = []     # matches of plain moves not yet added, and their names
+        names: list = []
+        moved: list = []     # of displaced moves
         for ms in chain(([first],), matches_in_turn(regex, text, first.end(), end)):
             pos = ms[-1].end()
-            names = list(map(_GROUP, ms, repeat(3)))   # None: a displaced move
-            if None not in names:
-                self.extend(ms, routine, MIXED_GROUPS, names)
-                continue
-            plain = [name is not None for name in names]
-            if any(plain):
-                self.extend(list(compress(ms, plain)), routine, MIXED_GROUPS,
-                            list(compress(names, plain)))
-            displaced.extend([m for m, kept in zip(ms, plain) if not kept], routine)
+            found = list(map(_GROUP, ms, repeat(3)))   # None: a displaced move
+            if None not in found:
+                plain += ms
+                names += found
+            else:
+                kinds = [name is not None for name in found]
+                plain += compress(ms, kinds)
+                names += compress(found, kinds)
+                moved += [m for m, kind in zip(ms, kinds) if not kind]
+            if len(plain) + len(moved) >= MIXED_BATCH:
+                self.extend(plain, routine, MIXED_GROUPS, names)
+                displaced.extend(moved, routine)
+                plain, names, moved = [], [], []
+        self.extend(plain, routine, MIXED_GROUPS, names)
+        displaced.extend(moved, routine)
         return pos
 
     def extend(self, ms: list, routine: str | None, groups: tuple,
