@@ -35,6 +35,9 @@ SIMPLE_GROUPS = (1, 3, 4, 5, 6, 2, 7)
 the arguments end."""
 MIXED_GROUPS = (1, 3, 4, 8, 9, 2, 10)
 """The same of fast.py ``_MIXED_MOVE`` (its displaced moves: :data:`~.displaced.GROUPS`)."""
+INSTRUCTION = 5
+"""Letters of the instruction word (MoveL, MoveJ) that starts every match of fast.py's
+move regexes (their group 1): its span is (start, start + 5) of the match's start."""
 MIXED_BATCH = 8192
 """Matches :meth:`MoveTable.run_mixed` holds before adding them as rows."""
 _BRACKETS = {ord("["): " ", ord("]"): " "}
@@ -289,8 +292,9 @@ class MoveTable:
         self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
         self.routines.extend(repeat(routine, len(ms)))
         self.indices.extend(-1 if k is None else int(k) for k in indices)
-        _add_rows(self.spans, ms, ((_START, instruction), (_END, instruction), (_START, 0),
-                                   (_START, stop), (_START, target), (_END, target)))
+        start = np.fromiter(map(_START, ms), np.int64, len(ms))   # the instruction word's
+        _add_rows(self.spans, ms, ((_START, stop), (_START, target), (_END, target)),
+                  [start, start + INSTRUCTION, start])
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
@@ -414,11 +418,12 @@ def matches_in_turn(regex: re.Pattern, text: str, pos: int, end: int):
         size = min(2 * size, 8192)
 
 
-def _add_rows(spans: array, matches: list, fields) -> None:
-    """Append to ``spans`` one row per match: for each ``(method, group)`` of ``fields``,
-    ``method(match, group)`` (start or end)."""
-    columns = [np.fromiter(map(method, matches, repeat(group)), np.int64, len(matches))
-               for method, group in fields]
+def _add_rows(spans: array, matches: list, fields, first: list = ()) -> None:
+    """Append to ``spans`` one row per match: the columns ``first`` ((n,) int64 each),
+    then for each ``(method, group)`` of ``fields``, ``method(match, group)`` (start or
+    end)."""
+    columns = [*first, *(np.fromiter(map(method, matches, repeat(group)), np.int64,
+                                     len(matches)) for method, group in fields)]
     spans.frombytes(np.column_stack(columns).astype(np.int64, copy=False).tobytes())
 
 

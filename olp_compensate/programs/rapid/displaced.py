@@ -26,7 +26,7 @@ from ...compensation.report import (COMPENSATED, MergedRows, PickedRows, RowSour
                                     TargetReport, merged)
 from ...compensation.report_csv import CsvRows, csv_field
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
-from .columns import _END, _GROUP, _START, lines_and_columns
+from .columns import _END, _GROUP, _START, INSTRUCTION, lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
 GROUPS = (1, 5, 6, 7, 8, 9, 10)
@@ -95,12 +95,13 @@ class DisplacedMoves:
         self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
         self.routines.extend(repeat(routine, len(ms)))
         n = len(ms)
+        start = np.fromiter(map(_START, ms), np.int64, n)   # the instruction word's
         columns = [np.fromiter(map(method, ms, repeat(group)), np.int64, n) for method, group
-                   in ((_START, instruction), (_END, instruction), (_START, 0), (_START, stop),
-                       (_START, expression), (_END, expression), (_START, name),
-                       (_END, name))]
+                   in ((_START, stop), (_START, expression), (_END, expression),
+                       (_START, name), (_END, name))]
         zero = np.zeros(n, np.int64)
-        self.numbers.frombytes(np.column_stack([zero, zero, *columns]).tobytes())
+        self.numbers.frombytes(np.column_stack(
+            [zero, zero, start, start + INSTRUCTION, start, *columns]).tobytes())
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set each row's 1-based line and column, of where its target expression starts,
