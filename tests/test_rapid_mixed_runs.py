@@ -156,3 +156,24 @@ def test_a_routines_own_targets_are_read_in_runs_up_to_any_other_declaration(odd
         rows = 40 + (odd == "CONST robtarget")
         assert len(columns.targets) == rows
         assert set(columns.targets.routines) == {"main"}
+
+
+@pytest.mark.parametrize("file", ["m.mod", "cell 2, 100%d.mod", 'a "b".mod'])
+@pytest.mark.parametrize("seed", [1, 4, 7])
+def test_displaced_rows_csv_lines_are_their_report_rows_lines(seed, file):
+    """``DisplacedMoves.csv_lines`` (written without making the rows, the fields after
+    the column once per tool, work object and reason) gives each row's line as
+    ``CsvRows.line`` writes its report row, for any mix of forms and a file name the CSV
+    must quote or that holds a '%'."""
+    from olp_compensate.compensation.report_csv import CsvRows
+
+    text = _module(seed)
+    table = DisplacedMoves()
+    parse_rapid_columns(text, file, table)
+    assert len(table) > 8
+    rows = list(range(len(table)))
+    random.Random(seed).shuffle(rows)
+    for n_joints in (6, 7):
+        writer = CsvRows(n_joints)
+        want = [writer.line(table.report_row(i, text, file)) + "\n" for i in rows]
+        assert table.csv_lines(rows, text, file, writer) == want

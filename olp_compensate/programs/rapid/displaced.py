@@ -24,7 +24,7 @@ import numpy as np
 
 from ...compensation.report import (COMPENSATED, MergedRows, PickedRows, RowSource,
                                     TargetReport, merged)
-from ...compensation.report_csv import CsvRows, csv_field
+from ...compensation.report_csv import CsvRows
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
 from .columns import _END, _GROUP, _START, INSTRUCTION, lines_and_columns
 from .instructions import RUNTIME_FUNCS
@@ -148,16 +148,24 @@ class DisplacedMoves:
 
     def csv_lines(self, rows: list[int], text: str, file: str, writer: CsvRows) -> list[str]:
         """The report's CSV lines of rows ``rows``: those of :meth:`report_row`, written
-        without making the rows."""
+        without making the rows: the fields after the column, the same for every row of
+        one tool, work object and reason, written once per such triple, and the target
+        expression quoted as it is (an Offs()/RelTool() expression of this table holds
+        commas and no quote: fast.py ``_OFFSET``)."""
         s, tools, wobjs, reasons = self.numbers, self.tools, self.wobjs, self.reasons
-        line, quoted = writer.bare_line, writer.quoted
-        file, status = quoted[file], quoted["runtime"]
+        quoted = writer.quoted
+        line = ('"%s",' + quoted[file].replace("%", "%%") + ",%d,%d," + quoted["runtime"]
+                + ",%s")
+        ends: dict = {}    # (tool, wobj, reason) -> the line's end
         out = []
         for i in rows:
             k = _WIDTH * i
-            out.append(line % (csv_field(text[s[k + 6]:s[k + 7]]), file, s[k], s[k + 1],
-                               status, quoted[tools[i] or ""], quoted[wobjs[i] or ""], "",
-                               "", quoted[reasons[i]]))
+            key = (tools[i], wobjs[i], reasons[i])
+            end = ends.get(key)
+            if end is None:
+                end = ends[key] = (f"{quoted[tools[i] or '']},{quoted[wobjs[i] or '']},,,,,,,,"
+                                   f"{writer.empty_joints},{quoted[reasons[i]]}\n")
+            out.append(line % (text[s[k + 6]:s[k + 7]], s[k], s[k + 1], end))
         return out
 
     def subset(self, keep: np.ndarray) -> DisplacedMoves:
