@@ -126,6 +126,23 @@ def test_matches_held_and_added_every_few_give_the_same_rows(monkeypatch, seed, 
     assert got == default
 
 
+def test_targets_named_like_offs_or_reltool_are_plain_moves_in_a_mixed_run():
+    """_MIXED_MOVE tries the Offs()/RelTool() form first: a plain target whose name
+    starts like that (``Offs``, ``RelTool1``, ``offset``) is still read as a plain move,
+    in a run of both kinds, as the object parse reads it."""
+    names = ["Offs", "RelTool", "offs1", "RELTOOLx", "Offset", "Rel", "O", "p1"]
+    decls = "".join(f"    VAR robtarget {n}:={LITERAL};\r\n" for n in names)
+    body = "".join(
+        f"    MoveL {n},v500,z10,tGun;\r\n    MoveJ Offs({n},0,0,{k}),v500,z10,tGun;\r\n"
+        f"    MoveL RelTool({n},0,0,-{k}),v500,z10,tGun\\WObj:=wTable;\r\n"
+        for k, n in enumerate(names * 3))
+    text = "MODULE M\r\n  PROC main()\r\n" + decls + body + "  ENDPROC\r\nENDMODULE\r\n"
+    got, displaced_rows, move_rows = _column_objects(text)
+    assert got == parse_rapid(text, "m.mod")
+    assert (displaced_rows, move_rows) == (48, 24)
+    assert [u.target_name for u in got.motions if u.target_name] == names * 3
+
+
 def test_displaced_rows_share_their_words():
     """Batches and single rows store each instruction, tool and reason once."""
     text = _module(3)

@@ -33,7 +33,7 @@ SPANS = 6
 SIMPLE_GROUPS = (1, 3, 4, 5, 6, 2, 7)
 """fast.py ``_SIMPLE_MOVE``'s groups: instruction, name, index, tool, wobj, target, where
 the arguments end."""
-MIXED_GROUPS = (1, 3, 4, 8, 9, 2, 10)
+MIXED_GROUPS = (1, 6, 7, 8, 9, 5, 10)
 """The same of fast.py ``_MIXED_MOVE`` (its displaced moves: :data:`~.displaced.GROUPS`)."""
 INSTRUCTION = 5
 """Letters of the instruction word (MoveL, MoveJ) that starts every match of fast.py's
@@ -251,7 +251,7 @@ class MoveTable:
         moved: list = []     # of displaced moves
         for ms in chain(([first],), matches_in_turn(regex, text, first.end(), end)):
             pos = ms[-1].end()
-            found = list(map(_GROUP, ms, repeat(3)))   # None: a displaced move
+            found = list(map(_GROUP, ms, repeat(MIXED_GROUPS[1])))   # None: displaced
             if None not in found:
                 plain += ms
                 names += found

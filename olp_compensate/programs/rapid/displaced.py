@@ -29,7 +29,7 @@ from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
 from .columns import _END, _GROUP, _START, INSTRUCTION, lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
-GROUPS = (1, 5, 6, 7, 8, 9, 10)
+GROUPS = (1, 2, 3, 4, 8, 9, 10)
 """fast.py ``_MIXED_MOVE``'s groups of a displaced move: instruction, target expression,
 function, the displaced target's name, tool, wobj, where the arguments end."""
 _WIDTH = 10
@@ -58,8 +58,8 @@ class DisplacedMoves:
         """Add a row: a ``_MIXED_MOVE`` match ``m`` of a displaced move (fast.py; groups
         :data:`GROUPS`); its line and column are set by :meth:`place`."""
         regs = m.regs
-        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[10][0], *regs[5], *regs[7]))
-        instruction, function, tool, wobj = m.group(1, 6, 8, 9)
+        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[10][0], *regs[2], *regs[4]))
+        instruction, function, tool, wobj = m.group(1, 3, 8, 9)
         words = self._words
         instruction = words.setdefault(instruction, instruction)
         key = (function, instruction)
