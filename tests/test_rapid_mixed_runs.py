@@ -109,6 +109,40 @@ def test_a_long_interleaved_run_is_read_in_batches_split_by_kind():
     assert [u.source[1] for u in got.motions] == list(range(10, 2010))
 
 
+@pytest.mark.parametrize("held", [1, 7, 16, 40])
+@pytest.mark.parametrize("seed", [0, 5, 9])
+def test_matches_held_and_added_every_few_give_the_same_rows(monkeypatch, seed, held):
+    """``run_mixed`` holds a run's matches of each kind and adds them every
+    ``MIXED_BATCH`` matches (and at the run's end): with a few held at a time (rows added
+    row by row, in the first batches, mid-batch) the objects are the object parse's, and
+    the tables the same rows as with the default."""
+    from olp_compensate.programs.rapid import columns
+    text = _module(seed)
+    want = parse_rapid(text, "m.mod")
+    default = _column_objects(text)
+    monkeypatch.setattr(columns, "MIXED_BATCH", held)
+    got = _column_objects(text)
+    assert got[0] == want
+    assert got == default
+
+
+def test_targets_named_like_offs_or_reltool_are_plain_moves_in_a_mixed_run():
+    """_MIXED_MOVE tries the Offs()/RelTool() form first: a plain target whose name
+    starts like that (``Offs``, ``RelTool1``, ``offset``) is still read as a plain move,
+    in a run of both kinds, as the object parse reads it."""
+    names = ["Offs", "RelTool", "offs1", "RELTOOLx", "Offset", "Rel", "O", "p1"]
+    decls = "".join(f"    VAR robtarget {n}:={LITERAL};\r\n" for n in names)
+    body = "".join(
+        f"    MoveL {n},v500,z10,tGun;\r\n    MoveJ Offs({n},0,0,{k}),v500,z10,tGun;\r\n"
+        f"    MoveL RelTool({n},0,0,-{k}),v500,z10,tGun\\WObj:=wTable;\r\n"
+        for k, n in enumerate(names * 3))
+    text = "MODULE M\r\n  PROC main()\r\n" + decls + body + "  ENDPROC\r\nENDMODULE\r\n"
+    got, displaced_rows, move_rows = _column_objects(text)
+    assert got == parse_rapid(text, "m.mod")
+    assert (displaced_rows, move_rows) == (48, 24)
+    assert [u.target_name for u in got.motions if u.target_name] == names * 3
+
+
 def test_displaced_rows_share_their_words():
     """Batches and single rows store each instruction, tool and reason once."""
     text = _module(3)
@@ -139,3 +173,24 @@ def test_a_routines_own_targets_are_read_in_runs_up_to_any_other_declaration(odd
         rows = 40 + (odd == "CONST robtarget")
         assert len(columns.targets) == rows
         assert set(columns.targets.routines) == {"main"}
+
+
+@pytest.mark.parametrize("file", ["m.mod", "cell 2, 100%d.mod", 'a "b".mod'])
+@pytest.mark.parametrize("seed", [1, 4, 7])
+def test_displaced_rows_csv_lines_are_their_report_rows_lines(seed, file):
+    """``DisplacedMoves.csv_lines`` (written without making the rows, the fields after
+    the column once per tool, work object and reason) gives each row's line as
+    ``CsvRows.line`` writes its report row, for any mix of forms and a file name the CSV
+    must quote or that holds a '%'."""
+    from olp_compensate.compensation.report_csv import CsvRows
+
+    text = _module(seed)
+    table = DisplacedMoves()
+    parse_rapid_columns(text, file, table)
+    assert len(table) > 8
+    rows = list(range(len(table)))
+    random.Random(seed).shuffle(rows)
+    for n_joints in (6, 7):
+        writer = CsvRows(n_joints)
+        want = [writer.line(table.report_row(i, text, file)) + "\n" for i in rows]
+        assert table.csv_lines(rows, text, file, writer) == want

@@ -25,9 +25,6 @@ class CsvRows:
             n_joints) + ["%s"]) + "\n"
         self.width = 12 + bool(n_joints)    # fields of a column row
         self.empty_joints = "," * (n_joints - 1)
-        # a row with no number (a run-time motion): target, file, line, column, status,
-        # tool, wobj, config before and after, note, each already a CSV field
-        self.bare_line = "%s,%s,%d,%d,%s,%s,%s,,,,,,%s,%s," + self.empty_joints + ",%s\n"
         # a row of a target not compensated: no correction, its joints (or none)
         self.failed_line = "%s,%s,%d,%d,%s,%s,%s,,,,,,%s,%s,%s,%s\n"
         self.quoted = Quoted()

@@ -184,9 +184,10 @@ def plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = 
         keep_targets[rows[k]] = False   # a routine's target named in another routine
     moved = np.zeros(len(lower), bool)
     moved[rows[rows >= 0]] = True
-    for name in (displaced_names(program) | set(displaced)) & row_of.keys():
-        if not moved[row_of[name]]:    # moved to only through Offs()/RelTool()
-            keep_targets[row_of[name]] = False
+    bases = np.fromiter(map(row_of.get, displaced, repeat(-1)), np.intp, len(displaced))
+    displacing = np.concatenate([bases[bases >= 0], _rows_of(row_of, [
+        name for name in displaced_names(program) if name in row_of])])
+    keep_targets[displacing[~moved[displacing]]] = False   # moved to only through Offs()...
     codes = _triple_codes(moves)[1][rows >= 0]
     moving = rows[rows >= 0]
     first = np.full(len(lower), -1, np.int64)
@@ -194,7 +195,6 @@ def plain_rows(program: Program, columns: ModuleColumns, displaced: list[str] = 
     keep_targets[moving[codes != first[moving]]] = False   # another in a later motion
     keep_moves = (rows >= 0) & ~indexed
     keep_moves[keep_moves] = keep_targets[rows[keep_moves]]
-    bases = np.fromiter((row_of.get(name, -1) for name in displaced), np.intp, len(displaced))
     keep_displaced = bases >= 0
     keep_displaced[keep_displaced] = keep_targets[bases[keep_displaced]]
     return keep_targets, keep_moves, keep_displaced

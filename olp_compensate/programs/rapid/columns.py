@@ -33,8 +33,13 @@ SPANS = 6
 SIMPLE_GROUPS = (1, 3, 4, 5, 6, 2, 7)
 """fast.py ``_SIMPLE_MOVE``'s groups: instruction, name, index, tool, wobj, target, where
 the arguments end."""
-MIXED_GROUPS = (1, 3, 4, 8, 9, 2, 10)
+MIXED_GROUPS = (1, 6, 7, 8, 9, 5, 10)
 """The same of fast.py ``_MIXED_MOVE`` (its displaced moves: :data:`~.displaced.GROUPS`)."""
+INSTRUCTION = 5
+"""Letters of the instruction word (MoveL, MoveJ) that starts every match of fast.py's
+move regexes (their group 1): its span is (start, start + 5) of the match's start."""
+MIXED_BATCH = 8192
+"""Matches :meth:`MoveTable.run_mixed` holds before adding them as rows."""
 _BRACKETS = {ord("["): " ", ord("]"): " "}
 
 
@@ -235,21 +240,32 @@ class MoveTable:
         """:meth:`run` of ``regex`` (fast.py ``_MIXED_MOVE``, groups :data:`MIXED_GROUPS`),
         a plain move or an Offs()/RelTool() one each: the plain ones rows here, the others
         rows of ``displaced`` (a :class:`~.displaced.DisplacedMoves`, its ``extend``), each
-        batch split by kind. Returns where they end."""
+        batch split by kind, the matches of each kind added together at the end of the run
+        (or every :data:`MIXED_BATCH` of them): a routine's run of a few hundred moves
+        meets several short batches. Returns where they end."""
         first = regex.match(text, pos, end)   # anchored: no search where none starts
         if first is None:
             return pos
+        plain: list = []     # matches of plain moves not yet added, and their names
+        names: list = []
+        moved: list = []     # of displaced moves
         for ms in chain(([first],), matches_in_turn(regex, text, first.end(), end)):
             pos = ms[-1].end()
-            names = list(map(_GROUP, ms, repeat(3)))   # None: a displaced move
-            if None not in names:
-                self.extend(ms, routine, MIXED_GROUPS, names)
-                continue
-            plain = [name is not None for name in names]
-            if any(plain):
-                self.extend(list(compress(ms, plain)), routine, MIXED_GROUPS,
-                            list(compress(names, plain)))
-            displaced.extend([m for m, kept in zip(ms, plain) if not kept], routine)
+            found = list(map(_GROUP, ms, repeat(MIXED_GROUPS[1])))   # None: displaced
+            if None not in found:
+                plain += ms
+                names += found
+            else:
+                kinds = [name is not None for name in found]
+                plain += compress(ms, kinds)
+                names += compress(found, kinds)
+                moved += [m for m, kind in zip(ms, kinds) if not kind]
+            if len(plain) + len(moved) >= MIXED_BATCH:
+                self.extend(plain, routine, MIXED_GROUPS, names)
+                displaced.extend(moved, routine)
+                plain, names, moved = [], [], []
+        self.extend(plain, routine, MIXED_GROUPS, names)
+        displaced.extend(moved, routine)
         return pos
 
     def extend(self, ms: list, routine: str | None, groups: tuple,
@@ -276,8 +292,9 @@ class MoveTable:
         self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
         self.routines.extend(repeat(routine, len(ms)))
         self.indices.extend(-1 if k is None else int(k) for k in indices)
-        _add_rows(self.spans, ms, ((_START, instruction), (_END, instruction), (_START, 0),
-                                   (_START, stop), (_START, target), (_END, target)))
+        start = np.fromiter(map(_START, ms), np.int64, len(ms))   # the instruction word's
+        _add_rows(self.spans, ms, ((_START, stop), (_START, target), (_END, target)),
+                  [start, start + INSTRUCTION, start])
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set ``line`` and ``column`` from the offsets where the text's lines start."""
@@ -401,11 +418,12 @@ def matches_in_turn(regex: re.Pattern, text: str, pos: int, end: int):
         size = min(2 * size, 8192)
 
 
-def _add_rows(spans: array, matches: list, fields) -> None:
-    """Append to ``spans`` one row per match: for each ``(method, group)`` of ``fields``,
-    ``method(match, group)`` (start or end)."""
-    columns = [np.fromiter(map(method, matches, repeat(group)), np.int64, len(matches))
-               for method, group in fields]
+def _add_rows(spans: array, matches: list, fields, first: list = ()) -> None:
+    """Append to ``spans`` one row per match: the columns ``first`` ((n,) int64 each),
+    then for each ``(method, group)`` of ``fields``, ``method(match, group)`` (start or
+    end)."""
+    columns = [*first, *(np.fromiter(map(method, matches, repeat(group)), np.int64,
+                                     len(matches)) for method, group in fields)]
     spans.frombytes(np.column_stack(columns).astype(np.int64, copy=False).tobytes())
 
 

@@ -24,12 +24,12 @@ import numpy as np
 
 from ...compensation.report import (COMPENSATED, MergedRows, PickedRows, RowSource,
                                     TargetReport, merged)
-from ...compensation.report_csv import CsvRows, csv_field
+from ...compensation.report_csv import CsvRows
 from ..targets import MotionUse, Program, RuntimeTarget, SourceLocation
-from .columns import _END, _GROUP, _START, lines_and_columns
+from .columns import _END, _GROUP, _START, INSTRUCTION, lines_and_columns
 from .instructions import RUNTIME_FUNCS
 
-GROUPS = (1, 5, 6, 7, 8, 9, 10)
+GROUPS = (1, 2, 3, 4, 8, 9, 10)
 """fast.py ``_MIXED_MOVE``'s groups of a displaced move: instruction, target expression,
 function, the displaced target's name, tool, wobj, where the arguments end."""
 _WIDTH = 10
@@ -58,8 +58,8 @@ class DisplacedMoves:
         """Add a row: a ``_MIXED_MOVE`` match ``m`` of a displaced move (fast.py; groups
         :data:`GROUPS`); its line and column are set by :meth:`place`."""
         regs = m.regs
-        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[10][0], *regs[5], *regs[7]))
-        instruction, function, tool, wobj = m.group(1, 6, 8, 9)
+        self.numbers.extend((0, 0, *regs[1], regs[0][0], regs[10][0], *regs[2], *regs[4]))
+        instruction, function, tool, wobj = m.group(1, 3, 8, 9)
         words = self._words
         instruction = words.setdefault(instruction, instruction)
         key = (function, instruction)
@@ -95,12 +95,13 @@ class DisplacedMoves:
         self.wobjs.extend(None if w is None else words.setdefault(w, w) for w in wobjs)
         self.routines.extend(repeat(routine, len(ms)))
         n = len(ms)
+        start = np.fromiter(map(_START, ms), np.int64, n)   # the instruction word's
         columns = [np.fromiter(map(method, ms, repeat(group)), np.int64, n) for method, group
-                   in ((_START, instruction), (_END, instruction), (_START, 0), (_START, stop),
-                       (_START, expression), (_END, expression), (_START, name),
-                       (_END, name))]
+                   in ((_START, stop), (_START, expression), (_END, expression),
+                       (_START, name), (_END, name))]
         zero = np.zeros(n, np.int64)
-        self.numbers.frombytes(np.column_stack([zero, zero, *columns]).tobytes())
+        self.numbers.frombytes(np.column_stack(
+            [zero, zero, start, start + INSTRUCTION, start, *columns]).tobytes())
 
     def place(self, line_starts: np.ndarray) -> None:
         """Set each row's 1-based line and column, of where its target expression starts,
@@ -147,16 +148,24 @@ class DisplacedMoves:
 
     def csv_lines(self, rows: list[int], text: str, file: str, writer: CsvRows) -> list[str]:
         """The report's CSV lines of rows ``rows``: those of :meth:`report_row`, written
-        without making the rows."""
+        without making the rows: the fields after the column, the same for every row of
+        one tool, work object and reason, written once per such triple, and the target
+        expression quoted as it is (an Offs()/RelTool() expression of this table holds
+        commas and no quote: fast.py ``_OFFSET``)."""
         s, tools, wobjs, reasons = self.numbers, self.tools, self.wobjs, self.reasons
-        line, quoted = writer.bare_line, writer.quoted
-        file, status = quoted[file], quoted["runtime"]
+        quoted = writer.quoted
+        line = ('"%s",' + quoted[file].replace("%", "%%") + ",%d,%d," + quoted["runtime"]
+                + ",%s")
+        ends: dict = {}    # (tool, wobj, reason) -> the line's end
         out = []
         for i in rows:
             k = _WIDTH * i
-            out.append(line % (csv_field(text[s[k + 6]:s[k + 7]]), file, s[k], s[k + 1],
-                               status, quoted[tools[i] or ""], quoted[wobjs[i] or ""], "",
-                               "", quoted[reasons[i]]))
+            key = (tools[i], wobjs[i], reasons[i])
+            end = ends.get(key)
+            if end is None:
+                end = ends[key] = (f"{quoted[tools[i] or '']},{quoted[wobjs[i] or '']},,,,,,,,"
+                                   f"{writer.empty_joints},{quoted[reasons[i]]}\n")
+            out.append(line % (text[s[k + 6]:s[k + 7]], s[k], s[k + 1], end))
         return out
 
     def subset(self, keep: np.ndarray) -> DisplacedMoves:
