@@ -8,7 +8,9 @@ varied inputs.
   given, its history written in place, stops the same starts as the reduction of every
   target with a stacked history, call after call, whatever the order of the starts;
 - the ends the rule judges (:func:`~.rule_search._judged`) are turned in one batch as
-  they were in two (reached, the other given).
+  they were in two (reached, the other given);
+- the notes of :func:`~.failures.explain_failures` (a 'branch_changed' note written once
+  per pair of configurations) are those written row by row.
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from olp_compensate.compensation import rule_search
+from olp_compensate.calibration.simulate import random_joints
+from olp_compensate.compensation import failures, rule_search
 from olp_compensate.compensation.ik.stalls import (CRAWL_RELATIVE, REACHED_SCORE,
                                                    BehindAndStalled)
 from olp_compensate.compensation.pose import Compensator
@@ -152,3 +155,58 @@ def test_judged_ends_are_turned_as_in_two_batches(world, seed):
     got = rule_search._judged(comp, end_q, reason, given)
     want = _plain_turned(comp, end_q, reason, given)
     assert np.array_equal(got.q.view(np.int64), want.view(np.int64))
+
+
+def _plain_notes(comp, solution, confdata):
+    """The notes of the failed rows of a decided ``solution`` written row by row."""
+    q_ctrl_of, config_of = failures._turned_and_configs(
+        comp, solution.q[~solution.success])
+    failed = np.flatnonzero(~solution.success)
+    limits = failures._Ranges.of(comp.robot)
+    notes = []
+    for k, row in enumerate(failed.tolist()):
+        reason = str(solution.reason[row])
+        config = config_of[k]
+        words = failures._range_words(limits, q_ctrl_of[k][None])[0] \
+            if reason == "joint_limit" and config is not None else []
+        asked = failures._config_words(confdata[row])
+        found = failures._config_words(config) if config is not None else "none"
+        notes.append(failures._note(reason, words, config is not None,
+                                    bool(solution.on_asked[row]), asked, found,
+                                    float(solution.position_error_m[row]),
+                                    float(solution.rotation_error_rad[row])))
+    return failed, notes
+
+
+def test_explained_notes_are_those_written_row_by_row(world):
+    """A batch of targets that fail every way (out of reach, past the ranges on the asked
+    configuration, reached only on another), asked on varied configurations."""
+    comp = world
+    robot = comp.robot
+    ranges = robot.controller_ranges
+    rng = np.random.default_rng(12)
+    q_ctrl = random_joints(robot, 240, rng, margin=0.3)
+    for k in range(0, 240, 2):                 # one axis of 2, 3 and 5 past an end
+        axis, side = (1, 2, 4)[k % 3], (k // 2) % 2
+        q_ctrl[k, axis] = ranges[axis, side] + np.radians(8.0 if side else -8.0)
+    q = robot.joints_from_controller(q_ctrl)
+    desired = comp.nominal_flange(q)
+    desired[1::6, :3, 3] *= 2.5                # out of reach
+    confdata = comp.confdata(q)
+    confdata[3::4, 3] = (confdata[3::4, 3] + 2) % 8      # another configuration asked for
+    # a few poses asked for on each of the eight configurations (the same one found)
+    desired = np.concatenate([desired, np.repeat(desired[5:40:5], 8, axis=0)])
+    again = np.repeat(confdata[5:40:5], 8, axis=0)
+    again[:, 3] = np.tile(np.arange(8), 7)
+    confdata = np.concatenate([confdata, again])
+    _, _, solution, _ = comp.compensate_flanges(desired, None, confdata)
+    reports = failures.explain_failures(comp, solution, desired, confdata)
+    failed, want = _plain_notes(comp, solution, confdata)
+    got = [reports[row].note for row in failed.tolist()]
+    statuses = {reports[row].status for row in failed.tolist()}
+    assert {"branch_changed", "joint_limit", "unreachable"} <= statuses
+    changed = [row for row in failed.tolist() if reports[row].status == "branch_changed"]
+    pairs = {(tuple(confdata[row]), reports[row].config) for row in changed}
+    assert len(pairs) > len({found for _, found in pairs})   # one found, several asked
+    assert all(type(reports[row].status) is str for row in failed.tolist())
+    assert got == want
