@@ -128,7 +128,7 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
     failed = np.flatnonzero(~solution.success)
     out: list[FailureReport | None] = [None] * len(solution.success)
     q_ctrl_of, config_of = _turned_and_configs(comp, solution.q[failed])
-    reasons = solution.reason[failed].tolist()
+    reasons = solution.reason[failed].astype(str).tolist()
     limited = np.flatnonzero((solution.reason[failed] == "joint_limit")
                              & np.all(np.isfinite(q_ctrl_of), axis=1))
     range_words: list[list[str]] = [[] for _ in reasons]
@@ -139,20 +139,24 @@ def explain_failures(comp: Compensator, solution: IKSolution, desired_flange: np
     dist_m = solution.position_error_m[failed].tolist()
     dist_rad = solution.rotation_error_rad[failed].tolist()
     written = _ConfigWords()
-    asked_words = None if words is not None or confdata is None else \
-        [written[tuple(c)] for c in np.asarray(confdata)[failed].tolist()]
-    for k, row in enumerate(failed.tolist()):
-        reason = str(reasons[k])
-        q_ctrl, config = q_ctrl_of[k], config_of[k]
+    asked_words = [None] * len(reasons) if words is not None or confdata is None else \
+        [written[c] for c in map(tuple, np.asarray(confdata)[failed].tolist())]
+    changed: dict = {}      # 'branch_changed' notes by (asked, found): a batch has a few dozen
+    for row, reason, q_ctrl, config, asked, range_words_k, on_asked_k, dist_m_k, dist_rad_k \
+            in zip(failed.tolist(), reasons, q_ctrl_of, config_of, asked_words, range_words,
+                   on_asked, dist_m, dist_rad):
         has_q = config is not None
         if words is not None:
             asked = words(row, None) or None
             found = words(row, q_ctrl) if has_q else "none"
         else:
-            asked = None if asked_words is None else asked_words[k]
-            found = written[config] if config is not None else "none"
-        note = _note(reason, range_words[k], has_q, bool(on_asked[k]), asked, found,
-                     float(dist_m[k]), float(dist_rad[k]))
+            found = written[config] if has_q else "none"
+        note = changed.get((asked, found)) if reason == "branch_changed" else None
+        if note is None:
+            note = _note(reason, range_words_k, has_q, on_asked_k, asked, found, dist_m_k,
+                         dist_rad_k)
+            if reason == "branch_changed":
+                changed[asked, found] = note
         out[row] = FailureReport(note=note, joints=q_ctrl, config=config, status=reason)
     return out
 

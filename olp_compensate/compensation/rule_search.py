@@ -199,10 +199,9 @@ def _judged(comp: Compensator, end_q: np.ndarray, reason: np.ndarray,
     r, n = end_q.shape
     reached = np.isin(reason, ("ok", "singular"))
     q = np.full((r, n), np.nan)
-    if np.any(reached):
-        q[reached] = turn_toward_ranges(robot, robot.controller_from_joints(end_q[reached]))
-    q[~reached & given] = turn_toward_ranges(
-        robot, robot.controller_from_joints(end_q[~reached & given]))
+    some = reached | given                # in one batch (each row's arithmetic its own)
+    if np.any(some):
+        q[some] = turn_toward_ranges(robot, robot.controller_from_joints(end_q[some]))
     inside = reached.copy()
     excess = np.full(r, np.inf)
     cfx = np.full(r, -1)
@@ -232,8 +231,10 @@ def _first_copies(starts: np.ndarray) -> np.ndarray:
     form often stretch to the same joints for a pose out of reach."""
     k, b, n = starts.shape
     bits = np.ascontiguousarray(starts, dtype=float).view(np.int64)
-    same = np.all(bits[:, :, None, :] == bits[:, None, :, :], axis=-1)          # (k, b, b)
-    first = np.where(np.any(same, axis=2), np.argmax(same, axis=2), np.arange(b))
+    same = bits[:, :, None, 0] == bits[:, None, :, 0]                             # (k, b, b)
+    for a in range(1, n):        # axis by axis: no (k, b, b, n) array, no reduction over n
+        same &= bits[:, :, None, a] == bits[:, None, :, a]
+    first = np.argmax(same, axis=2)          # (a start's bits equal its own: never none)
     return (first + b * np.arange(k)[:, None]).reshape(-1)
 
 

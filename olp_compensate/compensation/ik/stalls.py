@@ -85,10 +85,11 @@ class BehindAndStalled:
         rotation = np.sqrt(np.einsum("ij,ij->i", err[:, 3:], err[:, 3:]))
         score = position + 0.1 * rotation
         self.score[act] = score
-        best = np.minimum.reduceat(self.score, self.first)[self.target[act]]
-        slot = steps % self.window
-        past = self.history[act, slot]            # `window` steps ago: squared error, score
-        self.history[act, slot] = np.stack([cost, score], axis=1)
+        best = self._best(self.target[act])
+        at = act * self.window + steps % self.window      # (start, slot) in the history
+        history = self.history.reshape(-1, 2)             # (a view)
+        past = history[at]                        # `window` steps ago: squared error, score
+        history[at, 0], history[at, 1] = cost, score
         before = past[:, 0]
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
         slow = cost > (1.0 - CRAWL_RELATIVE) * before
@@ -99,6 +100,17 @@ class BehindAndStalled:
         if self.steps is not None and len(some):
             stop[some] = self._hopeless(act[some], steps[some], cost[some], past[some])
         return stop
+
+    def _best(self, target: np.ndarray) -> np.ndarray:
+        """(k,) the least latest score of the starts of each of ``target (k,)``: only the
+        targets from the least to the greatest of them are reduced (a pool holds a few
+        hundred of a search's thousands)."""
+        if not len(target):
+            return np.zeros(0)
+        lo, hi = target.min(), target.max()
+        a = self.first[lo]
+        return np.minimum.reduceat(self.score[a:self.end[hi]],
+                                   self.first[lo:hi + 1] - a)[target - lo]
 
     def _hopeless(self, rows: np.ndarray, steps: np.ndarray, cost: np.ndarray,
                   past: np.ndarray) -> np.ndarray:
