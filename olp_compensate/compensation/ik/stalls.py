@@ -86,10 +86,7 @@ class BehindAndStalled:
         score = position + 0.1 * rotation
         self.score[act] = score
         best = self._best(self.target[act])
-        at = act * self.window + steps % self.window      # (start, slot) in the history
-        history = self.history.reshape(-1, 2)             # (a view)
-        past = history[at]                        # `window` steps ago: squared error, score
-        history[at, 0], history[at, 1] = cost, score
+        past = self._swap_history(act, steps, cost, score)
         before = past[:, 0]
         stalled = cost > (1.0 - self.relative) * before          # inf before: never
         slow = cost > (1.0 - CRAWL_RELATIVE) * before
@@ -100,6 +97,16 @@ class BehindAndStalled:
         if self.steps is not None and len(some):
             stop[some] = self._hopeless(act[some], steps[some], cost[some], past[some])
         return stop
+
+    def _swap_history(self, act: np.ndarray, steps: np.ndarray, cost: np.ndarray,
+                      score: np.ndarray) -> np.ndarray:
+        """(k, 2) the squared errors and scores of starts ``act`` :attr:`window` steps
+        ago, replaced in the history by ``cost`` and ``score`` (k,) of ``steps`` now."""
+        at = act * self.window + steps % self.window      # (start, slot) in the history
+        history = self.history.reshape(-1, 2)             # (a view)
+        past = history[at]
+        history[at, 0], history[at, 1] = cost, score
+        return past
 
     def _best(self, target: np.ndarray) -> np.ndarray:
         """(k,) the least latest score of the starts of each of ``target (k,)``: only the
