@@ -95,7 +95,7 @@ class BehindAndStalled:
         stop = (stalled | crawling) & (behind > self.margin)
         some = np.flatnonzero(slow & ~stop & (behind > self.margin))
         if self.steps is not None and len(some):
-            stop[some] = self._hopeless(act[some], steps[some], cost[some], past[some])
+            stop[some] = self._cannot_catch_up(act[some], steps[some], cost[some], past[some])
         return stop
 
     def _swap_history(self, act: np.ndarray, steps: np.ndarray, cost: np.ndarray,
@@ -119,8 +119,8 @@ class BehindAndStalled:
         return np.minimum.reduceat(self.score[a:self.end[hi]],
                                    self.first[lo:hi + 1] - a)[target - lo]
 
-    def _hopeless(self, rows: np.ndarray, steps: np.ndarray, cost: np.ndarray,
-                  past: np.ndarray) -> np.ndarray:
+    def _cannot_catch_up(self, rows: np.ndarray, steps: np.ndarray, cost: np.ndarray,
+                         past: np.ndarray) -> np.ndarray:
         """(c,) which crawling starts ``rows`` (``steps`` taken, squared errors ``cost``,
         ``past (c, 2)`` squared error and score a window ago) cannot catch up with the
         best start of their target that has taken a step (not one set aside as it
